@@ -1,0 +1,54 @@
+"""The ``mrfswarm`` command: one module per subcommand, errors turned into one line.
+
+Every module of this package that defines ``add_parser(subparsers)`` (which sets
+``func``) is a subcommand; they are found, not listed. A :class:`MrfswarmError` (bad config, bad input, missing
+backend) becomes one line on stderr and exit code 2; no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import pkgutil
+import sys
+
+from mrfswarm.errors import MrfswarmError
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # argparse's default prints usage; one line is enough
+        self.exit(2, f"mrfswarm: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="mrfswarm", description="Swarm trajectory planning with MRF optimization.")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log progress to stderr")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        mod = importlib.import_module(f"{__name__}.{info.name}")
+        if hasattr(mod, "add_parser"):
+            mod.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        rc = args.func(args)
+    except MrfswarmError as e:
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        print(f"mrfswarm: error: {msg}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("mrfswarm: interrupted", file=sys.stderr)
+        return 130
+    return int(rc or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

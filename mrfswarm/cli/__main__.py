@@ -1,0 +1,5 @@
+import sys
+
+from mrfswarm.cli import main
+
+sys.exit(main())

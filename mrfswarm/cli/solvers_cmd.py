@@ -1,0 +1,30 @@
+"""``mrfswarm solvers``: every QP and MRF backend, installed or not, with the install hint."""
+
+from __future__ import annotations
+
+import argparse
+
+import solvers
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("solvers", help="list every QP and MRF backend and how to install it")
+    p.set_defaults(func=run)
+
+
+def table() -> str:
+    """The listing, one row per backend of each registry."""
+    lines = []
+    for title, registry in (("QP backends (--qp)", solvers.qp.BACKENDS), ("MRF methods (--mrf)", solvers.mrf.METHODS)):
+        lines.append(title)
+        width = max(len(b.name) for b in registry)
+        for b in registry:
+            state = "installed" if b.is_available() else f"missing: {b.install_hint}"
+            lines.append(f"  {b.name:<{width}}  {state:<40}  {b.summary}")
+        lines.append("")
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def run(args: argparse.Namespace) -> int:
+    print(table(), end="")
+    return 0

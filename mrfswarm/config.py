@@ -1,0 +1,330 @@
+"""Experiment configuration: TOML parsed into frozen dataclasses.
+
+Defaults are the paper's parameter table (Fernando & Liu, Table I), written here once.
+Unknown keys and out-of-range values raise :class:`ConfigError` naming the dotted key.
+Paths in a config are relative to the config file. ``--set a.b=v`` overrides any key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any, get_args, get_origin, get_type_hints
+
+from mrfswarm.errors import ConfigError
+
+MAP_KINDS = ("free", "boxes", "ascii", "movingai", "ros")
+SEAM_MODES = ("rest", "continuous")
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    """The map, the start swarm, the goal (metres, map frame) and the flight altitude.
+
+    ``map`` and ``start`` are tables checked by :func:`mrfswarm.maps.load_map` and
+    :func:`mrfswarm.start.start_positions`; ``goal_radius`` defines "reached the goal":
+    the swarm's centroid within this many metres of the goal.
+    """
+
+    map: dict = field(default_factory=lambda: {"kind": "free", "size": [20, 20]})
+    start: dict = field(default_factory=lambda: {"center": [5.0, 5.0], "n_robots": 5, "sigma": 2.0, "seed": 0})
+    goal: tuple[float, float] | None = None
+    goal_radius: float = 3.0
+    altitude: float = 1.0
+
+
+@dataclass(frozen=True)
+class InteractionConfig:
+    """Morse interaction potential and the k-nearest-neighbour graph.
+
+    rho'_I(d) = -a exp(-d / k_a) + b exp(-d / k_r); rho_I = rho'_I + zeta. ``zeta``
+    ``None`` means 1.01 |rho'_I(d_min)|, the smallest round value the paper allows.
+    """
+
+    a: float = 0.7
+    b: float = 0.9
+    k_a: float = 14.0
+    k_r: float = 4.0
+    k: int = 3
+    zeta: float | None = None
+
+
+@dataclass(frozen=True)
+class GoalPotentialConfig:
+    """rho_G(p) = a exp(|p - p_g| / k)."""
+
+    a: float = 3.0
+    k: float = 20.0
+
+
+@dataclass(frozen=True)
+class ObstaclePotentialConfig:
+    """m_hat = gamma where P(occupied) >= 0.5, blurred by a Gaussian of ``sigma`` cells."""
+
+    gamma: float = 5.0
+    sigma: float = 1.0
+
+
+@dataclass(frozen=True)
+class MrfConfig:
+    """The discrete stage: optimizer, search order n, stopping.
+
+    A step's label set is the free cells with dx^2 + dy^2 <= ``order``. The planner stops
+    when one optimizer run lowers the swarm energy by less than ``tol`` or after
+    ``max_steps`` steps. ``trim_backward`` drops candidate cells that point away from the
+    goal (the paper's optional heuristic).
+    """
+
+    optimizer: str = "icm"
+    order: int = 2
+    max_steps: int = 300
+    tol: float = 1e-6
+    trim_backward: bool = False
+
+
+@dataclass(frozen=True)
+class SmoothingConfig:
+    """The continuous stage (min-snap smoothing in a receding horizon)."""
+
+    enabled: bool = True
+    backend: str = "osqp"
+    degree: int = 7
+    derivative: int = 4
+    speed: float = 1.0
+    corridor: float = 0.25
+    time_refinement: bool = False
+    horizon: int = 4
+    execution: float = 0.5
+    seam: str = "rest"
+    safety_distance: float = 0.5
+    v_max: float = 2.0
+    a_max: float = 4.0
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """Closed-loop quadrotor simulation of every robot (RotorPy)."""
+
+    enabled: bool = True
+    vehicle: str = "crazyflie"
+    rate_hz: float = 100.0
+
+
+@dataclass(frozen=True)
+class Config:
+    """A whole experiment. ``base_dir`` is where relative paths are resolved."""
+
+    scenario: ScenarioConfig = field(default_factory=ScenarioConfig)
+    interaction: InteractionConfig = field(default_factory=InteractionConfig)
+    goal_potential: GoalPotentialConfig = field(default_factory=GoalPotentialConfig)
+    obstacle_potential: ObstaclePotentialConfig = field(default_factory=ObstaclePotentialConfig)
+    mrf: MrfConfig = field(default_factory=MrfConfig)
+    smoothing: SmoothingConfig = field(default_factory=SmoothingConfig)
+    simulation: SimulationConfig = field(default_factory=SimulationConfig)
+    base_dir: Path = field(default=Path("."), compare=False)
+
+    def replace(self, **sections: Any) -> Config:
+        """A copy with whole sections replaced (``cfg.replace(mrf=...)``)."""
+        return dataclasses.replace(self, **sections)
+
+    def to_dict(self) -> dict:
+        """The config as plain TOML-able data (``base_dir`` left out)."""
+        d = dataclasses.asdict(self)
+        d.pop("base_dir")
+        return d
+
+
+_SECTIONS = {f.name: f.type for f in fields(Config) if f.name != "base_dir"}
+
+
+def _section_types() -> dict[str, type]:
+    hints = get_type_hints(Config)
+    return {name: hints[name] for name in _SECTIONS}
+
+
+def _coerce(key: str, value: Any, hint: Any) -> Any:
+    """Check ``value`` against the annotation ``hint``; return it in the field's type."""
+    origin = get_origin(hint)
+    args = get_args(hint)
+    if origin is None and hint is type(None):
+        if value is not None:
+            raise ConfigError(f"{key} must be empty, got {value!r}")
+        return None
+    if args and type(None) in args:  # Optional[X]
+        if value is None:
+            return None
+        inner = [a for a in args if a is not type(None)]
+        return _coerce(key, value, inner[0])
+    if hint is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{key} must be true or false, got {value!r}")
+        return value
+    if hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{key} must be an integer, got {value!r}")
+        return value
+    if hint is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{key} must be a number, got {value!r}")
+        if not math.isfinite(value):
+            raise ConfigError(f"{key} must be finite, got {value!r}")
+        return float(value)
+    if hint is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{key} must be a string, got {value!r}")
+        return value
+    if hint is dict:
+        if not isinstance(value, dict):
+            raise ConfigError(f"{key} must be a table, got {value!r}")
+        return value
+    if origin is tuple:
+        if not isinstance(value, (list, tuple)) or len(value) != len(args):
+            raise ConfigError(f"{key} must be a list of {len(args)} numbers, got {value!r}")
+        return tuple(_coerce(f"{key}[{i}]", v, args[i]) for i, v in enumerate(value))
+    raise TypeError(f"unsupported config annotation {hint!r} for {key}")  # a bug in this module, not user input
+
+
+def _build_section(name: str, cls: type, table: Any) -> Any:
+    if not isinstance(table, dict):
+        raise ConfigError(f"[{name}] must be a table, got {table!r}")
+    hints = get_type_hints(cls)
+    known = {f.name for f in fields(cls)}
+    for key in table:
+        if key not in known:
+            raise ConfigError(f"unknown config key {name}.{key}; allowed: {', '.join(sorted(known))}")
+    values = {k: _coerce(f"{name}.{k}", v, hints[k]) for k, v in table.items()}
+    return cls(**values)
+
+
+def _validate(cfg: Config) -> None:
+    """Range checks that do not need the map (those live with the map and the planner)."""
+
+    def need(cond: bool, key: str, value: Any, what: str) -> None:
+        if not cond:
+            raise ConfigError(f"{key} = {value!r}: {what}")
+
+    s = cfg.scenario
+    kind = s.map.get("kind")
+    need(kind in MAP_KINDS, "scenario.map.kind", kind, f"must be one of {', '.join(MAP_KINDS)}")
+    need(s.goal is not None, "scenario.goal", s.goal, "a goal [x, y] is required")
+    need(s.goal_radius > 0, "scenario.goal_radius", s.goal_radius, "must be > 0")
+    need(s.altitude > 0, "scenario.altitude", s.altitude, "must be > 0")
+    i = cfg.interaction
+    need(i.k >= 1, "interaction.k", i.k, "must be >= 1")
+    g = cfg.goal_potential
+    need(g.a > 0, "goal_potential.a", g.a, "must be > 0")
+    need(g.k > 0, "goal_potential.k", g.k, "must be > 0")
+    o = cfg.obstacle_potential
+    need(o.gamma > 0, "obstacle_potential.gamma", o.gamma, "must be > 0")
+    need(o.sigma >= 0, "obstacle_potential.sigma", o.sigma, "must be >= 0")
+    m = cfg.mrf
+    need(m.order >= 1, "mrf.order", m.order, "must be >= 1")
+    need(m.max_steps >= 1, "mrf.max_steps", m.max_steps, "must be >= 1")
+    need(m.tol >= 0, "mrf.tol", m.tol, "must be >= 0")
+    sm = cfg.smoothing
+    need(sm.degree >= 2 * sm.derivative - 1, "smoothing.degree", sm.degree,
+         f"must be >= 2 * smoothing.derivative - 1 = {2 * sm.derivative - 1}")
+    need(1 <= sm.derivative <= 6, "smoothing.derivative", sm.derivative, "must be in 1..6")
+    need(sm.speed > 0, "smoothing.speed", sm.speed, "must be > 0")
+    need(0 < sm.corridor <= 0.5, "smoothing.corridor", sm.corridor, "must be in (0, 0.5] cell")
+    need(sm.horizon >= 1, "smoothing.horizon", sm.horizon, "must be >= 1")
+    need(0 < sm.execution <= 1, "smoothing.execution", sm.execution, "must be in (0, 1]")
+    need(sm.seam in SEAM_MODES, "smoothing.seam", sm.seam, f"must be one of {', '.join(SEAM_MODES)}")
+    need(0 < sm.safety_distance < 1, "smoothing.safety_distance", sm.safety_distance, "must be in (0, 1) cell")
+    need(2 * sm.corridor + sm.safety_distance <= 1 + 1e-12, "smoothing.corridor", sm.corridor,
+         f"two robots 1 cell apart, each {sm.corridor} off its discrete motion, would come closer than "
+         f"smoothing.safety_distance = {sm.safety_distance}; need 2 * corridor + safety_distance <= 1")
+    need(sm.v_max > 0, "smoothing.v_max", sm.v_max, "must be > 0")
+    need(sm.a_max > 0, "smoothing.a_max", sm.a_max, "must be > 0")
+    need(cfg.simulation.rate_hz >= 100, "simulation.rate_hz", cfg.simulation.rate_hz, "must be >= 100")
+
+
+def from_dict(data: dict, base_dir: Path | str = ".") -> Config:
+    """Build and validate a :class:`Config` from TOML-shaped data.
+
+    Raises
+    ------
+    ConfigError
+        Unknown key, wrong type or out-of-range value; the message names the key.
+    """
+    types = _section_types()
+    for key in data:
+        if key not in types:
+            raise ConfigError(f"unknown config section {key!r}; allowed: {', '.join(types)}")
+    sections = {name: _build_section(name, cls, data.get(name, {})) for name, cls in types.items()}
+    cfg = Config(**sections, base_dir=Path(base_dir))
+    _validate(cfg)
+    return cfg
+
+
+def parse_override(item: str) -> tuple[list[str], Any]:
+    """Parse ``a.b.c=VALUE``; VALUE is a TOML literal, or a bare string if it is not one."""
+    if "=" not in item:
+        raise ConfigError(f"--set {item!r}: expected KEY=VALUE")
+    key, raw = item.split("=", 1)
+    path = key.strip().split(".")
+    if not all(path):
+        raise ConfigError(f"--set {item!r}: empty key")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return path, value
+
+
+def apply_overrides(data: dict, overrides: list[str]) -> dict:
+    """Apply ``--set`` overrides to TOML data (nested tables created as needed)."""
+    data = _deepcopy(data)
+    for item in overrides:
+        path, value = parse_override(item)
+        node = data
+        for part in path[:-1]:
+            nxt = node.setdefault(part, {})
+            if not isinstance(nxt, dict):
+                raise ConfigError(f"--set {item!r}: {part} is not a table")
+            node = nxt
+        node[path[-1]] = value
+    return data
+
+
+def _deepcopy(d: Any) -> Any:
+    if isinstance(d, dict):
+        return {k: _deepcopy(v) for k, v in d.items()}
+    if isinstance(d, list):
+        return [_deepcopy(v) for v in d]
+    return d
+
+
+def load_config(path: str | Path | None = None, overrides: list[str] | None = None) -> Config:
+    """Read a TOML experiment config (or the defaults when ``path`` is None).
+
+    Raises
+    ------
+    ConfigError
+        Missing or unreadable file, TOML syntax error, unknown key, bad value.
+    """
+    data: dict = {}
+    base = Path(".")
+    if path is not None:
+        p = Path(path)
+        try:
+            text = p.read_text()
+        except OSError as e:
+            raise ConfigError(f"cannot read config {str(p)!r}: {e.strerror}") from e
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as e:
+            raise ConfigError(f"{p}: invalid TOML: {e}") from e
+        base = p.resolve().parent
+    if overrides:
+        data = apply_overrides(data, overrides)
+    return from_dict(data, base)
+
+
+def resolve_path(cfg: Config, p: str | Path) -> Path:
+    """A path from the config, relative to the config file's folder."""
+    p = Path(p)
+    return p if p.is_absolute() else cfg.base_dir / p

@@ -1,0 +1,156 @@
+"""The discrete energy every MRF method minimizes.
+
+A pairwise MRF over N nodes, node i choosing a label x_i in {0, ..., L_i - 1}:
+
+.. math::
+
+    E(x) = \\sum_i U_i(x_i) + \\sum_{e=(i,j)} W_e(x_i, x_j)
+
+subject to hard conflicts: for each conflict pair c = (i, j), ``conflict_mask[c, x_i, x_j]``
+must be False. Labels are padded to a common L = max L_i; the padding of node i is
+marked by ``unary[i, l] = inf`` for l >= L_i, and valid labels are the prefix
+0..L_i-1. Pairwise costs are finite (hard constraints are conflicts, never costs), and
+already include their weights. ``initial`` is a feasible labelling that every method may
+start from and that :func:`repair` falls back to.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from solvers.errors import InvalidProblem
+
+
+@dataclass(frozen=True, eq=False)
+class PairwiseMRF:
+    """A validated pairwise MRF with hard pairwise conflicts.
+
+    Parameters
+    ----------
+    unary
+        (N, L) costs; ``inf`` exactly on the padding beyond each node's labels.
+    edges
+        (E, 2) node pairs (i != j, each unordered pair at most once).
+    pairwise
+        (E, L, L) finite costs, ``pairwise[e, a, b]`` for ``x[edges[e,0]] = a`` and
+        ``x[edges[e,1]] = b``.
+    conflicts
+        (C, 2) node pairs that carry hard constraints (may differ from ``edges``).
+    conflict_mask
+        (C, L, L) booleans, True where the label pair is forbidden.
+    initial
+        (N,) a feasible labelling.
+    """
+
+    unary: np.ndarray
+    edges: np.ndarray
+    pairwise: np.ndarray
+    conflicts: np.ndarray
+    conflict_mask: np.ndarray
+    initial: np.ndarray
+
+    def __post_init__(self) -> None:
+        unary = np.ascontiguousarray(self.unary, dtype=float)
+        if unary.ndim != 2 or unary.shape[0] < 1 or unary.shape[1] < 1:
+            raise InvalidProblem(f"unary must be (N, L) with N, L >= 1, got shape {unary.shape}")
+        N, L = unary.shape
+        edges = np.asarray(self.edges, dtype=np.intp).reshape(-1, 2)
+        pairwise = np.ascontiguousarray(self.pairwise, dtype=float).reshape(-1, L, L) if len(edges) else np.zeros((0, L, L))
+        conflicts = np.asarray(self.conflicts, dtype=np.intp).reshape(-1, 2)
+        cmask = np.asarray(self.conflict_mask, dtype=bool).reshape(-1, L, L) if len(conflicts) else np.zeros((0, L, L), bool)
+        initial = np.asarray(self.initial, dtype=np.intp).reshape(-1)
+        if np.isnan(unary).any() or np.isneginf(unary).any():
+            raise InvalidProblem("unary costs must not be NaN or -inf")
+        finite = np.isfinite(unary)
+        n_labels = finite.sum(axis=1)
+        if np.any(n_labels < 1):
+            raise InvalidProblem(f"node {int(np.argmin(n_labels))} has no label")
+        if np.any(finite != (np.arange(L)[None, :] < n_labels[:, None])):
+            raise InvalidProblem("each node's valid labels must be the prefix 0..L_i-1 (inf only as padding)")
+        if pairwise.shape[0] != edges.shape[0]:
+            raise InvalidProblem(f"pairwise has {pairwise.shape[0]} tables for {edges.shape[0]} edges")
+        if not np.all(np.isfinite(pairwise)):
+            raise InvalidProblem("pairwise costs must be finite; express hard constraints as conflicts")
+        if cmask.shape[0] != conflicts.shape[0]:
+            raise InvalidProblem(f"conflict_mask has {cmask.shape[0]} tables for {conflicts.shape[0]} conflict pairs")
+        for name, pairs in (("edges", edges), ("conflicts", conflicts)):
+            if pairs.size and (pairs.min() < 0 or pairs.max() >= N):
+                raise InvalidProblem(f"{name} refer to nodes outside 0..{N - 1}")
+            if np.any(pairs[:, 0] == pairs[:, 1]):
+                raise InvalidProblem(f"{name} contain a self-loop")
+            key = np.sort(pairs, axis=1)
+            if len(np.unique(key, axis=0)) != len(key):
+                raise InvalidProblem(f"{name} contain a repeated pair")
+        if initial.shape != (N,):
+            raise InvalidProblem(f"initial has shape {initial.shape}, expected ({N},)")
+        for name, val in (("unary", unary), ("edges", edges), ("pairwise", pairwise),
+                          ("conflicts", conflicts), ("conflict_mask", cmask), ("initial", initial)):
+            object.__setattr__(self, name, val)
+        if not self.is_feasible(initial):
+            raise InvalidProblem("the initial labelling violates a label range or a hard conflict")
+
+    @property
+    def n_nodes(self) -> int:
+        return self.unary.shape[0]
+
+    @property
+    def max_labels(self) -> int:
+        return self.unary.shape[1]
+
+    @cached_property
+    def n_labels(self) -> np.ndarray:
+        """(N,) number of valid labels of each node."""
+        return np.isfinite(self.unary).sum(axis=1)
+
+    def energy(self, labels: np.ndarray) -> float:
+        """E(labels), ignoring conflicts (see :meth:`is_feasible`)."""
+        x = np.asarray(labels, dtype=np.intp)
+        e = self.unary[np.arange(self.n_nodes), x].sum()
+        if len(self.edges):
+            e += self.pairwise[np.arange(len(self.edges)), x[self.edges[:, 0]], x[self.edges[:, 1]]].sum()
+        return float(e)
+
+    def violated_conflicts(self, labels: np.ndarray) -> np.ndarray:
+        """Indices of the conflict pairs that ``labels`` violates."""
+        x = np.asarray(labels, dtype=np.intp)
+        if not len(self.conflicts):
+            return np.zeros(0, dtype=np.intp)
+        bad = self.conflict_mask[np.arange(len(self.conflicts)), x[self.conflicts[:, 0]], x[self.conflicts[:, 1]]]
+        return np.flatnonzero(bad)
+
+    def is_feasible(self, labels: np.ndarray) -> bool:
+        """True if every label is valid and no conflict is violated."""
+        x = np.asarray(labels)
+        if x.shape != (self.n_nodes,) or np.any(x < 0) or np.any(x >= self.n_labels):
+            return False
+        return self.violated_conflicts(x).size == 0
+
+
+def repair(mrf: PairwiseMRF, labels: np.ndarray) -> tuple[np.ndarray, int]:
+    """Make ``labels`` feasible by sending offending nodes back to ``mrf.initial``.
+
+    Nodes with an invalid label, and both nodes of every violated conflict, return to
+    their initial label; this repeats until no conflict is violated, which it must,
+    because the all-initial labelling is feasible.
+
+    Returns
+    -------
+    labels
+        A feasible labelling.
+    n_repaired
+        How many nodes were sent back.
+    """
+    x = np.array(labels, dtype=np.intp, copy=True)
+    reverted = np.zeros(mrf.n_nodes, dtype=bool)
+    bad = (x < 0) | (x >= mrf.n_labels)
+    while True:
+        x[bad] = mrf.initial[bad]
+        reverted |= bad
+        viol = mrf.violated_conflicts(x)
+        if viol.size == 0:
+            return x, int(np.count_nonzero(reverted & (x != np.asarray(labels))))
+        bad = np.zeros(mrf.n_nodes, dtype=bool)
+        bad[mrf.conflicts[viol].ravel()] = True

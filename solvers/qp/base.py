@@ -1,0 +1,124 @@
+"""What every QP backend module implements: a prepared (set-up) problem that solves.
+
+A backend is a subclass of :class:`PreparedQP`. Its constructor does the setup (model
+building, factorization) and is timed apart from :meth:`PreparedQP.solve`, so that
+benchmarks and the receding horizon can reuse a setup: :meth:`PreparedQP.update` loads
+new data with the same sparsity pattern, and ``solve(warm_start=x)`` starts from ``x``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from abc import ABC, abstractmethod
+from typing import ClassVar
+
+import numpy as np
+
+from solvers.errors import InfeasibleError, InvalidProblem, SolverError
+from solvers.qp.problem import QPProblem
+from solvers.qp.solution import Options, Solution, Status
+
+log = logging.getLogger(__name__)
+
+
+class PreparedQP(ABC):
+    """A QP set up in one backend, ready to be solved (and re-solved after updates)."""
+
+    name: ClassVar[str] = ""
+    #: Whether the backend accepts rows with ``l < u`` (all but ``closed_form`` do).
+    supports_inequalities: ClassVar[bool] = True
+
+    def __init__(self, problem: QPProblem, options: Options | None = None) -> None:
+        if not self.supports_inequalities and problem.has_inequalities:
+            raise InvalidProblem(
+                f"backend {self.name!r} solves equality-constrained problems only; "
+                "this problem has inequality rows"
+            )
+        self.problem = problem
+        self.options = options or Options()
+        t0 = time.perf_counter()
+        self._guarded(self._setup, problem)
+        self.setup_time_s = time.perf_counter() - t0
+
+    def _guarded(self, fn, *args):
+        """Call a backend function; its own exceptions become :class:`SolverError`."""
+        try:
+            return fn(*args)
+        except (SolverError, InvalidProblem):
+            raise
+        except Exception as e:  # the backend's own exception, wrapped with its text
+            raise SolverError(f"{self.name} failed: {type(e).__name__}: {e}", backend=self.name,
+                              status=type(e).__name__) from e
+
+    @abstractmethod
+    def _setup(self, problem: QPProblem) -> None:
+        """Build the backend's model for ``problem``."""
+
+    def update(self, problem: QPProblem) -> None:
+        """Load ``problem``, which must have the sparsity pattern of the current one.
+
+        The default sets up again; backends with a cheaper update override it.
+        """
+        self._check_same_shape(problem)
+        self.problem = problem
+        t0 = time.perf_counter()
+        self._guarded(self._setup, problem)
+        self.setup_time_s = time.perf_counter() - t0
+
+    @abstractmethod
+    def _solve(self, warm_start: np.ndarray | None) -> tuple[np.ndarray | None, Status, str, int, np.ndarray | None]:
+        """Solve; return ``(x, status, raw_status, iterations, y)``."""
+
+    def solve(self, warm_start: np.ndarray | None = None) -> Solution:
+        """Solve the loaded problem.
+
+        Raises
+        ------
+        InfeasibleError
+            When the backend reports infeasibility.
+        SolverError
+            For any other status than optimal, with the backend's status text.
+        """
+        if warm_start is not None:
+            warm_start = np.asarray(warm_start, dtype=float)
+            if warm_start.shape != (self.problem.n,):
+                raise InvalidProblem(f"warm_start has shape {warm_start.shape}, expected ({self.problem.n},)")
+        t0 = time.perf_counter()
+        x, status, raw, iters, y = self._guarded(self._solve, warm_start)
+        solve_time = time.perf_counter() - t0
+        if status is Status.INFEASIBLE:
+            raise InfeasibleError(f"{self.name}: problem infeasible (status {raw!r})", backend=self.name, status=raw)
+        if not status.ok or x is None:
+            raise SolverError(f"{self.name}: solve failed (status {raw!r})", backend=self.name, status=raw)
+        x = np.asarray(x, dtype=float).reshape(-1)
+        if not np.all(np.isfinite(x)):
+            raise SolverError(f"{self.name}: returned a non-finite solution (status {raw!r})", backend=self.name, status=raw)
+        if status is Status.OPTIMAL_INACCURATE:
+            log.warning("%s: solution only optimal to reduced accuracy (%s)", self.name, raw)
+        return Solution(
+            x=x,
+            status=status,
+            objective=self.problem.objective(x),
+            iterations=int(iters),
+            setup_time_s=self.setup_time_s,
+            solve_time_s=solve_time,
+            backend=self.name,
+            raw_status=raw,
+            y=None if y is None else np.asarray(y, dtype=float),
+        )
+
+    def _check_same_shape(self, problem: QPProblem) -> None:
+        old = self.problem
+        same = (
+            old.n == problem.n
+            and old.m == problem.m
+            and old.P.nnz == problem.P.nnz
+            and old.A.nnz == problem.A.nnz
+            and np.array_equal(old.P.indices, problem.P.indices)
+            and np.array_equal(old.P.indptr, problem.P.indptr)
+            and np.array_equal(old.A.indices, problem.A.indices)
+            and np.array_equal(old.A.indptr, problem.A.indptr)
+        )
+        if not same:
+            raise InvalidProblem("update() needs a problem with the same shape and sparsity pattern")

@@ -1,0 +1,108 @@
+"""The one standard form every QP backend receives.
+
+.. math::
+
+    \\min_x \\tfrac12 x^\\top P x + q^\\top x \\quad \\text{s.t.} \\quad l \\le A x \\le u
+
+with ``P`` symmetric positive semidefinite (stored whole, not a triangle), ``A`` sparse,
+and ``l``/``u`` possibly infinite. A row with ``l == u`` is an equality. Shapes, symmetry
+and finiteness are checked once, at construction, so backends never see a malformed
+problem.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from solvers.errors import InvalidProblem
+
+
+@dataclass(frozen=True, eq=False)
+class QPProblem:
+    """A validated quadratic program in standard form.
+
+    Parameters
+    ----------
+    P
+        (n, n) symmetric PSD cost matrix, converted to CSC.
+    q
+        (n,) linear cost.
+    A
+        (m, n) constraint matrix, converted to CSC; m may be 0.
+    l, u
+        (m,) lower and upper bounds; ``-inf``/``inf`` allowed, ``l <= u``.
+    """
+
+    P: sp.csc_matrix
+    q: np.ndarray
+    A: sp.csc_matrix
+    l: np.ndarray
+    u: np.ndarray
+
+    def __post_init__(self) -> None:
+        P = sp.csc_matrix(self.P, dtype=float)
+        q = np.asarray(self.q, dtype=float).reshape(-1)
+        n = q.size
+        A = sp.csc_matrix(self.A, dtype=float) if self.A is not None else sp.csc_matrix((0, n))
+        l = np.asarray(self.l, dtype=float).reshape(-1)
+        u = np.asarray(self.u, dtype=float).reshape(-1)
+        if P.shape != (n, n):
+            raise InvalidProblem(f"P has shape {P.shape}, expected ({n}, {n}) from q")
+        if A.shape[1] != n:
+            raise InvalidProblem(f"A has {A.shape[1]} columns, expected {n}")
+        m = A.shape[0]
+        if l.shape != (m,) or u.shape != (m,):
+            raise InvalidProblem(f"l and u must have shape ({m},), got {l.shape} and {u.shape}")
+        if not (np.all(np.isfinite(P.data)) and np.all(np.isfinite(q)) and np.all(np.isfinite(A.data))):
+            raise InvalidProblem("P, q and A must be finite (found NaN or inf)")
+        if np.any(np.isnan(l)) or np.any(np.isnan(u)):
+            raise InvalidProblem("l and u must not contain NaN")
+        if np.any(l > u):
+            i = int(np.argmax(l > u))
+            raise InvalidProblem(f"l[{i}] = {l[i]} > u[{i}] = {u[i]}")
+        asym = abs(P - P.T)
+        if asym.nnz and asym.max() > 1e-9 * max(1.0, abs(P).max()):
+            raise InvalidProblem("P must be symmetric (store the whole matrix, not a triangle)")
+        P.sort_indices()
+        A.sort_indices()
+        object.__setattr__(self, "P", P)
+        object.__setattr__(self, "q", q)
+        object.__setattr__(self, "A", A)
+        object.__setattr__(self, "l", l)
+        object.__setattr__(self, "u", u)
+
+    @property
+    def n(self) -> int:
+        """Number of variables."""
+        return self.q.size
+
+    @property
+    def m(self) -> int:
+        """Number of constraint rows."""
+        return self.A.shape[0]
+
+    @property
+    def equality_rows(self) -> np.ndarray:
+        """Boolean mask of rows with ``l == u``."""
+        return self.l == self.u
+
+    @property
+    def has_inequalities(self) -> bool:
+        """True if some row is a (one- or two-sided) inequality rather than an equality."""
+        ineq = ~self.equality_rows
+        # rows free on both sides constrain nothing
+        return bool(np.any(ineq & (np.isfinite(self.l) | np.isfinite(self.u))))
+
+    def objective(self, x: np.ndarray) -> float:
+        """The cost ``x'Px/2 + q'x`` at ``x``."""
+        return float(0.5 * x @ (self.P @ x) + self.q @ x)
+
+    def max_violation(self, x: np.ndarray) -> float:
+        """The largest violation of ``l <= Ax <= u`` at ``x`` (0 when feasible)."""
+        if self.m == 0:
+            return 0.0
+        ax = self.A @ x
+        return float(max(np.max(self.l - ax, initial=0.0), np.max(ax - self.u, initial=0.0)))

@@ -1,0 +1,94 @@
+"""The one result type and the one options object of every QP backend."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class Status(enum.Enum):
+    """What a backend reported, mapped onto one vocabulary."""
+
+    OPTIMAL = "optimal"
+    OPTIMAL_INACCURATE = "optimal_inaccurate"
+    INFEASIBLE = "infeasible"
+    UNBOUNDED = "unbounded"
+    MAX_ITER = "max_iter"
+    TIME_LIMIT = "time_limit"
+    ERROR = "error"
+
+    @property
+    def ok(self) -> bool:
+        """True for a usable (optimal) solution."""
+        return self in (Status.OPTIMAL, Status.OPTIMAL_INACCURATE)
+
+
+@dataclass(frozen=True)
+class Options:
+    """Solver settings, translated per backend in one place (the backend's module).
+
+    Parameters
+    ----------
+    eps_abs, eps_rel
+        Absolute and relative tolerances (primal and dual residuals).
+    max_iter
+        Iteration cap.
+    time_limit
+        Seconds; ``None`` for no limit.
+    verbose
+        Let the backend print.
+    polish
+        Ask first-order backends (osqp) for a solution polishing step.
+    """
+
+    eps_abs: float = 1e-8
+    eps_rel: float = 1e-8
+    max_iter: int = 20000
+    time_limit: float | None = None
+    verbose: bool = False
+    polish: bool = True
+
+    def __post_init__(self) -> None:
+        if not (self.eps_abs > 0 and self.eps_rel >= 0):
+            raise ValueError(f"tolerances must be positive, got eps_abs={self.eps_abs}, eps_rel={self.eps_rel}")
+        if self.max_iter < 1:
+            raise ValueError(f"max_iter must be >= 1, got {self.max_iter}")
+        if self.time_limit is not None and not self.time_limit > 0:
+            raise ValueError(f"time_limit must be positive, got {self.time_limit}")
+
+
+@dataclass(frozen=True)
+class Solution:
+    """What a solve returns.
+
+    Attributes
+    ----------
+    x
+        Primal solution (n,).
+    status
+        The mapped :class:`Status`.
+    objective
+        ``x'Px/2 + q'x`` evaluated by us (not the backend's own report).
+    iterations
+        Backend iterations (0 for direct solves).
+    setup_time_s, solve_time_s
+        Wall time of setting up (factorization, model building) and of solving, apart.
+    backend
+        The backend's registry name.
+    raw_status
+        The backend's own status text.
+    y
+        Constraint multipliers when the backend gives them, else ``None``.
+    """
+
+    x: np.ndarray
+    status: Status
+    objective: float
+    iterations: int
+    setup_time_s: float
+    solve_time_s: float
+    backend: str
+    raw_status: str = ""
+    y: np.ndarray | None = field(default=None, repr=False)

@@ -1,0 +1,72 @@
+"""The registries, the standard forms and the CLI's error contract."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import solvers
+from mrfswarm.cli import main
+from solvers import mrf, qp
+from solvers.errors import InvalidProblem, SolverNotFound
+from solvers.registry import Backend, Registry
+
+
+def test_unknown_backend_names_installed_ones():
+    with pytest.raises(SolverNotFound, match="installed: .*osqp"):
+        qp.BACKENDS.get("nope")
+
+
+def test_missing_backend_names_extra():
+    reg = Registry("QP", [Backend(name="ghost", entry=lambda: None, requires=("no_such_module_xyz",), extra="ghost")])
+    with pytest.raises(SolverNotFound, match=r'mrfswarm\[ghost\]'):
+        reg.get("ghost")
+    assert reg.available() == []
+
+
+def test_qp_problem_validation():
+    P, q = sp.eye(2), np.zeros(2)
+    A = sp.csc_matrix(np.ones((1, 2)))
+    with pytest.raises(InvalidProblem, match="l\\[0\\]"):
+        qp.QPProblem(P=P, q=q, A=A, l=np.array([2.0]), u=np.array([1.0]))
+    with pytest.raises(InvalidProblem, match="symmetric"):
+        qp.QPProblem(P=sp.csc_matrix(np.array([[1.0, 1.0], [0.0, 1.0]])), q=q, A=A, l=np.zeros(1), u=np.ones(1))
+    with pytest.raises(InvalidProblem, match="finite"):
+        qp.QPProblem(P=P, q=np.array([np.nan, 0.0]), A=A, l=np.zeros(1), u=np.ones(1))
+
+
+def test_mrf_problem_rejects_infeasible_initial():
+    with pytest.raises(InvalidProblem, match="initial"):
+        mrf.PairwiseMRF(
+            unary=np.zeros((2, 2)), edges=np.zeros((0, 2)), pairwise=np.zeros((0, 2, 2)),
+            conflicts=[[0, 1]], conflict_mask=[[[True, False], [False, False]]], initial=[0, 0],
+        )
+
+
+def test_repair_returns_feasible_labelling():
+    rng = np.random.default_rng(0)
+    N, L = 6, 3
+    conflicts = np.array([[i, j] for i in range(N) for j in range(i + 1, N)])
+    mask = rng.random((len(conflicts), L, L)) < 0.3
+    mask[:, 0, 0] = False  # the all-zero labelling is feasible
+    m = mrf.PairwiseMRF(unary=np.zeros((N, L)), edges=np.zeros((0, 2)), pairwise=np.zeros((0, L, L)),
+                        conflicts=conflicts, conflict_mask=mask, initial=np.zeros(N, int))
+    for _ in range(20):
+        x = rng.integers(0, L, N)
+        y, n = mrf.repair(m, x)
+        assert m.is_feasible(y)
+        assert n == np.count_nonzero(y != x)
+
+
+def test_solvers_command_lists_every_registered_backend(capsys):
+    assert main(["solvers"]) == 0
+    out = capsys.readouterr().out
+    for b in list(solvers.qp.BACKENDS) + list(solvers.mrf.METHODS):
+        assert b.name in out
+
+
+def test_solvers_never_imports_mrfswarm():
+    import pathlib
+    root = pathlib.Path(solvers.__file__).parent
+    offenders = [str(p) for p in root.rglob("*.py") if "mrfswarm" in "".join(
+        line for line in p.read_text().splitlines() if line.lstrip().startswith(("import ", "from ")))]
+    assert offenders == []
