@@ -25,8 +25,9 @@ class ScenarioConfig:
     """The map, the start swarm, the goal (metres, map frame) and the flight altitude.
 
     ``map`` and ``start`` are tables checked by :func:`mrfswarm.maps.load_map` and
-    :func:`mrfswarm.start.start_positions`; ``goal_radius`` defines "reached the goal":
-    the swarm's centroid within this many metres of the goal.
+    :func:`mrfswarm.start.start_cells`; ``goal_radius`` defines "reached the goal":
+    the swarm's centroid within this many metres of the goal. Without a goal there is no
+    goal potential (the paper's free-space formation experiments, rho_S = 0 there).
     """
 
     map: dict = field(default_factory=lambda: {"kind": "free", "size": [20, 20]})
@@ -209,7 +210,6 @@ def _validate(cfg: Config) -> None:
     s = cfg.scenario
     kind = s.map.get("kind")
     need(kind in MAP_KINDS, "scenario.map.kind", kind, f"must be one of {', '.join(MAP_KINDS)}")
-    need(s.goal is not None, "scenario.goal", s.goal, "a goal [x, y] is required")
     need(s.goal_radius > 0, "scenario.goal_radius", s.goal_radius, "must be > 0")
     need(s.altitude > 0, "scenario.altitude", s.altitude, "must be > 0")
     i = cfg.interaction
