@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
 from mrfswarm.errors import ConfigError
+from mrfswarm.maps import LOADERS
 
-MAP_KINDS = ("free", "boxes", "ascii", "movingai", "ros")
 SEAM_MODES = ("rest", "continuous")
 
 
@@ -209,7 +209,7 @@ def _validate(cfg: Config) -> None:
 
     s = cfg.scenario
     kind = s.map.get("kind")
-    need(kind in MAP_KINDS, "scenario.map.kind", kind, f"must be one of {', '.join(MAP_KINDS)}")
+    need(kind in LOADERS, "scenario.map.kind", kind, f"must be one of {', '.join(LOADERS)}")
     need(s.goal_radius > 0, "scenario.goal_radius", s.goal_radius, "must be > 0")
     need(s.altitude > 0, "scenario.altitude", s.altitude, "must be > 0")
     i = cfg.interaction

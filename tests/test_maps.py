@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mrfswarm.config import MAP_KINDS, load_config
+from mrfswarm.config import load_config
 from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.maps import LOADERS, OccupancyGrid, load_map, read_movingai, read_ros, save_movingai, save_ros
 
@@ -205,15 +205,15 @@ def test_narrow_corridor_geometry():
 
 
 def test_blocks_geometry():
-    """Edges on integers (12.5 +- 2.5 = 10, 15) pass through cell centres: a closed box takes both."""
+    """Edges on integers (12.5 +- 2.5 = 10, 15) pass through cell centres: the half-open box takes 10..14."""
     spec = {"kind": "boxes", "size": [40, 40], "boxes": [
         {"center": [12.5, 12.5], "size": [5, 5]}, {"center": [12.5, 27.5], "size": [5, 5]},
         {"center": [35, 27.5], "size": [10, 5]}]}
     g = load_map(spec, ".")
     expected = np.zeros((40, 40), dtype=bool)
-    expected[10:16, 10:16] = True
-    expected[10:16, 25:31] = True
-    expected[30:40, 25:31] = True  # x 30..40, cell 40 is off the map
+    expected[10:15, 10:15] = True  # 5 x 5 m -> 5 x 5 cells
+    expected[10:15, 25:30] = True
+    expected[30:40, 25:30] = True  # 10 x 5 m
     assert np.array_equal(g.occupied, expected)
     starts = np.array([[x, y] for x in (2, 4, 6) for y in (5, 7, 9, 11)])
     assert g.is_free(starts).all() and g.is_free(np.array([35, 15]))
@@ -221,13 +221,13 @@ def test_blocks_geometry():
 
 @pytest.mark.parametrize("res", [0.1, 0.3, 0.05, 0.7, 1.0])
 def test_box_edges_on_cell_centres_are_inside(res):
-    """Edges exactly on cell centres (a * res, b * res) take cells a..b on both axes, whatever the rounding."""
+    """Edges exactly on cell centres (a * res, b * res) take cells a..b-1 on both axes, whatever the rounding."""
     for a, b in [(1, 3), (5, 7), (3, 11), (7, 8), (10, 19)]:
         for ay, by in [(a, b), (b, 2 * b - a)]:
             box = {"center": [(a + b) / 2 * res, (ay + by) / 2 * res], "size": [(b - a) * res, (by - ay) * res]}
             g = load_map({"kind": "boxes", "size": [40, 40], "resolution": res, "boxes": [box]}, ".")
             expected = np.zeros((40, 40), dtype=bool)
-            expected[a:b + 1, ay:by + 1] = True
+            expected[a:b, ay:by] = True
             assert np.array_equal(g.occupied, expected), (a, b, ay, by)
 
 
@@ -388,10 +388,6 @@ def test_ros_save_tiny_resolution_is_valid_yaml(tmp_path):
 
 
 # -- config integration ----------------------------------------------------------------
-
-
-def test_loaders_match_config_kinds():
-    assert tuple(LOADERS) == MAP_KINDS
 
 
 def test_paths_relative_to_config_file(tmp_path):

@@ -25,9 +25,11 @@ ASCII_FREE = "."
 ASCII_OCCUPIED = "#@OT"
 _ASCII_TABLE = characters.lookup_table(ASCII_FREE, ASCII_OCCUPIED)
 
-# Box edges are closed; a cell centre within this many metres (relative to the box's
-# coordinates) of an edge counts as on it, so that edges exactly on cell centres (the
-# blocks scenario) are not decided by floating-point rounding of res * i.
+# Boxes are half-open, [lo, hi) on each axis, like cells ([c - res/2, c + res/2)): a box of
+# size L covers exactly L / res cells whatever its alignment (the blocks scenario's edges
+# fall on cell centres, the corridor's on cell edges). A cell centre within this many
+# metres (relative to the box's coordinates) of an edge counts as on it, so that such
+# edges are not decided by floating-point rounding of res * i.
 _BOX_TOL = 1e-9
 
 
@@ -42,9 +44,10 @@ def load_free(spec: dict, base_dir: Path) -> OccupancyGrid:
 def load_boxes(spec: dict, base_dir: Path) -> OccupancyGrid:
     """``{kind="boxes", size=[W, H], boxes=[{center=[x, y], size=[lx, ly]}, ...]}``.
 
-    A box (world metres) occupies every cell whose centre lies inside it, edges included:
-    cell centre c is inside when ``|c - center| <= size / 2`` on both axes. Boxes may
-    extend past the map; the part outside is dropped.
+    A box (world metres) occupies every cell whose centre lies inside it, the box taken
+    half-open like a cell: centre c is inside when ``center - size/2 <= c < center + size/2``
+    on both axes, so a box of size L covers L / resolution cells. Boxes may extend past
+    the map; the part outside is dropped.
     """
     check_keys(spec, ("kind", "size", "boxes", *_PLACEMENT), PREFIX, required=("size", "boxes"))
     w, h = size_cells(spec["size"], f"{PREFIX}.size")
@@ -67,8 +70,8 @@ def load_boxes(spec: dict, base_dir: Path) -> OccupancyGrid:
         lx, ly = positive(size[0], f"{where}.size[0]"), positive(size[1], f"{where}.size[1]")
         tol_x = _BOX_TOL * max(1.0, abs(cx), lx)
         tol_y = _BOX_TOL * max(1.0, abs(cy), ly)
-        in_x = np.abs(xs - cx) <= lx / 2 + tol_x
-        in_y = np.abs(ys - cy) <= ly / 2 + tol_y
+        in_x = (xs >= cx - lx / 2 - tol_x) & (xs < cx + lx / 2 - tol_x)
+        in_y = (ys >= cy - ly / 2 - tol_y) & (ys < cy + ly / 2 - tol_y)
         if not (in_x.any() and in_y.any()):
             log.warning("%s (center %s, size %s) contains no cell centre of the %d x %d map", where,
                         box["center"], box["size"], w, h)
