@@ -17,6 +17,8 @@ class Options:
         Cap on sweeps (ICM, Gibbs, lazy flipper) or message-passing iterations (BP, TRW-S).
     tol
         Stop when an iteration lowers the energy (or moves the bound) by less than this.
+        For the single-site moves of ICM (and the lazy flipper's flips) it is the least
+        decrease of E that a move must bring to be made: ties keep the current labels.
     seed
         Seed of any randomness (Gibbs sampling, tie breaking).
     time_limit
