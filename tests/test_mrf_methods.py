@@ -273,3 +273,11 @@ def test_gibbs_schedules_cool(schedule):
     res = mrf.minimize(m, "gibbs", mrf.Options(schedule=schedule, max_iter=20))
     assert res.stats["t_final"] < res.stats["t0"]
     check_result(m, res, "gibbs")
+
+
+def test_gibbs_survives_a_temperature_that_underflows_to_zero():
+    m = random_mrf(np.random.default_rng(7), 5, 3)
+    res = mrf.minimize(m, "gibbs", mrf.Options(max_iter=1200, cooling=0.5, temperature=1e3))
+    assert res.stats["t_final"] == 0.0
+    check_result(m, res, "gibbs")
+    assert res.stats["chain_energy"][-1] >= mrf.minimize(m, "exact").energy - 1e-9

@@ -71,7 +71,8 @@ def sample_class(le: LocalEnergy, x: np.ndarray, T: float, rng: np.random.Genera
     """Draw the labels of one independent class from their conditionals at temperature T, in place."""
     c = le.feasible_costs(x)
     z = c - c.min(axis=1, keepdims=True)  # the current label is feasible: min is finite
-    w = np.exp(-z / T)  # inf -> 0: forbidden and padding labels are never drawn
+    with np.errstate(over="ignore"):  # z / T -> inf when cold: weight 0, as it should
+        w = np.exp(-z / max(T, np.finfo(float).tiny))  # inf -> 0: forbidden and padding labels are never drawn
     cum = np.cumsum(w, axis=1)
     u = (1.0 - rng.random(le.nodes.size)) * cum[:, -1]  # in (0, total]: a zero-weight label is never hit
     x[le.nodes] = np.minimum((cum < u[:, None]).sum(axis=1), c.shape[1] - 1)

@@ -82,19 +82,31 @@ def colour_classes(mrf: PairwiseMRF, seed: int = 0) -> list[np.ndarray]:
     return [c for c in np.split(order, np.cumsum(counts)[:-1]) if c.size]
 
 
-def row_tables(mrf: PairwiseMRF) -> tuple[np.ndarray, np.ndarray]:
+def row_tables(mrf: PairwiseMRF) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """Pairwise costs and conflict masks as contiguous rows, for fast gathers.
 
-    Returns ``(W, F)``, each of shape (2 P L, L) for P pairs: row ``p*L + b`` is
-    ``table[p, :, b]`` (the first node's row given the second's label b) and row
-    ``P*L + p*L + a`` is ``table[p, a, :]`` (the second node's row given the first's a).
+    Returns ``((W0, W1), (F0, F1))``, each of shape (P L, L) for P pairs: row ``p*L + b``
+    of ``W0`` is ``pairwise[p, :, b]`` (the first node's row given the second's label b;
+    a transposed copy) and row ``p*L + a`` of ``W1`` is ``pairwise[p, a, :]`` (the second
+    node's row given the first's a; a view). Likewise for the conflict masks.
     """
     L = mrf.max_labels
 
-    def rows(t: np.ndarray) -> np.ndarray:
-        return np.concatenate([t.transpose(0, 2, 1).reshape(-1, L), t.reshape(-1, L)])
+    def rows(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return np.ascontiguousarray(t.transpose(0, 2, 1)).reshape(-1, L), t.reshape(-1, L)
 
     return rows(mrf.pairwise), rows(mrf.conflict_mask)
+
+
+def _gather(tables: tuple[np.ndarray, np.ndarray], recipe: tuple[np.ndarray, ...], x: np.ndarray) -> np.ndarray:
+    """The (n, L) rows of a recipe given the labels ``x``: first ends from ``tables[0]``, then second ends."""
+    other, base, _, n0 = recipe
+    idx = base + x[other]
+    if n0 == idx.size:
+        return tables[0][idx]
+    if n0 == 0:
+        return tables[1][idx]
+    return np.concatenate([tables[0][idx[:n0]], tables[1][idx[n0:]]])
 
 
 class LocalEnergy:
@@ -127,32 +139,35 @@ class LocalEnergy:
         self.n_incident = int(self._edge[0].size)
 
     @staticmethod
-    def _recipe(pairs: np.ndarray, p: np.ndarray, end: np.ndarray, pos: np.ndarray, L: int) -> tuple[np.ndarray, ...]:
+    def _recipe(pairs: np.ndarray, p: np.ndarray, end: np.ndarray, pos: np.ndarray, L: int) -> tuple:
         """Where the rows of the pair ends (p, end) in the set live in :func:`row_tables`.
 
-        Returns the other node of each end, the row base (so that the row is
-        ``base + x[other]``), and the flat (S*L) scatter index of each row entry.
+        Returns the other node of each end, the row base (the row is ``base + x[other]``),
+        the flat (S*L) scatter index of each row entry, and how many ends (listed first)
+        are first ends.
         """
         lab = np.arange(L, dtype=np.intp)
         if not p.size:
             z = np.zeros(0, dtype=np.intp)
-            return z, z, z
+            return z, z, z, 0
+        order = np.argsort(end, kind="stable")
+        p, end = p[order], end[order]
         other = pairs[p, 1 - end]
-        base = p * L + end * (len(pairs) * L)
         at = pos[pairs[p, end]]
-        return other, base, (at[:, None] * L + lab).ravel()
+        return other, p * L, (at[:, None] * L + lab).ravel(), int(np.count_nonzero(end == 0))
 
-    def _subset(self, recipe: tuple[np.ndarray, ...], sel: np.ndarray | None) -> tuple[tuple[np.ndarray, ...], int]:
+    def _subset(self, recipe: tuple, sel: np.ndarray | None) -> tuple[tuple, int]:
         """The recipe restricted to the rows of the nodes where ``sel`` (S,) is True, renumbered."""
         if sel is None:
             return recipe, self._size
         L = self.mrf.max_labels
-        other, base, scatter = recipe
+        other, base, scatter, n0 = recipe
         at = scatter[::L] // L
         keep = sel[at]
         newpos = np.cumsum(sel) - 1
         lab = np.arange(L, dtype=np.intp)
-        return (other[keep], base[keep], (newpos[at[keep]][:, None] * L + lab).ravel()), int(sel.sum()) * L
+        return ((other[keep], base[keep], (newpos[at[keep]][:, None] * L + lab).ravel(),
+                 int(np.count_nonzero(keep[:n0]))), int(sel.sum()) * L)
 
     def costs(self, x: np.ndarray, sel: np.ndarray | None = None) -> np.ndarray:
         """(S, L) local energies given the others' labels ``x`` (padding stays ``inf``).
@@ -160,26 +175,26 @@ class LocalEnergy:
         With ``sel``, a (S,) boolean mask, only the rows of those nodes, in order.
         """
         out = self._unary.copy() if sel is None else self._unary[sel]
-        (other, base, scatter), size = self._subset(self._edge, sel)
-        if other.size:
-            rows = self._pairwise[base + x[other]]
-            out.reshape(-1)[:] += np.bincount(scatter, weights=rows.ravel(), minlength=size)
+        recipe, size = self._subset(self._edge, sel)
+        if recipe[0].size:
+            rows = _gather(self._pairwise, recipe, x)
+            out.reshape(-1)[:] += np.bincount(recipe[2], weights=rows.ravel(), minlength=size)
         return out
 
     def forbidden(self, x: np.ndarray, sel: np.ndarray | None = None) -> np.ndarray:
         """(S, L) True where a label breaks a conflict with the others' labels ``x`` (``sel`` as in :meth:`costs`)."""
-        (other, base, scatter), size = self._subset(self._conf, sel)
+        recipe, size = self._subset(self._conf, sel)
         out = np.zeros(size, dtype=bool)
-        if other.size:
-            out[scatter[self._mask[base + x[other]].ravel()]] = True
+        if recipe[0].size:
+            out[recipe[2][_gather(self._mask, recipe, x).ravel()]] = True
         return out.reshape(-1, self.mrf.max_labels)
 
     def conflict_counts(self, x: np.ndarray) -> np.ndarray:
         """(S, L) how many conflicts each label breaks with the others' labels ``x``."""
         out = np.zeros(self._size)
-        other, base, scatter = self._conf
-        if other.size:
-            out += np.bincount(scatter, weights=self._mask[base + x[other]].ravel(), minlength=self._size)
+        if self._conf[0].size:
+            out += np.bincount(self._conf[2], weights=_gather(self._mask, self._conf, x).ravel(),
+                               minlength=self._size)
         return out.reshape(-1, self.mrf.max_labels)
 
     def feasible_costs(self, x: np.ndarray, sel: np.ndarray | None = None) -> np.ndarray:

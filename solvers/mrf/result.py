@@ -14,19 +14,23 @@ class Options:
     Parameters
     ----------
     max_iter
-        Cap on sweeps (ICM, Gibbs, lazy flipper) or message-passing iterations (BP, TRW-S).
+        Cap on sweeps (ICM, Gibbs; also each ICM descent of the lazy flipper and of
+        ``polish``), rounds of joint moves (lazy flipper) or message-passing iterations
+        (BP, TRW-S).
     tol
-        Stop when an iteration lowers the energy (or moves the bound) by less than this.
-        For the single-site moves of ICM (and the lazy flipper's flips) it is the least
-        decrease of E that a move must bring to be made: ties keep the current labels.
+        ICM and the lazy flipper: the least decrease of E that a move must bring to be
+        made (ties keep the current labels; the descent stops when a sweep moves
+        nothing). BP: stop when no message changes by more than this. TRW-S: stop when
+        an iteration raises the bound by at most ``tol * max(1, |bound|)`` or the best
+        energy is within ``tol`` of it.
     seed
         Seed of any randomness (Gibbs sampling, tie breaking).
     time_limit
         Seconds; ``None`` for no limit.
     temperature
         ``gibbs``: initial temperature T_0; ``None`` sets it from the problem (the
-        median, over nodes, of the spread of the local energy over the feasible labels
-        at ``initial``).
+        median, over nodes, of the standard deviation of the local energy over the
+        feasible labels at ``initial``).
     schedule
         ``gibbs``: ``"geometric"`` (T_k = T_0 * cooling**k, k = 0, 1, ... sweeps) or
         ``"log"`` (T_k = T_0 / log(k + 2), Geman & Geman's logarithmic schedule).
