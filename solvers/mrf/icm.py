@@ -19,6 +19,9 @@ allowed.
 Sweeps visit the colour classes of a proper colouring of the union graph (edges and
 conflicts, :func:`~solvers.mrf.local_energy.colour_classes`); a class is an independent
 set, so updating it in one array expression is exactly sequential ICM in that order.
+After the first sweep only nodes with a neighbour that moved since their last
+evaluation are evaluated again (the others cannot move), which leaves the result
+unchanged and makes the later sweeps cheap.
 Stops after a sweep that moves no node, after ``Options.max_iter`` sweeps, or at
 ``Options.time_limit`` (checked between sweeps).
 """
@@ -65,12 +68,14 @@ def update_class(le: LocalEnergy, x: np.ndarray, tol: float, dirty: np.ndarray |
 
 def descend(mrf: PairwiseMRF, x: np.ndarray, sweep: list[LocalEnergy], max_sweeps: int, tol: float,
             deadline: float | None = None,
-            adjacency: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, list[float], list[int]]:
+            adjacency: tuple[np.ndarray, np.ndarray] | None = None,
+            dirty: np.ndarray | None = None) -> tuple[np.ndarray, list[float], list[int]]:
     """Run ICM sweeps from the feasible labelling ``x`` (copied) until a sweep moves nothing.
 
-    A node is evaluated only if it has not been yet or a neighbour (edge or conflict)
-    moved since its last evaluation; the others could not move, so the result is that of
-    plain ICM in the same order.
+    A node is evaluated only if it is ``dirty`` (initially all nodes, or the given (N,)
+    mask when the caller knows the others are at their best) or a neighbour (edge or
+    conflict) moved since its last evaluation; the others could not move, so the result
+    is that of plain ICM in the same order.
 
     Returns
     -------
@@ -83,7 +88,7 @@ def descend(mrf: PairwiseMRF, x: np.ndarray, sweep: list[LocalEnergy], max_sweep
     """
     indptr, nbr = union_adjacency(mrf) if adjacency is None else adjacency
     x = np.array(x, dtype=np.intp, copy=True)
-    dirty = np.ones(mrf.n_nodes, dtype=bool)
+    dirty = np.ones(mrf.n_nodes, dtype=bool) if dirty is None else np.array(dirty, dtype=bool, copy=True)
     trace: list[float] = []
     moves: list[int] = []
     for _ in range(max_sweeps):

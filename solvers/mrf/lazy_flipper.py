@@ -164,9 +164,9 @@ def minimize(mrf: PairwiseMRF, options: Options) -> MRFResult:
     deadline = None if options.time_limit is None else t0 + options.time_limit
     N = mrf.n_nodes
     sweep = colour_sweep(mrf)
-    x, trace, icm_moves = descend(mrf, mrf.initial, sweep, options.max_iter, options.tol, deadline)
-    icm_energy = trace[-1]
     indptr, nbr = union_adjacency(mrf)
+    x, trace, icm_moves = descend(mrf, mrf.initial, sweep, options.max_iter, options.tol, deadline, (indptr, nbr))
+    icm_energy = trace[-1]
     sets = connected_subsets(indptr, nbr, options.max_flip)[1:]
     clean = [np.zeros(len(s), dtype=bool) for s in sets]
     flipper = _Flipper(mrf)
@@ -191,9 +191,15 @@ def minimize(mrf: PairwiseMRF, options: Options) -> MRFResult:
             cand = todo[good]
             pick = _select(S[cand], gain[good], indptr, nbr, N)
             old = x.copy()
-            x[S[cand[pick]].ravel()] = labels[good][pick].ravel()
+            flipped = S[cand[pick]].ravel()
+            x[flipped] = labels[good][pick].ravel()
             made[ki + 2] += pick.size
-            x, icm_trace, more = descend(mrf, x, sweep, options.max_iter, options.tol, deadline)
+            # if x was an ICM fixed point, only the flipped nodes' neighbours may now move alone
+            near = None
+            if icm_moves[-1] == 0:
+                near = np.zeros(N, dtype=bool)
+                near[neighbours(indptr, nbr, flipped)] = True
+            x, icm_trace, more = descend(mrf, x, sweep, options.max_iter, options.tol, deadline, (indptr, nbr), near)
             icm_moves += more
             changed = np.flatnonzero(x != old)
             touched = np.zeros(N, dtype=bool)

@@ -7,7 +7,7 @@ The local energy of node i given the labels x of the others is
     \\ell_i(a \\mid x) = U_i(a) + \\sum_{e=(i,j)} W_e(a, x_j) + \\sum_{e=(j,i)} W_e(x_j, a),
 
 and label a is *forbidden* for i if some conflict pair (i, j) or (j, i) forbids (a, x_j).
-Changing x_i by one label changes E(x) by exactly the change of \\ell_i, so single-site
+Changing x_i alone changes E(x) by exactly the change of \\ell_i, so single-site
 methods (ICM, Gibbs, the lazy flipper's size-one flips) only need \\ell.
 
 Two nodes that share neither an edge nor a conflict do not see each other's labels in
