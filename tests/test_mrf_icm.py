@@ -10,28 +10,7 @@ from hypothesis import strategies as st
 from solvers import mrf
 from solvers.mrf.icm import descend
 from solvers.mrf.local_energy import LocalEnergy, colour_classes, colour_sweep
-
-
-def random_mrf(rng: np.random.Generator, N: int, L: int, p_edge: float = 0.6, p_conf: float = 0.4,
-               p_forbid: float = 0.4, edges: np.ndarray | None = None) -> mrf.PairwiseMRF:
-    """Random unary/pairwise, random conflicts that keep a random ``initial`` feasible."""
-    n_labels = rng.integers(1, L + 1, size=N)
-    n_labels[rng.integers(N)] = L
-    unary = rng.normal(size=(N, L))
-    unary[np.arange(L)[None, :] >= n_labels[:, None]] = np.inf
-    pairs = np.array([(i, j) for i in range(N) for j in range(i + 1, N)], dtype=int).reshape(-1, 2)
-    if edges is None:
-        edges = pairs[rng.random(len(pairs)) < p_edge]
-    edges = np.asarray(edges, dtype=int).reshape(-1, 2)
-    flip = rng.random(len(edges)) < 0.5  # both orientations occur
-    edges = np.where(flip[:, None], edges[:, ::-1], edges)
-    pairwise = rng.normal(size=(len(edges), L, L))
-    initial = rng.integers(0, n_labels)
-    conflicts = pairs[rng.random(len(pairs)) < p_conf]
-    mask = rng.random((len(conflicts), L, L)) < p_forbid
-    if len(conflicts):
-        mask[np.arange(len(conflicts)), initial[conflicts[:, 0]], initial[conflicts[:, 1]]] = False
-    return mrf.PairwiseMRF(unary, edges, pairwise, conflicts, mask, initial)
+from solvers.mrf.synthetic import random_mrf
 
 
 def reference_icm(m: mrf.PairwiseMRF, order: np.ndarray, tol: float, max_sweeps: int = 1000) -> np.ndarray:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 import time
 
-from solvers.mrf import exact, icm
+from solvers.mrf import bp, exact, gibbs, icm, lazy_flipper, trws
 from solvers.mrf.problem import PairwiseMRF, repair
 from solvers.mrf.result import MRFResult, Options
 from solvers.registry import Registry
@@ -23,6 +23,10 @@ METHODS = Registry(
     "MRF",
     [
         icm.BACKEND,
+        gibbs.BACKEND,
+        bp.BACKEND,
+        trws.BACKEND,
+        lazy_flipper.BACKEND,
         exact.BACKEND,
     ],
 )

@@ -19,6 +19,9 @@ allowed.
 Sweeps visit the colour classes of a proper colouring of the union graph (edges and
 conflicts, :func:`~solvers.mrf.local_energy.colour_classes`); a class is an independent
 set, so updating it in one array expression is exactly sequential ICM in that order.
+After the first sweep only nodes with a neighbour that moved since their last
+evaluation are evaluated again (the others cannot move), which leaves the result
+unchanged and makes the later sweeps cheap.
 Stops after a sweep that moves no node, after ``Options.max_iter`` sweeps, or at
 ``Options.time_limit`` (checked between sweeps).
 """
@@ -29,31 +32,50 @@ import time
 
 import numpy as np
 
-from solvers.mrf.local_energy import LocalEnergy, colour_sweep
+from solvers.mrf.local_energy import LocalEnergy, colour_sweep, neighbours, union_adjacency
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
 from solvers.registry import Backend
 
 
-def update_class(le: LocalEnergy, x: np.ndarray, tol: float) -> int:
-    """Move every node of one independent class to its best feasible label, in place.
+def update_class(le: LocalEnergy, x: np.ndarray, tol: float, dirty: np.ndarray | None = None) -> np.ndarray:
+    """Move the nodes of one independent class to their best feasible labels, in place.
 
-    Returns the number of nodes that moved.
+    With ``dirty`` (N,) only the class's dirty nodes are evaluated (and marked clean).
+    Returns the nodes that moved.
     """
-    c = le.feasible_costs(x)
-    rows = np.arange(le.nodes.size)
-    cur = x[le.nodes]
+    sel = None
+    nodes = le.nodes
+    if dirty is not None:
+        sel = dirty[nodes]
+        if not sel.any():
+            return nodes[:0]
+        if sel.all():
+            sel = None
+        else:
+            nodes = nodes[sel]
+        dirty[nodes] = False
+    c = le.feasible_costs(x, sel)
+    rows = np.arange(nodes.size)
+    cur = x[nodes]
     best = np.argmin(c, axis=1)
     move = c[rows, best] < c[rows, cur] - tol
     if tol == 0:
         move &= best != cur
-    x[le.nodes[move]] = best[move]
-    return int(np.count_nonzero(move))
+    x[nodes[move]] = best[move]
+    return nodes[move]
 
 
 def descend(mrf: PairwiseMRF, x: np.ndarray, sweep: list[LocalEnergy], max_sweeps: int, tol: float,
-            deadline: float | None = None) -> tuple[np.ndarray, list[float], list[int]]:
+            deadline: float | None = None,
+            adjacency: tuple[np.ndarray, np.ndarray] | None = None,
+            dirty: np.ndarray | None = None) -> tuple[np.ndarray, list[float], list[int]]:
     """Run ICM sweeps from the feasible labelling ``x`` (copied) until a sweep moves nothing.
+
+    A node is evaluated only if it is ``dirty`` (initially all nodes, or the given (N,)
+    mask when the caller knows the others are at their best) or a neighbour (edge or
+    conflict) moved since its last evaluation; the others could not move, so the result
+    is that of plain ICM in the same order.
 
     Returns
     -------
@@ -64,11 +86,18 @@ def descend(mrf: PairwiseMRF, x: np.ndarray, sweep: list[LocalEnergy], max_sweep
     moves
         Nodes moved in each sweep.
     """
+    indptr, nbr = union_adjacency(mrf) if adjacency is None else adjacency
     x = np.array(x, dtype=np.intp, copy=True)
+    dirty = np.ones(mrf.n_nodes, dtype=bool) if dirty is None else np.array(dirty, dtype=bool, copy=True)
     trace: list[float] = []
     moves: list[int] = []
     for _ in range(max_sweeps):
-        n = sum(update_class(le, x, tol) for le in sweep)
+        n = 0
+        for le in sweep:
+            moved = update_class(le, x, tol, dirty)
+            if moved.size:
+                n += moved.size
+                dirty[neighbours(indptr, nbr, moved)] = True
         moves.append(n)
         trace.append(mrf.energy(x))
         if n == 0 or (deadline is not None and time.perf_counter() >= deadline):
