@@ -74,8 +74,10 @@ class MrfConfig:
     """The discrete stage: optimizer, search order n, stopping.
 
     A step's label set is the free cells with dx^2 + dy^2 <= ``order``. The planner stops
-    when one optimizer run lowers the swarm energy by less than ``tol`` or after
-    ``max_steps`` steps. ``trim_backward`` drops candidate cells that point away from the
+    when one optimizer run lowers the swarm energy by less than ``tol`` times its value
+    (relative: converged), when the swarm energy has made no new minimum for ``patience``
+    steps (stalled: the k-NN graph changes as the swarm moves, so the dynamics need not
+    settle), or after ``max_steps`` steps. ``trim_backward`` drops candidate cells that point away from the
     goal (the paper's optional heuristic).
     """
 
@@ -83,6 +85,7 @@ class MrfConfig:
     order: int = 2
     max_steps: int = 300
     tol: float = 1e-6
+    patience: int = 20
     trim_backward: bool = False
 
 
@@ -230,6 +233,7 @@ def _validate(cfg: Config) -> None:
     need(m.order >= 1, "mrf.order", m.order, "must be >= 1")
     need(m.max_steps >= 1, "mrf.max_steps", m.max_steps, "must be >= 1")
     need(m.tol >= 0, "mrf.tol", m.tol, "must be >= 0")
+    need(m.patience >= 1, "mrf.patience", m.patience, "must be >= 1")
     sm = cfg.smoothing
     need(sm.degree >= 2 * sm.derivative - 1, "smoothing.degree", sm.degree,
          f"must be >= 2 * smoothing.derivative - 1 = {2 * sm.derivative - 1}")

@@ -4,7 +4,11 @@ Each step t: build the interaction graph G_t on the robots' cells x^{t-1}, its m
 cliques and their pairwise reduction; build the label sets X^t and the hard conflicts;
 hand the step's pairwise MRF to an optimizer of :mod:`solvers.mrf` (ICM by default)
 starting from "everybody stays"; move. Stop when a step lowers the swarm energy (on its
-own graph) by less than ``tol``, or after ``max_steps``.
+own graph) by less than ``tol`` (relative): converged. The k-NN graph changes as the
+swarm moves, so the dynamics need not have a fixed point (a swarm packed at its goal
+can keep circulating, each step lowering the energy of its own graph); such a run stops
+as *stalled* when the swarm energy has made no new minimum for ``patience`` steps.
+Otherwise it stops at ``max_steps``.
 
 ``energy[t]`` is the swarm energy of configuration x^t on its own interaction graph
 G(x^t): the quantity the paper plots in its convergence figure.
@@ -92,7 +96,9 @@ class DiscretePlan:
     energy
         (T + 1,) swarm energy of each configuration on its own graph.
     converged
-        True if the energy converged before ``max_steps``.
+        True if the energy converged (a step lowered it by less than the tolerance).
+    stop_reason
+        "converged", "stalled" (no new minimum in ``patience`` steps) or "max_steps".
     timings
         stage -> (T,) seconds per step.
     steps
@@ -104,6 +110,7 @@ class DiscretePlan:
     converged: bool
     timings: dict[str, np.ndarray]
     steps: list[dict] = field(default_factory=list)
+    stop_reason: str = "max_steps"
 
     @property
     def n_steps(self) -> int:
@@ -170,7 +177,7 @@ def swarm_energy(problem: DiscreteProblem, positions: np.ndarray, weights: Cliqu
 
 
 def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int = 300, tol: float = 1e-6,
-                  options: mrf_solvers.Options | None = None,
+                  patience: int = 20, options: mrf_solvers.Options | None = None,
                   on_step: Callable[[int, StepOutcome], None] | None = None) -> DiscretePlan:
     """Iterate MRF steps from ``problem.start`` until the swarm energy converges.
 
@@ -181,7 +188,9 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     max_steps
         Step limit.
     tol
-        Converged when one step lowers the energy (on its graph) by less than this.
+        Converged when one step lowers the energy (on its graph) by less than ``tol``
+        relative to that energy (absolute below 1: the goal potential is exponential, so
+        energies span many orders of magnitude across maps).
     on_step
         Called after every step (progress bars, snapshots).
     """
@@ -191,12 +200,15 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     timings: dict[str, list[float]] = {s: [] for s in STAGES}
     steps: list[dict] = []
     converged = False
+    reason = "max_steps"
+    best, since_best = np.inf, 0
     gt: dict[str, float] = {}
     weights = graph_weights(pos, problem.k, gt)
     for t in range(1, max_steps + 1):
         out = mrf_step(problem, pos, method, options, weights, gt)
         if t == 1:
             energy.append(out.energy_before)
+            best = out.energy_before
         for s in STAGES:
             timings[s].append(out.timings[s])
         steps.append({
@@ -209,7 +221,7 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         if on_step is not None:
             on_step(t, out)
         if out.moved == 0:
-            converged = True
+            converged, reason = True, "converged"
             for s in STAGES:  # a step that moved nobody is not part of the path
                 timings[s].pop()
             steps.pop()
@@ -219,10 +231,17 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         gt = {}
         weights = graph_weights(pos, problem.k, gt)
         energy.append(swarm_energy(problem, pos, weights))
-        if out.energy_before - out.energy_after < tol:
-            converged = True
+        if out.energy_before - out.energy_after < tol * max(1.0, abs(out.energy_before)):
+            converged, reason = True, "converged"
             break
-    log.info("discrete stage: %d steps, converged=%s", len(paths) - 1, converged)
+        if energy[-1] < best - tol * max(1.0, abs(best)):
+            best, since_best = energy[-1], 0
+        else:
+            since_best += 1
+            if since_best >= patience:
+                reason = "stalled"
+                break
+    log.info("discrete stage: %d steps, %s", len(paths) - 1, reason)
     stacked = np.stack(paths)
     bad = discrete_violations(stacked, problem.free)
     if bad:  # a bug in the planner or an optimizer, never something to return
@@ -233,4 +252,5 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         converged=converged,
         timings={s: np.array(v) for s, v in timings.items()},
         steps=steps,
+        stop_reason=reason,
     )

@@ -68,6 +68,7 @@ class Result:
             "n_robots": self.scenario.n_robots,
             "mrf_steps": self.discrete.n_steps,
             "converged": self.discrete.converged,
+            "stop_reason": self.discrete.stop_reason,
             "reached_goal": m.reached_goal,
             "goal": None if g is None else [float(v) for v in g],
             "final_goal_distance": m.final_goal_distance,
@@ -138,7 +139,8 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     with tqdm(total=cfg.mrf.max_steps, desc="MRF steps", unit="step", disable=not show, leave=False) as bar:
         t0 = time.perf_counter()
         plan_d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.optimizer, max_steps=cfg.mrf.max_steps,
-                               tol=cfg.mrf.tol, options=options, on_step=lambda t, out: bar.update(1))
+                               tol=cfg.mrf.tol, patience=cfg.mrf.patience, options=options,
+                               on_step=lambda t, out: bar.update(1))
         timings["discrete"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     pruned = prune_paths(plan_d.paths, scn.grid.free, cfg.smoothing.horizon)

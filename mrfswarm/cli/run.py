@@ -31,6 +31,6 @@ def run(args: argparse.Namespace) -> int:
     write_discrete_outputs(result, out)
     s = result.summary()
     goal = "" if s["reached_goal"] is None else f", reached goal: {s['reached_goal']}"
-    print(f"{s['n_robots']} robots, {s['mrf_steps']} MRF steps ({s['mrf']}), converged: {s['converged']}{goal}, "
+    print(f"{s['n_robots']} robots, {s['mrf_steps']} MRF steps ({s['mrf']}), {s['stop_reason']}{goal}, "
           f"min separation {s['min_separation_discrete']:.2f} m -> {out}")
     return 0
