@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
 from mrfswarm.errors import ConfigError
+from mrfswarm.maps import LOADERS
 
-MAP_KINDS = ("free", "boxes", "ascii", "movingai", "ros")
 SEAM_MODES = ("rest", "continuous")
 
 
@@ -25,8 +25,9 @@ class ScenarioConfig:
     """The map, the start swarm, the goal (metres, map frame) and the flight altitude.
 
     ``map`` and ``start`` are tables checked by :func:`mrfswarm.maps.load_map` and
-    :func:`mrfswarm.start.start_positions`; ``goal_radius`` defines "reached the goal":
-    the swarm's centroid within this many metres of the goal.
+    :func:`mrfswarm.start.start_cells`; ``goal_radius`` defines "reached the goal":
+    the swarm's centroid within this many metres of the goal. Without a goal there is no
+    goal potential (the paper's free-space formation experiments, rho_S = 0 there).
     """
 
     map: dict = field(default_factory=lambda: {"kind": "free", "size": [20, 20]})
@@ -87,14 +88,20 @@ class MrfConfig:
 
 @dataclass(frozen=True)
 class SmoothingConfig:
-    """The continuous stage (min-snap smoothing in a receding horizon)."""
+    """The continuous stage (min-snap smoothing in a receding horizon).
+
+    ``corridor`` is the half-width (cells) of the box around each robot's reference motion
+    at each sample time; ``safety_distance`` (cells) the separation every output must keep;
+    ``speed`` (m/s) sets the step durations of the common time grid; ``v_max``/``a_max``
+    (m/s, m/s^2) are the limits the trajectories must meet.
+    """
 
     enabled: bool = True
     backend: str = "osqp"
     degree: int = 7
     derivative: int = 4
     speed: float = 1.0
-    corridor: float = 0.25
+    corridor: float = 0.17
     time_refinement: bool = False
     horizon: int = 4
     execution: float = 0.5
@@ -208,8 +215,7 @@ def _validate(cfg: Config) -> None:
 
     s = cfg.scenario
     kind = s.map.get("kind")
-    need(kind in MAP_KINDS, "scenario.map.kind", kind, f"must be one of {', '.join(MAP_KINDS)}")
-    need(s.goal is not None, "scenario.goal", s.goal, "a goal [x, y] is required")
+    need(kind in LOADERS, "scenario.map.kind", kind, f"must be one of {', '.join(LOADERS)}")
     need(s.goal_radius > 0, "scenario.goal_radius", s.goal_radius, "must be > 0")
     need(s.altitude > 0, "scenario.altitude", s.altitude, "must be > 0")
     i = cfg.interaction
@@ -234,9 +240,12 @@ def _validate(cfg: Config) -> None:
     need(0 < sm.execution <= 1, "smoothing.execution", sm.execution, "must be in (0, 1]")
     need(sm.seam in SEAM_MODES, "smoothing.seam", sm.seam, f"must be one of {', '.join(SEAM_MODES)}")
     need(0 < sm.safety_distance < 1, "smoothing.safety_distance", sm.safety_distance, "must be in (0, 1) cell")
-    need(2 * sm.corridor + sm.safety_distance <= 1 + 1e-12, "smoothing.corridor", sm.corridor,
-         f"two robots 1 cell apart, each {sm.corridor} off its discrete motion, would come closer than "
-         f"smoothing.safety_distance = {sm.safety_distance}; need 2 * corridor + safety_distance <= 1")
+    # The corridor is a box of half-width `corridor` (cells) around each robot's reference, so a
+    # robot may be sqrt(2) * corridor away from it; two robots one cell apart stay
+    # 1 - 2 sqrt(2) corridor apart.
+    need(2 * math.sqrt(2) * sm.corridor + sm.safety_distance <= 1 + 1e-12, "smoothing.corridor", sm.corridor,
+         f"two robots 1 cell apart, each up to sqrt(2) * {sm.corridor} off its discrete motion, could come closer "
+         f"than smoothing.safety_distance = {sm.safety_distance}; need 2 * sqrt(2) * corridor + safety_distance <= 1")
     need(sm.v_max > 0, "smoothing.v_max", sm.v_max, "must be > 0")
     need(sm.a_max > 0, "smoothing.a_max", sm.a_max, "must be > 0")
     need(cfg.simulation.rate_hz >= 100, "simulation.rate_hz", cfg.simulation.rate_hz, "must be >= 100")

@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 import time
 
-from solvers.mrf import exact
+from solvers.mrf import bp, exact, gibbs, icm, lazy_flipper, trws
 from solvers.mrf.problem import PairwiseMRF, repair
 from solvers.mrf.result import MRFResult, Options
 from solvers.registry import Registry
@@ -22,11 +22,16 @@ from solvers.registry import Registry
 METHODS = Registry(
     "MRF",
     [
+        icm.BACKEND,
+        gibbs.BACKEND,
+        bp.BACKEND,
+        trws.BACKEND,
+        lazy_flipper.BACKEND,
         exact.BACKEND,
     ],
 )
 
-DEFAULT_METHOD = "exact"
+DEFAULT_METHOD = "icm"
 
 
 def available() -> list[str]:

@@ -14,19 +14,52 @@ class Options:
     Parameters
     ----------
     max_iter
-        Cap on sweeps (ICM, Gibbs, lazy flipper) or message-passing iterations (BP, TRW-S).
+        Cap on sweeps (ICM, Gibbs; also each ICM descent of the lazy flipper and of
+        ``polish``), rounds of joint moves (lazy flipper) or message-passing iterations
+        (BP, TRW-S).
     tol
-        Stop when an iteration lowers the energy (or moves the bound) by less than this.
+        ICM and the lazy flipper: the least decrease of E that a move must bring to be
+        made (ties keep the current labels; the descent stops when a sweep moves
+        nothing). BP: stop when no message changes by more than this. TRW-S: stop when
+        an iteration raises the bound by at most ``tol * max(1, |bound|)`` or the best
+        energy is within ``tol`` of it.
     seed
         Seed of any randomness (Gibbs sampling, tie breaking).
     time_limit
         Seconds; ``None`` for no limit.
+    temperature
+        ``gibbs``: initial temperature T_0; ``None`` sets it from the problem (the
+        median, over nodes, of the standard deviation of the local energy over the
+        feasible labels at ``initial``).
+    schedule
+        ``gibbs``: ``"geometric"`` (T_k = T_0 * cooling**k, k = 0, 1, ... sweeps) or
+        ``"log"`` (T_k = T_0 / log(k + 2), Geman & Geman's logarithmic schedule).
+    cooling
+        ``gibbs``: factor of the geometric schedule, in (0, 1).
+    damping
+        ``bp``: weight of the old message in each update, in [0, 1) (0: undamped).
+    conflict_penalty
+        ``bp``, ``trws``: finite cost added to forbidden label pairs of conflicting nodes
+        inside message passing (hard constraints as messages would need inf - inf).
+        ``None`` picks one larger than any single node's possible change of local
+        energy; 0 ignores conflicts while passing messages (decoding still respects them).
+    max_flip
+        ``lazy_flipper``: the largest number of nodes changed jointly in one move, >= 1.
+    polish
+        ``bp``, ``trws``, ``gibbs``: finish with ICM from the method's labelling.
     """
 
     max_iter: int = 100
     tol: float = 1e-9
     seed: int = 0
     time_limit: float | None = None
+    temperature: float | None = None
+    schedule: str = "geometric"
+    cooling: float = 0.9
+    damping: float = 0.5
+    conflict_penalty: float | None = None
+    max_flip: int = 2
+    polish: bool = False
 
     def __post_init__(self) -> None:
         if self.max_iter < 1:
@@ -35,6 +68,18 @@ class Options:
             raise ValueError(f"tol must be >= 0, got {self.tol}")
         if self.time_limit is not None and not self.time_limit > 0:
             raise ValueError(f"time_limit must be positive, got {self.time_limit}")
+        if self.temperature is not None and not (0 < self.temperature < float("inf")):
+            raise ValueError(f"temperature must be positive and finite, got {self.temperature}")
+        if self.schedule not in ("geometric", "log"):
+            raise ValueError(f"schedule must be 'geometric' or 'log', got {self.schedule!r}")
+        if not 0 < self.cooling < 1:
+            raise ValueError(f"cooling must be in (0, 1), got {self.cooling}")
+        if not 0 <= self.damping < 1:
+            raise ValueError(f"damping must be in [0, 1), got {self.damping}")
+        if self.conflict_penalty is not None and not (0 <= self.conflict_penalty < float("inf")):
+            raise ValueError(f"conflict_penalty must be finite and >= 0, got {self.conflict_penalty}")
+        if self.max_flip < 1:
+            raise ValueError(f"max_flip must be >= 1, got {self.max_flip}")
 
 
 @dataclass(frozen=True)

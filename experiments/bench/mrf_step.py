@@ -1,0 +1,182 @@
+"""Time per MRF step, by stage, against a plain per-label Python loop baseline.
+
+For N robots (a Gaussian swarm in free space pulled toward a goal, k = min(7, N - 1))
+and search orders n, runs a few planner steps and reports the median time of each stage
+(graph, cliques, label sets, energy tables, optimizer) and of the whole step, next to a
+baseline step written the plain way (networkx cliques, per-robot per-label Python loops
+for label sets and for ICM's local energies), run on the same swarms in the same
+process. Both reach the same energy decrease order of magnitude; the baseline's energy
+is printed for reference (its sequential visiting order may settle in another local
+minimum than our colour-ordered ICM).
+
+    python experiments/bench/mrf_step.py [--sizes 5,10,50,100,500,1000] [--orders 1,2,4,8]
+        [--steps 3] [--baseline-max 1000] [--method icm] [--out experiments/bench/results/mrf_step.csv]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import statistics
+import time
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+from scipy.spatial import cKDTree
+
+from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
+from mrfswarm.discrete import STAGES, DiscreteProblem, mrf_step
+from mrfswarm.motion import MIN_SEPARATION, min_distance_during_move, stencil
+from mrfswarm.potentials import Morse, static_field
+
+
+def swarm(n: int, seed: int = 0) -> DiscreteProblem:
+    """N robots on distinct cells, Gaussian around the left of a free map, goal on the right."""
+    rng = np.random.default_rng(seed)
+    side = max(40, int(6 * math.sqrt(n)))
+    W, H = 2 * side, side
+    centre = np.array([side // 2, side // 2])
+    cells: set[tuple[int, int]] = set()
+    sigma = max(2.0, 0.8 * math.sqrt(n))
+    while len(cells) < n:
+        c = np.round(rng.normal(centre, sigma)).astype(int)
+        if 0 <= c[0] < W and 0 <= c[1] < H:
+            cells.add((int(c[0]), int(c[1])))
+    start = np.array(sorted(cells))
+    free = np.ones((W, H), bool)
+    goal = np.array([W - side // 2, side // 2])
+    static = static_field(np.zeros((W, H)), goal, 1.0, GoalPotentialConfig(), ObstaclePotentialConfig())
+    return DiscreteProblem(free=free, static=static, start=start, goal=goal, morse=Morse(), k=min(7, n - 1), order=2)
+
+
+def baseline_step(problem: DiscreteProblem, pos: np.ndarray) -> tuple[np.ndarray, float]:
+    """One MRF step written the plain way: loops over robots and labels.
+
+    networkx k-NN graph and cliques; label sets by checking every stencil cell of every
+    robot in Python; sequential ICM computing each label's local energy with a Python loop
+    over the robot's neighbours and nearby robots. Same rules as the library (disjoint
+    label sets, contested cells to the nearer robot, no move closer than one cell).
+    """
+    N = len(pos)
+    free, static, morse, k = problem.free, problem.static, problem.morse, problem.k
+    W, H = free.shape
+    tree = cKDTree(pos)
+    _, idx = tree.query(pos, k + 1)
+    g = nx.Graph()
+    g.add_nodes_from(range(N))
+    for i in range(N):
+        for j in idx[i, 1:]:
+            g.add_edge(i, int(j))
+    cliques = list(nx.find_cliques(g))
+    w_node = [0] * N
+    w_edge: dict[tuple[int, int], int] = {}
+    for c in cliques:
+        for i in c:
+            w_node[i] += 1
+        for a in range(len(c)):
+            for b in range(a + 1, len(c)):
+                key = (min(c[a], c[b]), max(c[a], c[b]))
+                w_edge[key] = w_edge.get(key, 0) + 1
+    nbrs: list[list[tuple[int, int]]] = [[] for _ in range(N)]
+    for (i, j), w in w_edge.items():
+        nbrs[i].append((j, w))
+        nbrs[j].append((i, w))
+    occupied = {tuple(p) for p in pos.tolist()}
+    claims: dict[tuple[int, int], tuple[int, int]] = {}
+    for i in range(N):
+        for o in stencil(problem.order).tolist():
+            c = (pos[i][0] + o[0], pos[i][1] + o[1])
+            if not (0 <= c[0] < W and 0 <= c[1] < H) or not free[c]:
+                continue
+            if c in occupied and o != [0, 0]:
+                continue
+            d2 = o[0] ** 2 + o[1] ** 2
+            if c not in claims or (d2, i) < claims[c]:
+                claims[c] = (d2, i)
+    labels: list[list[tuple[int, int]]] = [[] for _ in range(N)]
+    for c, (_, i) in claims.items():
+        labels[i].append(c)
+    near = [[j for j in tree.query_ball_point(pos[i], 2 * math.sqrt(problem.order) + 1) if j != i] for i in range(N)]
+    x = [tuple(p) for p in pos.tolist()]
+    changed = True
+    while changed:
+        changed = False
+        for i in range(N):
+            best, best_e = x[i], None
+            for c in labels[i]:
+                ok = True
+                for j in near[i]:
+                    d0 = np.array(pos[i] - pos[j], float)
+                    v = np.array(c, float) - pos[i] - (np.array(x[j], float) - pos[j])
+                    if min_distance_during_move(d0, v) < MIN_SEPARATION - 1e-9:
+                        ok = False
+                        break
+                if not ok:
+                    continue
+                e = w_node[i] * static[c]
+                for j, w in nbrs[i]:
+                    e += w * morse(math.hypot(c[0] - x[j][0], c[1] - x[j][1]))
+                if best_e is None or e < best_e - 1e-12 or (c == x[i] and e <= best_e + 1e-12):
+                    best, best_e = c, e
+            if best != x[i]:
+                x[i] = best
+                changed = True
+    new = np.array(x)
+    energy = sum(w_node[i] * static[tuple(new[i])] for i in range(N)) + sum(
+        w * morse(math.hypot(*(new[i] - new[j]))) for (i, j), w in w_edge.items())
+    return new, float(energy)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", default="5,10,50,100,500,1000")
+    ap.add_argument("--orders", default="1,2,4,8")
+    ap.add_argument("--steps", type=int, default=3, help="steps timed per cell of the table (median)")
+    ap.add_argument("--baseline-max", type=int, default=1000, help="largest N the baseline is run for")
+    ap.add_argument("--method", default="icm")
+    ap.add_argument("--out", type=Path, default=Path(__file__).parent / "results" / "mrf_step.csv")
+    args = ap.parse_args()
+    sizes = [int(v) for v in args.sizes.split(",")]
+    orders = [int(v) for v in args.orders.split(",")]
+    rows = []
+    head = f"{'N':>5} {'n':>2} {'k':>2} " + " ".join(f"{s:>9}" for s in STAGES) + f" {'total':>9} {'baseline':>9} {'speedup':>7}"
+    print(f"time per MRF step in ms (median of {args.steps} steps), method {args.method}")
+    print(head)
+    for n_rob in sizes:
+        for order in orders:
+            base = swarm(n_rob)
+            problem = DiscreteProblem(**{**base.__dict__, "order": order})
+            pos = problem.start
+            stage_t = {s: [] for s in STAGES}
+            totals, base_t = [], []
+            for _ in range(args.steps):
+                t0 = time.perf_counter()
+                out = mrf_step(problem, pos, args.method)
+                totals.append(time.perf_counter() - t0)
+                for s in STAGES:
+                    stage_t[s].append(out.timings[s])
+                if n_rob <= args.baseline_max:
+                    t0 = time.perf_counter()
+                    baseline_step(problem, pos)
+                    base_t.append(time.perf_counter() - t0)
+                pos = out.positions
+            med = {s: statistics.median(v) * 1e3 for s, v in stage_t.items()}
+            total = statistics.median(totals) * 1e3
+            bl = statistics.median(base_t) * 1e3 if base_t else float("nan")
+            row = {"N": n_rob, "n": order, "k": problem.k, **{f"{s}_ms": round(med[s], 3) for s in STAGES},
+                   "total_ms": round(total, 3), "baseline_ms": round(bl, 3), "speedup": round(bl / total, 1)}
+            rows.append(row)
+            print(f"{n_rob:>5} {order:>2} {problem.k:>2} " + " ".join(f"{med[s]:>9.2f}" for s in STAGES)
+                  + f" {total:>9.2f} {bl:>9.1f} {bl / total:>7.1f}", flush=True)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    with open(args.out, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,112 @@
+"""Label sets X_i^t: the cells each robot may move to in one MRF step.
+
+X_i^t = cells with (x_i - x)^2 + (y_i - y)^2 <= n (the n-th order neighbourhood), with the
+paper's heuristics: (a) cells occupied by obstacles or by other robots removed, (b) a cell
+wanted by several robots given to one only (X_i ∩ X_j = ∅): the robot nearest to it, ties
+to the lower index; optionally (c) the half pointing away from the goal trimmed. We add
+one rule the paper leaves implicit: the straight move must keep half a cell from every
+occupied cell (:mod:`mrfswarm.motion`), so no move cuts a wall's corner or jumps a wall.
+Label 0 is always "stay", which is always in X_i.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mrfswarm.motion import moves_clear, stencil
+
+
+@dataclass(frozen=True)
+class LabelSets:
+    """Per-robot candidate moves, valid labels first.
+
+    Attributes
+    ----------
+    index
+        (N, L) int index of each label's move in ``stencil(order)``; padding is 0 (stay).
+    count
+        (N,) number of valid labels per robot (label 0 = stay is always valid).
+    starts
+        (N, 2) current cells.
+    order
+        The neighbourhood order n.
+    """
+
+    index: np.ndarray
+    count: np.ndarray
+    starts: np.ndarray
+    order: int
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """(N, L, 2) int cell offset of each label; padding is (0, 0)."""
+        return stencil(self.order)[self.index]
+
+    @property
+    def cells(self) -> np.ndarray:
+        """(N, L, 2) the cell each label moves to."""
+        return self.starts[:, None, :] + self.offsets
+
+    @property
+    def valid(self) -> np.ndarray:
+        """(N, L) True for real labels, False for padding."""
+        return np.arange(self.offsets.shape[1])[None, :] < self.count[:, None]
+
+
+def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.ndarray | None = None,
+               trim_backward: bool = False) -> LabelSets:
+    """Build X_i^t for every robot.
+
+    Parameters
+    ----------
+    free
+        (W, H) bool grid, True where free.
+    starts
+        (N, 2) current cells, distinct and free.
+    order
+        n, the neighbourhood order.
+    goal_cell
+        Needed only with ``trim_backward``.
+    trim_backward
+        Drop moves pointing away from the goal (negative dot product with the direction
+        to the goal); "stay" is kept.
+    """
+    starts = np.asarray(starts, dtype=np.intp)
+    N = len(starts)
+    off = stencil(order)
+    S = len(off)
+    W, H = free.shape
+    cand = starts[:, None, :] + off[None, :, :]  # (N, S, 2)
+    ok = moves_clear(free, starts, np.broadcast_to(np.arange(S), (N, S)), order)
+    # (a) cells where another robot stands now
+    robot_at = np.full((W, H), -1, dtype=np.intp)
+    robot_at[starts[:, 0], starts[:, 1]] = np.arange(N)
+    cx = np.clip(cand[..., 0], 0, W - 1)
+    cy = np.clip(cand[..., 1], 0, H - 1)
+    other = robot_at[cx, cy]
+    ok &= (other == -1) | (other == np.arange(N)[:, None])
+    # (c) the half that points away from the goal
+    if trim_backward and goal_cell is not None:
+        to_goal = np.asarray(goal_cell)[None, :] - starts  # (N, 2)
+        ok &= (off[None, :, :] * to_goal[:, None, :]).sum(-1) >= 0
+    ok[:, 0] = True  # staying is always allowed (the cell is free and one's own)
+    # (b) X_i ∩ X_j = ∅: a contested cell goes to the nearest robot, ties to the lower index
+    r, s = np.nonzero(ok)
+    cell_id = cand[r, s, 0] * H + cand[r, s, 1]
+    dist2 = (off[s] ** 2).sum(axis=1)
+    order_idx = np.lexsort((r, dist2, cell_id))
+    first = np.ones(len(order_idx), dtype=bool)
+    first[1:] = cell_id[order_idx][1:] != cell_id[order_idx][:-1]
+    keep = np.zeros(len(r), dtype=bool)
+    keep[order_idx[first]] = True
+    ok[:] = False
+    ok[r[keep], s[keep]] = True
+    # compact: valid labels first, in stencil order (stay first)
+    count = ok.sum(axis=1)
+    L = int(count.max())
+    pos = np.argsort(~ok, axis=1, kind="stable")[:, :L]
+    valid = np.arange(L)[None, :] < count[:, None]
+    index = np.where(valid, pos, 0)
+    return LabelSets(index=index, count=count, starts=starts, order=order)

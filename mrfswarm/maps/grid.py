@@ -1,0 +1,217 @@
+"""The occupancy grid and the one place where world and cell coordinates meet.
+
+Frame convention (DESIGN.md, "Frames"): arrays are indexed ``[ix, iy]`` (x index first);
+cell ``(i, j)`` is centred at ``origin + resolution * (i, j)`` (metres) and covers
+``[c - res/2, c + res/2)`` on each axis. With the default 1 m cells at origin (0, 0),
+cell (i, j) is centred at (i, j), as in the authors' data.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from mrfswarm.errors import ScenarioError
+
+log = logging.getLogger(__name__)
+
+#: P(occupied) at or above which a cell is an obstacle (the paper's threshold).
+OCCUPIED_THRESHOLD = 0.5
+
+#: Largest number of cells a grid may have (10^8 float64 cells = 800 MB); larger sizes are
+#: almost certainly a typo in a config or a corrupt file header, not a real scenario.
+MAX_CELLS = 10**8
+
+# A point within this many cells of a cell edge is treated as lying on it, so that a point
+# computed as ``c + res/2`` lands in the next cell despite rounding of ``c`` and ``res``.
+_EDGE_TOL = 1e-9
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class OccupancyGrid:
+    """A 2-D occupancy grid: P(occupied) per cell, with its placement in the world.
+
+    Parameters
+    ----------
+    prob
+        P(occupied) in [0, 1], shape ``(W, H)``, indexed ``[ix, iy]``. Stored as a
+        read-only float64 copy. Unknown cells loaded from files are 0.5, hence obstacles.
+    resolution
+        Cell side in metres, > 0.
+    origin
+        World coordinates (metres) of the CENTRE of cell (0, 0).
+
+    Notes
+    -----
+    Cell ``(i, j)`` is centred at ``origin + resolution * (i, j)`` and covers
+    ``[c - resolution/2, c + resolution/2)`` on each axis. A cell is occupied when
+    ``prob >= 0.5``. Grids compare equal when shape, ``prob``, resolution and origin
+    are all exactly equal.
+    """
+
+    prob: np.ndarray
+    resolution: float = 1.0
+    origin: tuple[float, float] = field(default=(0.0, 0.0))
+
+    def __post_init__(self) -> None:
+        try:
+            prob = np.array(self.prob, dtype=np.float64)  # always a copy: the grid owns it
+        except (TypeError, ValueError) as e:
+            raise ScenarioError(f"occupancy grid: prob is not a numeric array ({e})") from e
+        if prob.ndim != 2 or prob.shape[0] < 1 or prob.shape[1] < 1:
+            raise ScenarioError(f"occupancy grid: prob must have shape (W, H) with W, H >= 1, got {prob.shape}")
+        if prob.size > MAX_CELLS:
+            raise ScenarioError(f"occupancy grid: {prob.shape[0]} x {prob.shape[1]} cells exceeds {MAX_CELLS}")
+        bad = ~(np.isfinite(prob) & (prob >= 0.0) & (prob <= 1.0))
+        if bad.any():
+            i, j = np.argwhere(bad)[0]
+            raise ScenarioError(f"occupancy grid: prob[{i}, {j}] = {float(prob[i, j])!r} is not in [0, 1]")
+        res = self.resolution
+        if isinstance(res, bool) or not isinstance(res, (int, float, np.integer, np.floating)) \
+                or not np.isfinite(res) or res <= 0:
+            shown = res.item() if isinstance(res, np.generic) else res
+            raise ScenarioError(f"occupancy grid: resolution = {shown!r} must be a finite number > 0")
+        try:
+            origin = tuple(float(v) for v in self.origin)
+        except (TypeError, ValueError) as e:
+            raise ScenarioError(f"occupancy grid: origin = {self.origin!r} must be two numbers") from e
+        if len(origin) != 2 or not all(np.isfinite(origin)):
+            raise ScenarioError(f"occupancy grid: origin = {self.origin!r} must be two finite numbers")
+        object.__setattr__(self, "prob", _readonly(prob))
+        object.__setattr__(self, "resolution", float(res))
+        object.__setattr__(self, "origin", origin)
+
+    @classmethod
+    def from_occupied(cls, occupied: np.ndarray, resolution: float = 1.0,
+                      origin: tuple[float, float] = (0.0, 0.0)) -> OccupancyGrid:
+        """A grid with P = 1 on ``occupied`` cells and 0 elsewhere (``occupied`` is (W, H) bool)."""
+        occ = np.asarray(occupied)
+        if occ.dtype != bool:
+            raise ScenarioError(f"from_occupied: expected a boolean (W, H) array, got dtype {occ.dtype}")
+        return cls(occ.astype(np.float64), resolution=resolution, origin=origin)
+
+    # -- derived arrays and sizes -------------------------------------------------------
+
+    @cached_property
+    def occupied(self) -> np.ndarray:
+        """Bool (W, H): ``prob >= 0.5`` (read-only)."""
+        return _readonly(self.prob >= OCCUPIED_THRESHOLD)
+
+    @cached_property
+    def free(self) -> np.ndarray:
+        """Bool (W, H): not occupied (read-only)."""
+        return _readonly(~self.occupied)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(W, H)`` in cells."""
+        return self.prob.shape  # type: ignore[return-value]
+
+    @property
+    def width(self) -> int:
+        """W, the number of cells along x."""
+        return self.prob.shape[0]
+
+    @property
+    def height(self) -> int:
+        """H, the number of cells along y."""
+        return self.prob.shape[1]
+
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        """``(x0, x1, y0, y1)``: the world rectangle covered by the cells' edges.
+
+        For plotting: ``imshow(grid.prob.T, origin="lower", extent=grid.extent)``.
+        """
+        r, (ox, oy) = self.resolution, self.origin
+        return (ox - r / 2, ox + (self.width - 0.5) * r, oy - r / 2, oy + (self.height - 0.5) * r)
+
+    # -- world <-> cell -----------------------------------------------------------------
+
+    def world_to_cell(self, p: np.ndarray) -> np.ndarray:
+        """The cell containing each world point.
+
+        Parameters
+        ----------
+        p
+            World points, shape ``(..., 2)``, metres.
+
+        Returns
+        -------
+        numpy.ndarray
+            Integer cell indices ``(..., 2)``; ``floor((p - origin) / res + 1/2)``, so a
+            point at ``c + res/2`` belongs to the next cell. Points off the map give
+            indices outside ``[0, W) x [0, H)`` (check with :meth:`in_bounds`).
+
+        Raises
+        ------
+        ScenarioError
+            ``p`` is not ``(..., 2)`` or holds a non-finite value.
+        """
+        p = np.asarray(p, dtype=np.float64)
+        if p.ndim < 1 or p.shape[-1] != 2:
+            raise ScenarioError(f"world_to_cell: expected points of shape (..., 2), got {p.shape}")
+        if not np.isfinite(p).all():
+            raise ScenarioError("world_to_cell: points must be finite")
+        u = (p - np.asarray(self.origin)) / self.resolution
+        return np.floor(u + (0.5 + _EDGE_TOL)).astype(np.int64)
+
+    def cell_to_world(self, ij: np.ndarray) -> np.ndarray:
+        """The world coordinates (metres) of each cell's centre; ``ij`` is ``(..., 2)``."""
+        ij = np.asarray(ij)
+        if ij.ndim < 1 or ij.shape[-1] != 2:
+            raise ScenarioError(f"cell_to_world: expected cells of shape (..., 2), got {ij.shape}")
+        return np.asarray(self.origin) + self.resolution * ij.astype(np.float64)
+
+    def in_bounds(self, ij: np.ndarray) -> np.ndarray:
+        """Bool ``(...)``: whether each cell ``(..., 2)`` lies on the map."""
+        ij = np.asarray(ij)
+        if ij.ndim < 1 or ij.shape[-1] != 2:
+            raise ScenarioError(f"in_bounds: expected cells of shape (..., 2), got {ij.shape}")
+        i, j = ij[..., 0], ij[..., 1]
+        return (i >= 0) & (i < self.width) & (j >= 0) & (j < self.height)
+
+    def is_free(self, ij: np.ndarray) -> np.ndarray:
+        """Bool ``(...)``: whether each cell ``(..., 2)`` is on the map and free (False off the map)."""
+        ij = np.asarray(ij)
+        inside = self.in_bounds(ij)
+        if ij.dtype.kind not in "iu":
+            if not np.all(ij[inside] == np.floor(ij[inside])):
+                raise ScenarioError("is_free: cell indices must be integers")
+        i = np.clip(ij[..., 0], 0, self.width - 1).astype(np.intp)
+        j = np.clip(ij[..., 1], 0, self.height - 1).astype(np.intp)
+        return inside & self.free[i, j]
+
+    def snap(self, p: np.ndarray) -> np.ndarray:
+        """World points ``(..., 2)`` moved to the centre of the cell containing them.
+
+        Points off the map snap to the centre of the (off-map) lattice cell containing
+        them; nothing is clamped.
+        """
+        return self.cell_to_world(self.world_to_cell(p))
+
+    # -- comparison ---------------------------------------------------------------------
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, OccupancyGrid):
+            return NotImplemented
+        return (self.shape == other.shape and self.resolution == other.resolution
+                and self.origin == other.origin and bool(np.array_equal(self.prob, other.prob)))
+
+    def __reduce__(self):
+        # rebuild through __init__ so that an unpickled grid (Dask workers) is validated and read-only again
+        return (type(self), (np.asarray(self.prob), self.resolution, self.origin))
+
+    __hash__ = None  # type: ignore[assignment]  # holds an array; equal grids need not hash alike
+
+    def __repr__(self) -> str:
+        return (f"OccupancyGrid({self.width} x {self.height} cells, resolution={self.resolution}, "
+                f"origin={self.origin}, occupied={int(self.occupied.sum())})")

@@ -1,0 +1,125 @@
+"""One MRF step's energy, in the pairwise form every optimizer of :mod:`solvers.mrf` takes.
+
+For the interaction graph G_t and label sets X^t, the swarm energy of a labelling x is
+
+    eps(x) = sum_c E_c(x_c) = sum_i w_i rho_S(x_i) + sum_{(i,j) in G_t} w_ij rho_I(|x_i - x_j|)
+
+(pairwise reduction, :mod:`mrfswarm.interaction_graph`). Hard conflicts are the robot
+pairs, neighbours in G_t or not, whose straight moves would bring them closer than one
+cell (:mod:`mrfswarm.motion`).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from mrfswarm.interaction_graph import CliqueWeights
+from mrfswarm.label_sets import LabelSets
+from mrfswarm.motion import MIN_SEPARATION, interaction_radius, min_distance_during_move, nearby_pairs, stencil
+from mrfswarm.potentials import Morse
+from solvers.mrf import PairwiseMRF
+
+
+@lru_cache(maxsize=16)
+def collision_table(order: int) -> tuple[np.ndarray, int]:
+    """Which pairs of stencil moves collide, for every integer start offset in range.
+
+    Returns
+    -------
+    table
+        (G, S, S) bool: ``table[g, a, b]`` is True when robots whose start cells differ by
+        the g-th offset d0 (robot i minus robot j) and that make moves a and b come closer
+        than one cell during the step.
+    R
+        Offsets d0 with |dx|, |dy| <= R are tabulated; g = (dx + R) * (2R + 1) + (dy + R).
+    """
+    off = stencil(order).astype(float)
+    R = int(np.floor(interaction_radius(order)))
+    dx, dy = np.meshgrid(np.arange(-R, R + 1), np.arange(-R, R + 1), indexing="ij")
+    d0 = np.stack([dx.ravel(), dy.ravel()], axis=1).astype(float)  # (G, 2)
+    v = off[:, None, :] - off[None, :, :]  # (S, S, 2)
+    dist = min_distance_during_move(d0[:, None, None, :], v[None])
+    table = dist < MIN_SEPARATION - 1e-9
+    table[(d0 ** 2).sum(axis=1) == 0] = False  # two robots never share a start cell
+    table.setflags(write=False)
+    return table, R
+
+
+def conflict_tables(labels: LabelSets) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of robots and the label pairs that would collide within the step.
+
+    Every pair of robots that could come closer than one cell is checked, graph
+    neighbours or not.
+
+    Returns
+    -------
+    pairs
+        (C, 2) robot pairs with at least one forbidden label pair.
+    mask
+        (C, L, L) True where the pair's moves come closer than one cell; False on
+        padding labels.
+    """
+    table, R = collision_table(labels.order)
+    starts = labels.starts
+    L = labels.index.shape[1]
+    pairs = nearby_pairs(starts.astype(float), interaction_radius(labels.order))
+    if len(pairs) == 0:
+        return pairs, np.zeros((0, L, L), dtype=bool)
+    d0 = starts[pairs[:, 0]] - starts[pairs[:, 1]]
+    g = (d0[:, 0] + R) * (2 * R + 1) + (d0[:, 1] + R)
+    possible = table.reshape(len(table), -1).any(axis=1)[g]
+    pairs, g = pairs[possible], g[possible]
+    if len(pairs) == 0:
+        return pairs, np.zeros((0, L, L), dtype=bool)
+    ia = labels.index[pairs[:, 0]]  # (C, L)
+    ib = labels.index[pairs[:, 1]]
+    mask = table[g[:, None, None], ia[:, :, None], ib[:, None, :]]
+    valid = labels.valid
+    mask &= valid[pairs[:, 0]][:, :, None] & valid[pairs[:, 1]][:, None, :]
+    keep = mask.reshape(len(pairs), -1).any(axis=1)
+    return pairs[keep], mask[keep]
+
+
+class _MorseBySquaredDistance:
+    """rho_I tabulated over integer squared cell distances, grown on demand."""
+
+    def __init__(self, morse: Morse, resolution: float) -> None:
+        self.morse, self.resolution = morse, resolution
+        self.table = np.zeros(0)
+
+    def __call__(self, d2: np.ndarray) -> np.ndarray:
+        need = int(d2.max(initial=0)) + 1
+        if need > len(self.table):
+            size = max(need, 2 * len(self.table), 1024)
+            self.table = self.morse(np.sqrt(np.arange(size, dtype=float)) * self.resolution)
+        return self.table[d2]
+
+
+@lru_cache(maxsize=8)
+def _morse_table(morse: Morse, resolution: float) -> _MorseBySquaredDistance:
+    return _MorseBySquaredDistance(morse, resolution)
+
+
+def step_mrf(labels: LabelSets, weights: CliqueWeights, static: np.ndarray, morse: Morse,
+             resolution: float) -> PairwiseMRF:
+    """The pairwise MRF of one step, with ``initial`` = everybody stays (label 0)."""
+    cells = labels.cells.astype(np.int32)
+    valid = labels.valid
+    N, L = valid.shape
+    unary = weights.node[:, None] * static[cells[..., 0], cells[..., 1]]
+    unary = np.where(valid, unary, np.inf)
+    e = weights.edges
+    if len(e):
+        # Padding labels repeat "stay", so their entries are finite and never chosen (their
+        # unary is inf); they need no special value.
+        cx, cy = cells[..., 0], cells[..., 1]
+        dx = cx[e[:, 0]][:, :, None] - cx[e[:, 1]][:, None, :]
+        dy = cy[e[:, 0]][:, :, None] - cy[e[:, 1]][:, None, :]
+        pairwise = weights.edge[:, None, None] * _morse_table(morse, resolution)(dx * dx + dy * dy)
+    else:
+        pairwise = np.zeros((0, L, L))
+    pairs, mask = conflict_tables(labels)
+    return PairwiseMRF(unary=unary, edges=e, pairwise=pairwise, conflicts=pairs, conflict_mask=mask,
+                       initial=np.zeros(N, dtype=np.intp))

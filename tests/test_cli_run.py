@@ -1,0 +1,120 @@
+"""`mrfswarm run`: outputs of the discrete stage, and one-line errors for bad input."""
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrfswarm.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+EXP = ROOT / "experiments"
+
+CORRIDOR_MAP = """map = { kind = "boxes", size = [40, 40], boxes = [
+    { center = [19.5, 32.5], size = [18, 16] }, { center = [19.5, 9.5], size = [18, 16] }] }"""
+
+
+def write_config(tmp_path: Path, body: str) -> Path:
+    p = tmp_path / "c.toml"
+    p.write_text(body)
+    return p
+
+
+def test_run_discrete_outputs(tmp_path):
+    out = tmp_path / "out"
+    rc = main(["run", str(EXP / "corridor.toml"), "--out", str(out), "--set", "smoothing.enabled=false"])
+    assert rc == 0
+    res = json.loads((out / "result.json").read_text())
+    for key in ("n_robots", "mrf_steps", "converged", "reached_goal", "swarm_energy", "min_separation_discrete",
+                "min_separation_continuous", "min_obstacle_clearance", "makespan_s", "mrf", "qp", "timings_s"):
+        assert key in res, key
+    assert res["n_robots"] == 5 and res["mrf"] == "icm" and res["reached_goal"] is True
+    assert res["min_separation_discrete"] >= 1.0 - 1e-9
+    assert len(res["swarm_energy"]) == res["mrf_steps"] + 1
+    rows = list(csv.DictReader(open(out / "discrete_paths.csv")))
+    assert list(rows[0]) == ["step", "robot", "x", "y"]
+    assert len(rows) == (res["mrf_steps"] + 1) * 5
+    first = {int(r["robot"]): (float(r["x"]), float(r["y"])) for r in rows if r["step"] == "0"}
+    assert first == {0: (4, 16), 1: (4, 18), 2: (4, 20), 3: (4, 22), 4: (4, 24)}
+    for f in ("discrete_paths.png", "swarm_energy.png", "pruned_paths.png"):
+        assert (out / "figures" / f).stat().st_size > 5000
+
+
+def test_set_mrf_and_seed_flags(tmp_path):
+    out = tmp_path / "o"
+    rc = main(["run", str(EXP / "free5.toml"), "--out", str(out), "--mrf", "exact", "--seed", "3",
+               "--set", "smoothing.enabled=false", "--set", "mrf.max_steps=4"])
+    assert rc == 0
+    res = json.loads((out / "result.json").read_text())
+    assert res["mrf"] == "exact" and res["mrf_steps"] <= 4 and res["config"]["mrf"]["max_steps"] == 4
+
+
+BAD = {
+    "robot in wall": (f"[scenario]\n{CORRIDOR_MAP}\nstart = {{ positions = [[4, 16], [20, 30]] }}\ngoal = [35, 20]\n"
+                      "[interaction]\nk = 1\n", r"robot 1 at \(20, 30\) is inside an obstacle"),
+    "robot off map": ("[scenario]\nmap = { kind = \"free\", size = [10, 10] }\nstart = { positions = [[1, 1], [12, 3]] }\n"
+                      "[interaction]\nk = 1\n", r"robot 1 at \(12, 3\) is off the map"),
+    "goal in wall": (f"[scenario]\n{CORRIDOR_MAP}\nstart = {{ positions = [[4, 16], [4, 18]] }}\ngoal = [20, 30]\n"
+                     "[interaction]\nk = 1\n", r"scenario.goal \(20, 30\) is inside an obstacle"),
+    "two in one cell": ("[scenario]\nmap = { kind = \"free\", size = [10, 10] }\n"
+                        "start = { positions = [[1, 1], [2.2, 1], [1.9, 0.8]] }\n[interaction]\nk = 1\n",
+                        r"robots 1 and 2 are both in cell \(2, 1\)"),
+    "k < 1": ("[interaction]\nk = 0\n", r"interaction.k = 0"),
+    "k >= N": ("[scenario]\nstart = { positions = [[1, 1], [3, 3], [5, 5]] }\n[interaction]\nk = 3\n",
+               r"interaction.k = 3: must satisfy 1 <= k < N = 3"),
+    "morse": ("[interaction]\nk_a = 3.0\n", r"interaction.k_a = 3.0: must be > interaction.k_r = 4.0"),
+    "morse ratio": ("[interaction]\na = 0.5\nb = 0.9\nk_a = 6.0\nk_r = 4.0\n", r"b \* k_r / \(a \* k_a\) = 1\.2"),
+    "unknown key": ("[mrf]\nordr = 2\n", r"unknown config key mrf.ordr"),
+    "unknown section": ("[mfr]\norder = 2\n", r"unknown config section 'mfr'"),
+    "bad type": ("[mrf]\norder = \"two\"\n", r"mrf.order must be an integer, got 'two'"),
+    "malformed map": ("[scenario]\nmap = { kind = \"movingai\", path = \"bad.map\" }\n", r"bad.map"),
+    "missing map": ("[scenario]\nmap = { kind = \"ros\", path = \"nowhere.yaml\" }\n", r"nowhere.yaml"),
+    "unknown mrf": ("", r"unknown MRF backend 'nope'"),
+    "bad toml": ("[mrf\norder = 2\n", r"invalid TOML"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_input_is_one_line_exit_2(case, tmp_path, capsys):
+    body, pattern = BAD[case]
+    (tmp_path / "bad.map").write_text("type octile\nheight 2\nwidth 3\nmap\n...\n..\n")
+    cfg = write_config(tmp_path, body)
+    out = tmp_path / "out"
+    argv = ["run", str(cfg), "--out", str(out)] + (["--mrf", "nope"] if case == "unknown mrf" else [])
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert rc == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("mrfswarm: error: "), err
+    import re
+    assert re.search(pattern, lines[0]), lines[0]
+    assert not (out / "result.json").exists()
+
+
+def test_bad_input_from_a_real_process_has_no_traceback(tmp_path):
+    cfg = write_config(tmp_path, BAD["robot in wall"][0])
+    p = subprocess.run([sys.executable, "-m", "mrfswarm.cli", "run", str(cfg), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True)
+    assert p.returncode == 2
+    assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert "inside an obstacle" in p.stderr
+
+
+def test_missing_config_file(capsys):
+    assert main(["run", "/no/such/config.toml"]) == 2
+    assert "cannot read config '/no/such/config.toml'" in capsys.readouterr().err
+
+
+def test_discrete_paths_csv_matches_result(tmp_path):
+    out = tmp_path / "out"
+    main(["run", str(EXP / "free5.toml"), "--out", str(out), "--set", "smoothing.enabled=false"])
+    data = np.loadtxt(out / "discrete_paths.csv", delimiter=",", skiprows=1)
+    res = json.loads((out / "result.json").read_text())
+    last = data[data[:, 0] == res["mrf_steps"]][:, 2:]
+    d = np.hypot(*(last[:, None] - last[None]).transpose(2, 0, 1))
+    np.fill_diagonal(d, np.inf)
+    assert d.min() >= 1.0

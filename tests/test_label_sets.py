@@ -1,0 +1,153 @@
+"""Label sets, motion clearance, and the step's hard conflicts against brute force."""
+
+import numpy as np
+import pytest
+
+from mrfswarm.geometry import segment_box_distance, segment_clear
+from mrfswarm.label_sets import LabelSets, label_sets
+from mrfswarm.motion import min_distance_during_move, moves_clear, stencil, step_min_separation, swept_cells
+from mrfswarm.swarm_mrf import conflict_tables
+
+
+@pytest.mark.parametrize("n, size", [(1, 5), (2, 9), (4, 13), (5, 21), (8, 25)])
+def test_stencil(n, size):
+    s = stencil(n)
+    assert len(s) == size and s[0].tolist() == [0, 0]
+    assert np.all((s**2).sum(1) <= n) and len(np.unique(s, axis=0)) == size
+
+
+def brute_min_distance(d0, v, samples=20001):
+    s = np.linspace(0, 1, samples)[:, None]
+    return np.hypot(*(d0 + s * v).T).min()
+
+
+def test_min_distance_during_move_matches_sampling():
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        d0, v = rng.integers(-4, 5, 2).astype(float), rng.integers(-4, 5, 2).astype(float)
+        assert min_distance_during_move(d0, v) == pytest.approx(brute_min_distance(d0, v), abs=1e-3)
+
+
+def test_swept_cells_by_brute_force():
+    # a cell is required iff its square comes closer than half a cell to the move's segment
+    for n in (1, 2, 4, 8):
+        cells, count = swept_cells(n)
+        for s, o in enumerate(stencil(n)):
+            req = {tuple(c) for c in cells[s, : count[s]].tolist()}
+            for x in range(-4, 5):
+                for y in range(-4, 5):
+                    pts = np.linspace(0, 1, 4001)[:, None] * o
+                    g = np.maximum(0, np.abs(pts - [x, y]) - 0.5)
+                    d = np.hypot(*g.T).min()
+                    if abs(d - 0.5) > 1e-3:  # avoid sampling noise right at the boundary
+                        assert ((x, y) in req) == (d < 0.5), (n, o, x, y, d)
+
+
+def test_moves_clear_agrees_with_segment_clear():
+    rng = np.random.default_rng(1)
+    free = rng.random((15, 15)) > 0.3
+    starts = np.argwhere(free)
+    for n in (2, 5, 8):
+        S = len(stencil(n))
+        ok = moves_clear(free, starts, np.broadcast_to(np.arange(S), (len(starts), S)), n)
+        for i in range(0, len(starts), 7):
+            for s, o in enumerate(stencil(n)):
+                assert ok[i, s] == segment_clear(free, starts[i], starts[i] + o), (starts[i], o)
+
+
+def test_segment_box_distance_cases():
+    assert segment_box_distance(np.array([0, 0.0]), np.array([1, 1.0]), np.array([1.0, 0])) == pytest.approx(0.0)
+    assert segment_box_distance(np.array([0, 0.0]), np.array([2, 0.0]), np.array([1.0, 1])) == pytest.approx(0.5)
+    assert segment_box_distance(np.array([0, 0.0]), np.array([0, 0.0]), np.array([2.0, 2])) == pytest.approx(np.hypot(1.5, 1.5))
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("order", [1, 2, 4, 8])
+def test_label_set_heuristics(seed, order):
+    rng = np.random.default_rng(seed)
+    W = H = 18
+    free = rng.random((W, H)) > 0.25
+    cells = np.argwhere(free)
+    rng.shuffle(cells)
+    starts = cells[:25]
+    goal = np.array([17, 9])
+    for trim in (False, True):
+        ls = label_sets(free, starts, order, goal, trim_backward=trim)
+        assert np.all(ls.index[:, 0] == 0) and np.all(ls.count >= 1)  # stay first, always there
+        owner = {}
+        others = {tuple(c) for c in starts.tolist()}
+        for i in range(len(starts)):
+            for l in range(ls.count[i]):
+                c = tuple(ls.cells[i, l].tolist())
+                assert c not in owner, "X_i and X_j must be disjoint"
+                owner[c] = i
+                assert free[c], "labels are free cells"
+                if l > 0:
+                    assert c not in others, "no label on another robot's (or one's own) current cell"
+                    o = ls.offsets[i, l]
+                    assert (o**2).sum() <= order
+                    assert segment_clear(free, starts[i], starts[i] + o)
+                    if trim:
+                        assert o @ (goal - starts[i]) >= 0
+
+
+def brute_conflicts(ls, i, j):
+    """(L, L) bool by sampling the relative motion of robots i and j for every label pair."""
+    s = np.linspace(0, 1, 1001)[:, None, None, None]
+    d0 = (ls.starts[i] - ls.starts[j]).astype(float)
+    v = (ls.offsets[i][:, None, :] - ls.offsets[j][None, :, :]).astype(float)
+    dist = np.hypot(*np.moveaxis(d0 + s * v, -1, 0)).min(axis=0)
+    return (dist < 1 - 1e-6) & ls.valid[i][:, None] & ls.valid[j][None, :]
+
+
+def check_conflicts(ls):
+    pairs, mask = conflict_tables(ls)
+    table = {tuple(p): m for p, m in zip(pairs.tolist(), mask)}
+    n_true = 0
+    reach = 2 * np.sqrt(ls.order) + 1  # farther apart, two moves cannot come within 1
+    for i in range(len(ls.starts)):
+        for j in range(i + 1, len(ls.starts)):
+            if np.hypot(*(ls.starts[i] - ls.starts[j])) > reach:
+                assert (i, j) not in table
+                continue
+            expect = brute_conflicts(ls, i, j)
+            got = table.get((i, j), np.zeros_like(expect))
+            np.testing.assert_array_equal(got, expect, err_msg=f"robots {i}, {j}")
+            n_true += int(expect.sum())
+    return n_true
+
+
+@pytest.mark.parametrize("order", [1, 2, 4, 8])
+def test_conflicts_match_brute_force(order):
+    rng = np.random.default_rng(order)
+    free = np.ones((14, 14), bool)
+    cells = np.argwhere(free)
+    rng.shuffle(cells)
+    starts = cells[:20]
+    check_conflicts(label_sets(free, starts, order))
+    # Full, overlapping stencils (what a label rule without the paper's heuristics, or a
+    # neighbour blocked by a wall, gives): many real conflicts, each must be found.
+    dense = cells[(np.abs(cells - 7) <= 2).all(axis=1)][:8]
+    S = len(stencil(order))
+    full = LabelSets(index=np.tile(np.arange(S), (len(dense), 1)), count=np.full(len(dense), S), starts=dense,
+                     order=order)
+    assert check_conflicts(full) > 0
+
+
+def test_diagonal_swap_is_a_conflict():
+    ls = LabelSets(index=np.tile(np.arange(9), (2, 1)), count=np.array([9, 9]), starts=np.array([[0, 0], [1, 0]]),
+                   order=2)
+    pairs, mask = conflict_tables(ls)
+    a = next(k for k, o in enumerate(stencil(2).tolist()) if o == [1, 1])
+    b = next(k for k, o in enumerate(stencil(2).tolist()) if o == [-1, 1])
+    assert pairs.tolist() == [[0, 1]] and mask[0, a, b]
+    assert not mask[0, 0, 0]  # both staying is always allowed
+
+
+def test_step_min_separation_checks_all_pairs():
+    p0 = np.array([[0, 0], [1, 0], [10, 10]])
+    p1 = np.array([[1, 1], [0, 1], [10, 11]])  # robots 0 and 1 swap across a diagonal: they meet
+    d, pair = step_min_separation(p0, p1)
+    assert d == pytest.approx(0.0) and pair == (0, 1)
+    d, _ = step_min_separation(p0, p0)
+    assert d == pytest.approx(1.0)

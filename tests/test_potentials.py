@@ -1,0 +1,86 @@
+"""The paper's potentials: Morse minimum, parameter conditions, goal and obstacle fields."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import minimize_scalar
+
+from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
+from mrfswarm.errors import ConfigError
+from mrfswarm.potentials import Morse, goal_field, obstacle_field, static_field
+
+
+def test_paper_values():
+    m = Morse()
+    assert m.d_min == pytest.approx(8.42, abs=0.005)
+    assert m.raw(m.d_min) == pytest.approx(-0.274, abs=0.0005)
+    assert m.zeta > abs(m.raw(m.d_min))
+
+
+@st.composite
+def morse_params(draw):
+    a = draw(st.floats(0.1, 5.0))
+    b = a * draw(st.floats(1.0, 3.0))
+    k_r = draw(st.floats(0.5, 10.0))
+    # b k_r / (a k_a) < 1  <=>  k_a > b k_r / a (which also gives k_a > k_r as b >= a)
+    k_a = (b * k_r / a) * draw(st.floats(1.05, 4.0))
+    return a, b, k_a, k_r
+
+
+@settings(max_examples=60, deadline=None)
+@given(morse_params())
+def test_d_min_formula_is_the_numeric_minimum(p):
+    m = Morse(*p)
+    res = minimize_scalar(lambda d: float(m.raw(d)), bounds=(1e-6, 50 * m.k_a), method="bounded",
+                          options={"xatol": 1e-10})
+    assert m.d_min == pytest.approx(res.x, rel=1e-4, abs=1e-6)
+    # the minimum is a minimum: the derivative changes sign there
+    h = 1e-4 * max(1.0, m.d_min)
+    assert m.raw(m.d_min - h) > m.raw(m.d_min) < m.raw(m.d_min + h)
+    d = np.linspace(0, 20 * m.k_a, 2001)
+    assert np.all(m(d) > 0)
+
+
+@pytest.mark.parametrize("kw, key", [
+    (dict(a=0.9, b=0.7), "interaction.b"),
+    (dict(k_a=4.0, k_r=14.0), "interaction.k_a"),
+    (dict(a=0.7, b=0.9, k_a=5.0, k_r=4.0), "b \\* k_r / \\(a \\* k_a\\)"),
+    (dict(a=-1.0), "interaction.a"),
+    (dict(zeta=0.1), "interaction.zeta"),
+])
+def test_parameter_conditions_are_enforced(kw, key):
+    with pytest.raises(ConfigError, match=key):
+        Morse(**kw)
+
+
+def test_goal_field_values():
+    g = goal_field((30, 20), np.array([10, 5]), 0.5, GoalPotentialConfig(a=3.0, k=20.0))
+    assert g.shape == (30, 20)
+    assert g[10, 5] == pytest.approx(3.0)
+    assert g[13, 9] == pytest.approx(3.0 * math.exp(5 * 0.5 / 20.0))
+    assert np.unravel_index(np.argmin(g), g.shape) == (10, 5)
+    assert np.all(goal_field((4, 4), None, 1.0, GoalPotentialConfig()) == 0)
+
+
+def test_obstacle_field_is_blurred_threshold():
+    prob = np.zeros((21, 21))
+    prob[10, 10] = 0.7  # occupied
+    prob[3, 3] = 0.4  # below the paper's threshold: free
+    f = obstacle_field(prob, ObstaclePotentialConfig(gamma=5.0, sigma=1.0))
+    assert f.sum() == pytest.approx(5.0, rel=1e-6)  # the kernel is normalized
+    assert f[3, 3] == pytest.approx(0.0, abs=1e-12)
+    assert f[10, 10] == pytest.approx(5.0 / (2 * math.pi), rel=0.02)  # peak of a unit 2-D Gaussian
+    assert f[11, 10] < f[10, 10] and f[11, 10] == pytest.approx(f[10, 11]) == pytest.approx(f[9, 10])
+    raw = obstacle_field(prob, ObstaclePotentialConfig(gamma=5.0, sigma=0.0))
+    assert raw[10, 10] == 5.0 and raw.sum() == 5.0
+
+
+def test_static_field_is_the_sum():
+    prob = np.zeros((12, 9))
+    prob[4:6, 2:7] = 1.0
+    gc, oc = GoalPotentialConfig(), ObstaclePotentialConfig()
+    s = static_field(prob, np.array([10, 4]), 1.0, gc, oc)
+    np.testing.assert_allclose(s, goal_field(prob.shape, np.array([10, 4]), 1.0, gc) + obstacle_field(prob, oc))

@@ -1,0 +1,80 @@
+"""Waypoint pruning per horizon and the discrete metrics, on hand-checked cases."""
+
+import numpy as np
+import pytest
+
+from mrfswarm.geometry import segment_clear
+from mrfswarm.metrics import discrete_metrics, min_separation, obstacle_clearance
+from mrfswarm.pruning import horizon_bounds, prune_paths
+
+
+def test_horizon_bounds():
+    assert horizon_bounds(10, 4) == [(0, 4), (4, 8), (8, 10)]
+    assert horizon_bounds(4, 4) == [(0, 4)]
+    assert horizon_bounds(0, 4) == [(0, 0)]
+    with pytest.raises(ValueError):
+        horizon_bounds(3, 0)
+
+
+def test_straight_line_is_pruned_to_horizon_ends():
+    free = np.ones((20, 5), bool)
+    paths = np.array([[[x, 2]] for x in range(9)])  # one robot moving right for 8 steps
+    kept = prune_paths(paths, free, horizon=4)
+    assert kept[0].tolist() == [0, 4, 8]
+
+
+def test_corner_around_an_obstacle_is_kept():
+    free = np.ones((6, 6), bool)
+    free[2:4, 2:4] = False  # a 2x2 block
+    # around the block: (1,1) -> (1,4) -> (4,4), one cell per step
+    path = [(1, 1), (1, 2), (1, 3), (1, 4), (2, 4), (3, 4), (4, 4)]
+    paths = np.array([[p] for p in path])
+    kept = prune_paths(paths, free, horizon=6)[0].tolist()
+    assert kept[0] == 0 and kept[-1] == 6
+    assert 3 in kept  # the corner (1, 4) cannot be cut: the shortcut crosses the block
+    pts = paths[kept, 0]
+    for a, b in zip(pts[:-1], pts[1:]):
+        assert segment_clear(free, a, b)
+
+
+def test_pruning_does_not_cross_another_robots_trajectory():
+    free = np.ones((10, 10), bool)
+    # robot 0 goes (0,0)->(1,1)->(2,0)->... a zig-zag whose shortcut (0,0)->(2,0) passes (1,0);
+    # robot 1 moves through (1,0) during the window
+    r0 = [(0, 0), (1, 1), (2, 0)]
+    r1 = [(1, 3), (1, 2), (1, 0)]  # (a pruning input; it need not be a valid discrete motion)
+    paths = np.array([[a, b] for a, b in zip(r0, r1)])
+    assert prune_paths(paths, free, horizon=2)[0].tolist() == [0, 1, 2]
+    # without robot 1 crossing, the zig-zag is cut
+    paths2 = np.array([[a, (5, 5 + i)] for i, a in enumerate(r0)])
+    assert prune_paths(paths2, free, horizon=2)[0].tolist() == [0, 2]
+
+
+def test_min_separation_includes_moves():
+    paths = np.array([[[0, 0], [3, 0]], [[1, 0], [2, 0]]])  # they approach to 1 cell
+    assert min_separation(paths) == pytest.approx(1.0)
+    paths = np.array([[[0, 0], [2, 0]], [[1, 1], [1, 0]]])  # the distance dips mid-move
+    # relative start (-2, 0), relative motion (1,1)-(-1,0) = (2,1): closest approach 2/sqrt(5) < both ends
+    assert min_separation(paths) == pytest.approx(2 / np.sqrt(5))
+
+
+def test_obstacle_clearance_exact():
+    occ = np.zeros((10, 10), bool)
+    occ[5, 5] = True
+    assert obstacle_clearance(occ, np.array([[2.0, 5.0]])) == pytest.approx(2.5)
+    assert obstacle_clearance(occ, np.array([[3.5, 3.5]])) == pytest.approx(np.hypot(1, 1))
+    assert obstacle_clearance(np.zeros((4, 4), bool), np.array([[1.0, 1.0]])) is None
+
+
+def test_discrete_metrics_summary():
+    occ = np.zeros((20, 20), bool)
+    occ[10, :] = True
+    paths = np.array([[[0, 0], [0, 3]], [[1, 0], [1, 3]], [[2, 0], [2, 3]]])
+    m = discrete_metrics(paths, occ, resolution=0.5, goal=np.array([2, 1]), goal_radius=1.0)
+    assert m.steps == 2
+    np.testing.assert_allclose(m.path_lengths, [1.0, 1.0])  # 2 cells of 0.5 m
+    np.testing.assert_allclose(m.mean_distance, [1.5, 1.5, 1.5])
+    assert m.min_separation == pytest.approx(1.5)
+    assert m.min_obstacle_clearance == pytest.approx((10 - 2 - 0.5) * 0.5)
+    assert m.final_goal_distance == pytest.approx(np.hypot(0, 0.5) * 0.5)
+    assert m.reached_goal is True
