@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     if args.durations is not None:
         T = _durations(args.durations)
         if len(T) != M:
-            raise ConfigError(f"--durations has {len(T)} values; {M + 1} waypoints need {M}")
+            raise ConfigError(f"--durations has {len(T)} value{'s' * (len(T) != 1)}; {M + 1} waypoints need {M}")
     else:
         T = constant_speed_durations(W, speed)
 

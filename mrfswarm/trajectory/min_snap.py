@@ -147,14 +147,20 @@ class MinSnapSolver:
     warm
         Reuse the prepared backend (update + warm start) when the next problem has the
         same shape.
+    formulated
+        Always solve the formulated QP, never the banded closed form; ``"closed_form"``
+        then names the registry's generic equality-only backend (for tests and
+        benchmarks of the QP path).
     """
 
-    def __init__(self, backend: str | None = None, options: Options | None = None, *, warm: bool = True) -> None:
-        if backend is not None and backend != CLOSED_FORM:
+    def __init__(self, backend: str | None = None, options: Options | None = None, *, warm: bool = True,
+                 formulated: bool = False) -> None:
+        if backend is not None and (backend != CLOSED_FORM or formulated):
             solvers.qp.BACKENDS.get(backend)  # fail early on an unknown or missing backend
         self.backend = backend
         self.options = options
         self.warm = warm
+        self.formulated = formulated
         self._prepared = None
         self._shape: MinSnapShape | None = None
         self._x: np.ndarray | None = None
@@ -170,7 +176,7 @@ class MinSnapSolver:
                     f"{', '.join(b for b in solvers.qp.available() if b != CLOSED_FORM) or 'none'}); "
                     "closed_form solves equality-only problems"
                 )
-            if banded.supports(problem):
+            if banded.supports(problem) and not self.formulated:
                 return CLOSED_FORM, "banded"
             if CLOSED_FORM not in solvers.qp.BACKENDS:
                 raise SolverNotFound(

@@ -27,12 +27,14 @@ second-order constraint :math:`\\|p'(s)\\|^2 \\dot s^2 \\le v_{max}^2`; accelera
 by an inscribed polygon/polytope of directions). Its output :math:`p(s(t))` is not a
 polynomial of degree 7 (:math:`s(t)` is piecewise quadratic, so :math:`p(s(t))` has
 degree 14 between toppra's gridpoints). :func:`retime_toppra` therefore returns a
-*refit*: the times at which toppra reaches the knots become new durations, the min-snap
-problem is solved again through the same knot positions (rest to rest, same degree),
-the exact maxima of the refit are computed, and the refit is uniformly slowed down by
-the smallest :math:`\\alpha \\ge 1` that makes it meet both limits. The result is a valid
-degree-7 trajectory within the limits (exactly, not only at samples), with toppra's
-non-uniform allocation of time between pieces; it is not time-optimal.
+*refit*: the path's points at toppra's gridpoints (every few; always the knots) are
+reached at toppra's times by a min-snap trajectory through them (rest to rest, degree
+:math:`2q-1`, several pieces per input piece), whose exact maxima are computed, and
+which is uniformly slowed down by the smallest :math:`\\alpha \\ge 1` that makes it meet
+both limits. The result is a valid degree-7 trajectory within the limits (exactly, not
+only at samples) that follows toppra's time law closely (measured: 2-6 % slower than
+toppra's optimum, against 25-65 % for uniform scaling of the input), passes through the
+input's knots and deviates from its path between refit points only by the smoothing.
 """
 
 from __future__ import annotations
@@ -137,12 +139,11 @@ def scale_to_limits(trajectory: PiecewisePolynomial, v_max: float | None = None,
         need.append(v / v_max)
     if a_max is not None:
         need.append(np.sqrt(a / a_max))
-    alpha = max(need)
+    alpha = max(need) * (1.0 + 1e-12)  # the limits hold after rounding too
     if alpha == 0.0:
         alpha = 1.0
     if not allow_speedup:
         alpha = max(alpha, 1.0)
-    alpha *= 1.0 + 1e-12  # the limits hold after rounding too
     out = trajectory.time_scaled(alpha) if alpha != 1.0 else trajectory
     return TimeScaling(out, float(alpha), v / alpha, a / alpha**2)
 
@@ -181,11 +182,12 @@ class ToppraRetiming:
     Attributes
     ----------
     trajectory
-        The refit, scaled to meet the limits (see module doc).
-    toppra_durations
-        (M,) durations between knots of toppra's time-optimal parametrization.
+        The refit, scaled to meet the limits (see the module doc).
+    path_positions, times
+        toppra's time law: gridpoints ``s`` (times of the input trajectory) and the
+        times at which the time-optimal motion reaches them.
     toppra_duration
-        Its total duration (a lower bound for any trajectory on this path).
+        Duration of toppra's time-optimal motion (a lower bound on this path).
     alpha
         Uniform slow-down applied to the refit (>= 1).
     v_peak, a_peak
@@ -193,7 +195,8 @@ class ToppraRetiming:
     """
 
     trajectory: PiecewisePolynomial
-    toppra_durations: np.ndarray
+    path_positions: np.ndarray
+    times: np.ndarray
     toppra_duration: float
     alpha: float
     v_peak: float
@@ -201,8 +204,15 @@ class ToppraRetiming:
 
 
 def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *, derivative: int = 4,
-                  gridpoints_per_piece: int = 40, backend: str | None = None) -> ToppraRetiming:
+                  gridpoints_per_piece: int = 20, refit_pieces_per_piece: int = 10,
+                  backend: str | None = None) -> ToppraRetiming:
     """Retime ``trajectory`` with toppra under speed and acceleration limits, then refit.
+
+    The refit is a min-snap trajectory (degree ``2q - 1``, rest to rest) through the
+    path's points at every ``gridpoints_per_piece / refit_pieces_per_piece``-th
+    gridpoint, reached at toppra's times (so it has ``refit_pieces_per_piece`` pieces
+    per input piece and passes through the input's knots), slowed down uniformly by
+    the least :math:`\\alpha \\ge 1` that makes its exact maxima meet the limits.
 
     Parameters
     ----------
@@ -213,7 +223,9 @@ def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *
     derivative
         Minimized derivative of the refit (4, snap).
     gridpoints_per_piece
-        toppra's discretization per piece (knots always included).
+        toppra's discretization per input piece (knots always included).
+    refit_pieces_per_piece
+        Pieces of the refit per input piece; must divide ``gridpoints_per_piece``.
     backend
         Solver of the refit (see :func:`~mrfswarm.trajectory.min_snap.solve_min_snap`).
 
@@ -228,10 +240,13 @@ def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *
 
     from mrfswarm.trajectory.min_snap import solve_min_snap
 
-    _check_limit("v_max", v_max)
-    _check_limit("a_max", a_max)
     if v_max is None or a_max is None:
         raise InvalidProblem("retime_toppra needs both v_max and a_max")
+    _check_limit("v_max", v_max)
+    _check_limit("a_max", a_max)
+    if refit_pieces_per_piece < 1 or gridpoints_per_piece % refit_pieces_per_piece:
+        raise InvalidProblem(f"refit_pieces_per_piece ({refit_pieces_per_piece}) must divide "
+                             f"gridpoints_per_piece ({gridpoints_per_piece})")
     dim = trajectory.dim
     D, h = _inscribed_directions(dim)
 
@@ -247,6 +262,19 @@ def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *
         def path_interval(self):
             return np.array([0.0, trajectory.duration])
 
+    class _RateBound(constraint.LinearConstraint):
+        """``sd <= sd_max``: near the rest ends the path tangent vanishes and nothing else bounds sd."""
+
+        def __init__(self, sd_max: float) -> None:
+            super().__init__()
+            self.dof = dim
+            self.sd_max = sd_max
+
+        def compute_constraint_params(self, path, gridpoints):
+            xb = np.zeros((len(gridpoints), 2))
+            xb[:, 1] = self.sd_max**2
+            return None, None, None, None, None, None, xb
+
     F = np.zeros((1 + len(D), 1 + dim))
     F[0, 0] = 1.0
     F[1:, 1:] = D
@@ -256,11 +284,14 @@ def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *
         lambda q, qd, qdd: np.concatenate([[qd @ qd], qdd]), lambda q: F, lambda q: g, dof=dim,
         discretization_scheme=constraint.DiscretizationType.Interpolation,
     )
+    v0 = max_derivative_norm(trajectory, 1)[0]
+    a0 = max_derivative_norm(trajectory, 2)[0]
+    # 100 times the speed-up a uniform scaling would allow: never binding away from the ends
+    sd_max = 100.0 * max(v_max / max(v0, 1e-300), np.sqrt(a_max / max(a0, 1e-300)), 1e-3)
     kn = trajectory.knots
-    grid = np.unique(np.concatenate(
-        [kn[:-1, None] + np.linspace(0, 1, gridpoints_per_piece, endpoint=False)[None, :] * trajectory.durations[:, None]]
-        + [kn[-1:, None]], axis=None))
-    inst = algo.TOPPRA([con], _Path(), gridpoints=grid, solver_wrapper="seidel")
+    G = gridpoints_per_piece
+    grid = np.concatenate([(kn[:-1, None] + np.arange(G)[None, :] / G * trajectory.durations[:, None]).ravel(), kn[-1:]])
+    inst = algo.TOPPRA([con, _RateBound(sd_max)], _Path(), gridpoints=grid, solver_wrapper="seidel")
     inst.compute_parameterization(0.0, 0.0)
     data = inst.problem_data
     if data.return_code != algo.ParameterizationReturnCode.Ok or data.sd_vec is None:
@@ -268,16 +299,14 @@ def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *
                           status=str(data.return_code))
     sd = np.asarray(data.sd_vec, dtype=float).reshape(-1)
     ss = np.asarray(data.gridpoints, dtype=float).reshape(-1)
-    dt = 2.0 * np.diff(ss) / np.maximum(sd[:-1] + sd[1:], 1e-300)
+    dt = 2.0 * np.diff(ss) / np.maximum(sd[:-1] + sd[1:], 1e-300)  # constant path acceleration per interval
     times = np.concatenate([[0.0], np.cumsum(dt)])
-    t_knots = np.interp(kn, ss, times)
-    durs = np.diff(t_knots)
-    if not np.all(np.isfinite(durs)) or np.any(durs <= 0):
-        raise SolverError("toppra returned a parametrization with non-positive knot intervals", backend="toppra",
-                          status="bad_durations")
-    refit = solve_min_snap(trajectory.evaluate(kn), durs, degree=max(trajectory.degree, 2 * derivative - 1),
-                           derivative=derivative, backend=backend).trajectory
+    if ss.size != grid.size or not np.all(np.isfinite(times)) or np.any(dt <= 0):
+        raise SolverError("toppra returned an unusable parametrization", backend="toppra", status="bad_time_law")
+    sel = np.arange(0, ss.size, G // refit_pieces_per_piece)
+    refit = solve_min_snap(trajectory.evaluate(ss[sel]), np.diff(times[sel]),
+                           degree=2 * derivative - 1, derivative=derivative, backend=backend).trajectory
     sc = scale_to_limits(refit, v_max, a_max)
-    log.info("toppra: %.3f s time-optimal on the path, refit scaled by %.3f to %.3f s", times[-1], sc.alpha,
-             sc.trajectory.duration)
-    return ToppraRetiming(sc.trajectory, durs, float(times[-1]), sc.alpha, sc.v_peak, sc.a_peak)
+    log.info("toppra: %.3f s time-optimal on the path; refit of %d pieces scaled by %.3f to %.3f s",
+             times[-1], refit.pieces, sc.alpha, sc.trajectory.duration)
+    return ToppraRetiming(sc.trajectory, ss, times, float(times[-1]), sc.alpha, sc.v_peak, sc.a_peak)
