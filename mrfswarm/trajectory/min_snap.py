@@ -129,6 +129,22 @@ class MinSnapResult:
         return self.formulate_time_s + self.setup_time_s + self.solve_time_s
 
 
+_RECORDS: dict = {}
+
+
+def _backend(name: str):
+    """The registry record of ``name``, looked up once per registry.
+
+    ``Registry.get`` probes the modules of every backend (to name the installed ones
+    in its error message), which costs about 50 microseconds per call.
+    """
+    key = (id(solvers.qp.BACKENDS), name)
+    rec = _RECORDS.get(key)
+    if rec is None:
+        rec = _RECORDS[key] = solvers.qp.BACKENDS.get(name)
+    return rec
+
+
 def _cost(c_tau: np.ndarray, T: np.ndarray, q: int) -> float:
     H = cost_hessian(c_tau.shape[1] - 1, q)
     return float(np.einsum("ikd,kl,ild->i", c_tau, H, c_tau) @ T ** (1 - 2 * q))
@@ -156,7 +172,7 @@ class MinSnapSolver:
     def __init__(self, backend: str | None = None, options: Options | None = None, *, warm: bool = True,
                  formulated: bool = False) -> None:
         if backend is not None and (backend != CLOSED_FORM or formulated):
-            solvers.qp.BACKENDS.get(backend)  # fail early on an unknown or missing backend
+            _backend(backend)  # fail early on an unknown or missing backend
         self.backend = backend
         self.options = options
         self.warm = warm
@@ -210,15 +226,15 @@ class MinSnapSolver:
         t0 = time.perf_counter()
         qp, norm = min_snap_qp(problem)
         t_form = time.perf_counter() - t0
+        record = _backend(name)
         reuse = self.warm and self._prepared is not None and self._shape == problem.shape and self._prepared.name == name
         if reuse:
             t1 = time.perf_counter()
             self._prepared.update(qp)
             setup = time.perf_counter() - t1
-            warm_x = self._x if "warm_start" in solvers.qp.BACKENDS.get(name).capabilities else None
-            sol = self._prepared.solve(warm_start=warm_x)
+            sol = self._prepared.solve(warm_start=self._x if "warm_start" in record.capabilities else None)
         else:
-            self._prepared = solvers.qp.prepare(qp, name, self.options)
+            self._prepared = record.entry(qp, self.options)  # what solvers.qp.prepare does
             self._shape = problem.shape
             setup = self._prepared.setup_time_s
             sol = self._prepared.solve()
