@@ -1,0 +1,288 @@
+"""Solve min-snap problems with the closed form or any QP backend of :mod:`solvers.qp`.
+
+>>> from mrfswarm.trajectory import solve_min_snap
+>>> res = solve_min_snap([[0, 0], [1, 0], [1, 1]], [1.0, 1.0])          # doctest: +SKIP
+>>> res.trajectory(0.5), res.cost, res.backend                         # doctest: +SKIP
+
+Backend names are those of ``solvers.qp.BACKENDS``, plus the meaning this module gives
+``"closed_form"``: without a corridor and with degree ``2q - 1`` it is the banded closed
+form of :mod:`mrfswarm.trajectory.banded` (linear in the number of pieces; the accuracy
+reference); with a higher degree it is the formulated QP handed to the registry's
+generic ``closed_form`` (equality-only KKT) backend; with a corridor it is an error,
+since corridor inequalities need a QP backend. ``None`` picks ``closed_form`` without a
+corridor and ``solvers.qp.DEFAULT_BACKEND`` with one.
+
+The QP path evaluates the formulation compiled once per shape
+(:mod:`mrfswarm.trajectory.formulation`) on normalized data (see :class:`Normalization`)
+and maps the solution back; :class:`MinSnapSolver` keeps the prepared backend between
+solves of the same shape so that a re-solve only updates the data and warm-starts.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+import solvers.qp
+from mrfswarm.trajectory import banded
+from mrfswarm.trajectory.corridor import Corridor
+from mrfswarm.trajectory.formulation import compiled_min_snap
+from mrfswarm.trajectory.polynomial import PiecewisePolynomial, cost_hessian, tau_to_time
+from mrfswarm.trajectory.problem import EndSpec, MinSnapProblem, MinSnapShape
+from solvers.errors import InvalidProblem, SolverNotFound
+from solvers.qp import Options, QPProblem, Solution
+
+log = logging.getLogger(__name__)
+
+CLOSED_FORM = "closed_form"
+
+
+@dataclass(frozen=True)
+class Normalization:
+    """The exact change of units under which the QP is solved.
+
+    Positions :math:`p = \\text{center} + \\text{scale}\\, \\tilde p`, durations
+    :math:`T = \\text{time\\_scale}\\, \\tilde T`. The optimum maps onto itself (the
+    problem is equivariant under both), a given r-th derivative becomes
+    :math:`g\\, \\text{time\\_scale}^r / \\text{scale}`, and the cost
+    :math:`J = \\text{scale}^2\\, \\text{time\\_scale}^{1-2q} \\tilde J`.
+    """
+
+    center: np.ndarray
+    scale: float
+    time_scale: float
+
+    @classmethod
+    def of(cls, problem: MinSnapProblem) -> Normalization:
+        """Centre and half-extent of the waypoints, geometric mean of the durations."""
+        lo, hi = problem.waypoints.min(axis=0), problem.waypoints.max(axis=0)
+        half = float(np.max(hi - lo)) / 2
+        return cls(center=(lo + hi) / 2, scale=half if half > 0 else 1.0,
+                   time_scale=float(np.exp(np.mean(np.log(problem.durations)))))
+
+    def qp(self, problem: MinSnapProblem) -> QPProblem:
+        """The normalized standard-form QP of ``problem`` (compiled formulation evaluated)."""
+        s = problem.shape
+        c, L, Ts = self.center, self.scale, self.time_scale
+        lo = hi = None
+        if problem.corridor is not None:
+            lo = (problem.corridor.lower - c) / L
+            hi = (problem.corridor.upper - c) / L
+        g0 = problem.start * (Ts ** np.arange(1, s.start_order + 1))[:, None] / L
+        g1 = problem.end * (Ts ** np.arange(1, s.end_order + 1))[:, None] / L
+        return compiled_min_snap(s).evaluate((problem.waypoints - c) / L, problem.durations / Ts, lo, hi, g0, g1)
+
+    def tau_coefficients(self, problem: MinSnapProblem, x: np.ndarray) -> np.ndarray:
+        """(M, D+1, dim) physical tau-coefficients from a normalized QP solution ``x``."""
+        cn = compiled_min_snap(problem.shape).coefficients(x, problem.durations / self.time_scale) * self.scale
+        cn[:, 0, :] += self.center
+        return cn
+
+
+def min_snap_qp(problem: MinSnapProblem) -> tuple[QPProblem, Normalization]:
+    """The formulated standard-form QP of ``problem`` and the normalization it uses.
+
+    The QP's variables are normalized knot derivatives and bubble coefficients (see
+    :mod:`mrfswarm.trajectory.formulation`); map a solution back with
+    :meth:`Normalization.tau_coefficients`.
+    """
+    norm = Normalization.of(problem)
+    return norm.qp(problem), norm
+
+
+@dataclass(frozen=True)
+class MinSnapResult:
+    """A solved smoothing problem.
+
+    Attributes
+    ----------
+    trajectory
+        The piecewise polynomial (coefficients in local time).
+    cost
+        :math:`\\int \\|\\sigma^{(q)}\\|^2 dt`, exact, in physical units.
+    backend
+        ``"closed_form"`` or the QP backend's registry name.
+    method
+        ``"banded"`` (closed form) or ``"qp"`` (formulated QP).
+    formulate_time_s, setup_time_s, solve_time_s
+        Evaluating the compiled formulation (and normalizing), backend setup (0 for the
+        banded path, or a cheap update on a warm re-solve), and solving.
+    solution
+        The backend's :class:`~solvers.qp.Solution` on the QP path, else ``None``.
+    """
+
+    trajectory: PiecewisePolynomial
+    cost: float
+    backend: str
+    method: str
+    formulate_time_s: float
+    setup_time_s: float
+    solve_time_s: float
+    solution: Solution | None = None
+
+    @property
+    def total_time_s(self) -> float:
+        """Formulation, setup and solve together."""
+        return self.formulate_time_s + self.setup_time_s + self.solve_time_s
+
+
+_RECORDS: dict = {}
+
+
+def _backend(name: str):
+    """The registry record of ``name``, looked up once per registry.
+
+    ``Registry.get`` probes the modules of every backend (to name the installed ones
+    in its error message), which costs about 50 microseconds per call.
+    """
+    key = (id(solvers.qp.BACKENDS), name)
+    rec = _RECORDS.get(key)
+    if rec is None:
+        rec = _RECORDS[key] = solvers.qp.BACKENDS.get(name)
+    return rec
+
+
+def _cost(c_tau: np.ndarray, T: np.ndarray, q: int) -> float:
+    H = cost_hessian(c_tau.shape[1] - 1, q)
+    return float(np.einsum("ikd,kl,ild->i", c_tau, H, c_tau) @ T ** (1 - 2 * q))
+
+
+class MinSnapSolver:
+    """Solves min-snap problems with one backend, reusing its setup across same-shape solves.
+
+    Parameters
+    ----------
+    backend
+        A name of ``solvers.qp.BACKENDS``, ``"closed_form"``, or ``None`` (see the
+        module docstring).
+    options
+        QP options (tolerances, iterations, time limit).
+    warm
+        Reuse the prepared backend (update + warm start) when the next problem has the
+        same shape.
+    formulated
+        Always solve the formulated QP, never the banded closed form; ``"closed_form"``
+        then names the registry's generic equality-only backend (for tests and
+        benchmarks of the QP path).
+    """
+
+    def __init__(self, backend: str | None = None, options: Options | None = None, *, warm: bool = True,
+                 formulated: bool = False) -> None:
+        if backend is not None and (backend != CLOSED_FORM or formulated):
+            _backend(backend)  # fail early on an unknown or missing backend
+        self.backend = backend
+        self.options = options
+        self.warm = warm
+        self.formulated = formulated
+        self._prepared = None
+        self._shape: MinSnapShape | None = None
+        self._x: np.ndarray | None = None
+
+    def _route(self, problem: MinSnapProblem) -> tuple[str, str]:
+        name = self.backend
+        if name is None:
+            name = solvers.qp.DEFAULT_BACKEND if problem.has_corridor else CLOSED_FORM
+        if name == CLOSED_FORM:
+            if problem.has_corridor:
+                raise InvalidProblem(
+                    "corridor constraints need a QP backend (installed: "
+                    f"{', '.join(b for b in solvers.qp.available() if b != CLOSED_FORM) or 'none'}); "
+                    "closed_form solves equality-only problems"
+                )
+            if banded.supports(problem) and not self.formulated:
+                return CLOSED_FORM, "banded"
+            if CLOSED_FORM not in solvers.qp.BACKENDS:
+                raise SolverNotFound(
+                    f"degree {problem.degree} > 2q - 1 = {2 * problem.derivative - 1} needs the generic "
+                    f"closed_form QP backend, which is not registered; installed: {', '.join(solvers.qp.available())}"
+                )
+        return name, "qp"
+
+    def solve(self, problem: MinSnapProblem) -> MinSnapResult:
+        """Solve ``problem``.
+
+        Raises
+        ------
+        InvalidProblem
+            ``closed_form`` asked for a problem with a corridor, or a malformed problem.
+        SolverNotFound
+            Unknown or missing backend.
+        InfeasibleError
+            The corridor leaves no feasible trajectory (backend's verdict).
+        SolverError
+            Any other backend failure.
+        """
+        name, method = self._route(problem)
+        T, q = problem.durations, problem.derivative
+        if method == "banded":
+            t0 = time.perf_counter()
+            sol = banded.solve_banded(problem)
+            dt = time.perf_counter() - t0
+            traj = PiecewisePolynomial(T, tau_to_time(sol.coefficients, T))
+            return MinSnapResult(traj, sol.cost, CLOSED_FORM, "banded", 0.0, 0.0, dt)
+        t0 = time.perf_counter()
+        qp, norm = min_snap_qp(problem)
+        t_form = time.perf_counter() - t0
+        record = _backend(name)
+        reuse = self.warm and self._prepared is not None and self._shape == problem.shape and self._prepared.name == name
+        if reuse:
+            t1 = time.perf_counter()
+            self._prepared.update(qp)
+            setup = time.perf_counter() - t1
+            sol = self._prepared.solve(warm_start=self._x if "warm_start" in record.capabilities else None)
+        else:
+            self._prepared = record.entry(qp, self.options)  # what solvers.qp.prepare does
+            self._shape = problem.shape
+            setup = self._prepared.setup_time_s
+            sol = self._prepared.solve()
+        self._x = sol.x
+        c_tau = norm.tau_coefficients(problem, sol.x)
+        traj = PiecewisePolynomial(T, tau_to_time(c_tau, T))
+        log.debug("min-snap %s via %s: %d iterations, status %s", problem.shape, name, sol.iterations, sol.status)
+        return MinSnapResult(traj, _cost(c_tau, T, q), name, "qp", t_form, setup, sol.solve_time_s, sol)
+
+
+def solve_min_snap(
+    waypoints: np.ndarray,
+    durations: np.ndarray,
+    *,
+    degree: int = 7,
+    derivative: int = 4,
+    continuity: int | None = None,
+    start: EndSpec = "rest",
+    end: EndSpec = "rest",
+    corridor: Corridor | None = None,
+    backend: str | None = None,
+    options: Options | None = None,
+) -> MinSnapResult:
+    """Smooth ``waypoints`` into the minimum-``derivative`` piecewise polynomial.
+
+    Parameters
+    ----------
+    waypoints
+        (M+1, dim) positions the trajectory passes through at its knots.
+    durations
+        (M,) positive piece durations (seconds); see
+        :mod:`mrfswarm.trajectory.time_allocation` to compute them.
+    degree, derivative, continuity, start, end, corridor
+        See :class:`~mrfswarm.trajectory.problem.MinSnapProblem`.
+    backend
+        ``"closed_form"``, a name of ``solvers.qp.BACKENDS`` or ``None`` (automatic).
+    options
+        QP backend options.
+
+    Returns
+    -------
+    MinSnapResult
+
+    Raises
+    ------
+    InvalidProblem, SolverNotFound, InfeasibleError, SolverError
+        See :meth:`MinSnapSolver.solve`.
+    """
+    problem = MinSnapProblem(waypoints, durations, degree=degree, derivative=derivative, continuity=continuity,
+                             start=start, end=end, corridor=corridor)
+    return MinSnapSolver(backend, options, warm=False).solve(problem)

@@ -1,0 +1,140 @@
+"""PiecewisePolynomial: evaluation, derivatives, sampling, concatenation, restriction, cost."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.integrate import quad
+
+from mrfswarm.trajectory import PiecewisePolynomial, concatenate, integral_squared_derivative, seam_jumps
+from mrfswarm.trajectory.polynomial import cost_hessian, tau_to_time, time_to_tau
+from solvers.errors import InvalidProblem
+
+
+def random_traj(rng, M=4, D=7, dim=2):
+    return PiecewisePolynomial(rng.uniform(0.3, 2.0, M), rng.normal(size=(M, D + 1, dim)))
+
+
+def test_evaluation_matches_numpy_polyval_per_piece():
+    rng = np.random.default_rng(0)
+    tr = random_traj(rng)
+    for i in range(tr.pieces):
+        s = np.linspace(0, tr.durations[i], 7)[:-1]
+        t = tr.knots[i] + s
+        for r in range(4):
+            expect = np.stack([np.polynomial.polynomial.polyval(s, np.polynomial.polynomial.polyder(tr.coefficients[i, :, d], r))
+                               for d in range(tr.dim)], axis=-1)
+            np.testing.assert_allclose(tr(t, r), expect, rtol=1e-12, atol=1e-12)
+
+
+def test_evaluate_shapes_and_clamping():
+    rng = np.random.default_rng(1)
+    tr = random_traj(rng, dim=3)
+    assert tr(0.5).shape == (3,)
+    assert tr(np.zeros((4, 5))).shape == (4, 5, 3)
+    np.testing.assert_allclose(tr(-1.0), tr(0.0))
+    np.testing.assert_allclose(tr(tr.duration + 5), tr(tr.duration))
+    assert np.all(tr(0.3, derivative=8) == 0)
+    with pytest.raises(InvalidProblem):
+        tr(0.0, derivative=-1)
+
+
+def test_derivative_object_matches_evaluate():
+    rng = np.random.default_rng(2)
+    tr = random_traj(rng)
+    t = np.linspace(0, tr.duration, 101)
+    for r in range(1, 5):
+        np.testing.assert_allclose(tr.derivative(r)(t), tr(t, r), rtol=1e-11, atol=1e-9)
+
+
+def test_sample_rate_and_end():
+    tr = PiecewisePolynomial([0.55, 0.5], np.zeros((2, 8, 2)))
+    t, p = tr.sample(10.0)
+    assert t[0] == 0 and t[-1] == pytest.approx(1.05) and p.shape == (len(t), 2)
+    np.testing.assert_allclose(np.diff(t[:-1]), 0.1)
+
+
+def test_validation():
+    with pytest.raises(InvalidProblem, match="duration"):
+        PiecewisePolynomial([1.0, 0.0], np.zeros((2, 8, 2)))
+    with pytest.raises(InvalidProblem, match="shape"):
+        PiecewisePolynomial([1.0], np.zeros((2, 8, 2)))
+    with pytest.raises(InvalidProblem, match="finite"):
+        PiecewisePolynomial([1.0], np.full((1, 8, 2), np.nan))
+
+
+def test_tau_time_round_trip():
+    rng = np.random.default_rng(3)
+    tr = random_traj(rng)
+    np.testing.assert_allclose(tau_to_time(time_to_tau(tr.coefficients, tr.durations), tr.durations), tr.coefficients)
+
+
+def test_concatenate_and_seams():
+    rng = np.random.default_rng(4)
+    a = random_traj(rng, M=2, D=5)
+    b = random_traj(rng, M=3, D=7)
+    c = concatenate([a, b])
+    assert c.pieces == 5 and c.degree == 7 and c.duration == pytest.approx(a.duration + b.duration)
+    t = np.linspace(0, a.duration, 30, endpoint=False)
+    np.testing.assert_allclose(c(t), a(t))
+    np.testing.assert_allclose(c(a.duration + np.linspace(0, b.duration, 30)), b(np.linspace(0, b.duration, 30)))
+    with pytest.raises(InvalidProblem):
+        concatenate([a, random_traj(rng, dim=3)])
+    # seam_jumps: value at start of piece i+1 minus value at end of piece i
+    j = seam_jumps(c, 2)
+    for r in range(3):
+        np.testing.assert_allclose(j[1, r], b(0.0, r) - a(a.duration, r), rtol=1e-10, atol=1e-10)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(0.0, 0.95), st.floats(0.05, 1.0), st.integers(0, 2**31 - 1))
+def test_restricted_is_the_same_curve(frac0, span, seed):
+    rng = np.random.default_rng(seed)
+    tr = random_traj(rng, M=3)
+    t0 = frac0 * tr.duration
+    t1 = min(tr.duration, t0 + span * (tr.duration - t0))
+    if t1 - t0 < 1e-6:
+        return
+    sub = tr.restricted(t0, t1)
+    assert sub.duration == pytest.approx(t1 - t0, rel=1e-12)
+    s = np.linspace(0, sub.duration, 50)
+    for r in range(3):
+        np.testing.assert_allclose(sub(s, r), tr(t0 + s, r), rtol=1e-8, atol=1e-8)
+
+
+def test_time_scaled_laws():
+    rng = np.random.default_rng(5)
+    tr = random_traj(rng)
+    alpha = 2.5
+    sc = tr.time_scaled(alpha)
+    t = np.linspace(0, tr.duration, 40)
+    for r in range(4):
+        np.testing.assert_allclose(sc(alpha * t, r), tr(t, r) / alpha**r, rtol=1e-10, atol=1e-10)
+    q = 4
+    assert integral_squared_derivative(sc, q) == pytest.approx(alpha ** (1 - 2 * q) * integral_squared_derivative(tr, q))
+
+
+@pytest.mark.parametrize("q", [1, 2, 3, 4])
+def test_integral_squared_derivative_matches_quadrature(q):
+    rng = np.random.default_rng(q)
+    tr = random_traj(rng, M=3)
+    num = sum(quad(lambda t: float(np.sum(tr(t, q) ** 2)), tr.knots[i], tr.knots[i + 1], epsabs=0, epsrel=1e-12)[0]
+              for i in range(tr.pieces))
+    assert integral_squared_derivative(tr, q) == pytest.approx(num, rel=1e-9)
+
+
+def test_cost_hessian_known_entries():
+    H = cost_hessian(7, 4)
+    assert H[4, 4] == 576 and H[7, 7] == pytest.approx(100800)
+    assert np.all(H[:4] == 0) and np.all(H[:, :4] == 0)
+    assert np.all(np.linalg.eigvalsh(H[4:, 4:]) > 0)
+
+
+def test_with_degree():
+    rng = np.random.default_rng(6)
+    tr = random_traj(rng, D=5)
+    up = tr.with_degree(7)
+    assert up.degree == 7 and np.all(up.coefficients[:, 6:] == 0)
+    assert up.with_degree(5).degree == 5
+    with pytest.raises(InvalidProblem, match="cannot lower"):
+        tr.with_degree(3)
