@@ -184,6 +184,7 @@ def safe_pruning(paths: np.ndarray, free: np.ndarray, E: int) -> tuple[list[np.n
     for a, b in blocks:
         block = [np.array(prune_robot(paths, free, i, a, b)) for i in range(N)]
         full = np.arange(a, b + 1)
+        discrete = paths[a:b + 1].astype(float)
         while True:
             R = np.stack([np.stack([np.interp(full, k, paths[k, i, d].astype(float)) for d in range(2)], axis=1)
                           for i, k in enumerate(block)], axis=1)  # (b - a + 1, N, 2)
@@ -191,7 +192,8 @@ def safe_pruning(paths: np.ndarray, free: np.ndarray, E: int) -> tuple[list[np.n
             for j in range(b - a):
                 d, pair = step_min_separation(R[j], R[j + 1])
                 if d < MIN_SEPARATION - 1e-9 and pair is not None:
-                    bad.update(p for p in pair if len(block[p]) < len(full))
+                    # un-prune the robots whose chords differ from their discrete motion
+                    bad.update(p for p in pair if not np.allclose(R[:, p], discrete[:, p]))
             if not bad:
                 break
             for i in bad:
