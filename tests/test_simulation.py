@@ -27,7 +27,7 @@ def linear_model():
     D = np.array([quad_params["tau_m"], 1.0, kw, kR])
     num = np.polysub(D, [kR])[:-1]
     den = np.polyadd(np.polymul([1.0, 0.0, 0.0], D), kR * np.array([kd, kp]))
-    return signal.lti(num, den), float(kw / (kR * kp))  # static gain: D(0) - k_R over k_R k_p, per s
+    return signal.lti(num, den), float(kw / (kR * kp))  # static gain num(0) / den(0) = k_w / (k_R k_p)
 
 
 def test_tracking_gain_of_the_linear_model():
