@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from solvers.qp import osqp_
+from solvers.qp import casadi_, closed_form, cvxpy_, ipopt_, osqp_, piqp_, proxsuite_
 from solvers.qp.base import PreparedQP
 from solvers.qp.problem import QPProblem
 from solvers.qp.solution import Options, Solution, Status
@@ -23,6 +23,12 @@ BACKENDS = Registry(
     "QP",
     [
         osqp_.BACKEND,
+        piqp_.BACKEND,
+        proxsuite_.BACKEND,
+        cvxpy_.BACKEND,
+        casadi_.BACKEND,
+        ipopt_.BACKEND,
+        closed_form.BACKEND,
     ],
 )
 

@@ -85,7 +85,7 @@ class OsqpQP(PreparedQP):
     def _solve(self, warm_start):
         if warm_start is not None:
             self._solver.warm_start(x=warm_start)
-        r = self._solver.solve()
+        r = self._solver.solve(raise_error=False)  # statuses are mapped, not raised
         return r.x, _status(r.info.status_val), str(r.info.status), r.info.iter, r.y
 
 
@@ -95,5 +95,5 @@ BACKEND = Backend(
     requires=("osqp",),
     extra="osqp",
     summary="OSQP: operator splitting (ADMM), sparse, warm-startable",
-    capabilities=frozenset({"inequalities", "warm_start"}),
+    capabilities=frozenset({"inequalities", "detects_infeasibility", "warm_start"}),
 )

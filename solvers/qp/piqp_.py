@@ -1,0 +1,121 @@
+"""PIQP, a proximal interior-point QP solver (sparse backend).
+
+Schwan, Jiang, Kuhn, Jones, "PIQP: A Proximal Interior-Point Quadratic Programming
+Solver", IEEE Conference on Decision and Control (CDC), 2023.
+
+PIQP solves
+
+.. math::
+
+    \\min_x \\tfrac12 x^\\top P x + c^\\top x \\quad \\text{s.t.} \\quad
+    A x = b, \\quad h_l \\le G x \\le h_u, \\quad x_l \\le x \\le x_u,
+
+so the rows of ``l <= Ax <= u`` are split: ``l == u`` rows become ``A x = b``, the other
+rows with a finite side become ``h_l <= G x <= h_u`` (PIQP accepts infinite ``h_l``/``h_u``
+for a one-sided row), and rows free on both sides are dropped. Box bounds ``x_l, x_u``
+are not used: the standard form has no separate bounds, and detecting singleton rows
+would only pay off on problems we do not have (min-snap corridors are not singletons).
+
+Being an interior-point method, PIQP has no warm start: ``warm_start`` is accepted and
+ignored. It has no time limit either (``Options.time_limit`` is ignored with a warning).
+An update with the same sparsity pattern and the same split of rows reuses the solver
+(``SparseSolver.update``); otherwise the problem is set up again.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import scipy.sparse as sp
+
+from solvers.qp.base import PreparedQP
+from solvers.qp.problem import QPProblem
+from solvers.qp.row_split import split_rows
+from solvers.qp.solution import Options, Status
+from solvers.registry import Backend
+
+log = logging.getLogger(__name__)
+
+
+def _settings(o: Options) -> dict:
+    """``Options`` in PIQP's terms (the one place they are translated)."""
+    if o.time_limit is not None:
+        log.warning("piqp has no time limit; Options.time_limit=%s is ignored", o.time_limit)
+    # polish: an interior-point solution needs no polishing; ignored.
+    return dict(
+        eps_abs=o.eps_abs,
+        eps_rel=o.eps_rel,
+        eps_duality_gap_abs=o.eps_abs,
+        eps_duality_gap_rel=o.eps_rel,
+        max_iter=o.max_iter,
+        verbose=o.verbose,
+    )
+
+
+def _status(st) -> Status:
+    import piqp
+
+    table = {
+        piqp.PIQP_SOLVED: Status.OPTIMAL,
+        piqp.PIQP_MAX_ITER_REACHED: Status.MAX_ITER,
+        piqp.PIQP_PRIMAL_INFEASIBLE: Status.INFEASIBLE,
+        piqp.PIQP_DUAL_INFEASIBLE: Status.UNBOUNDED,
+        # PIQP_NUMERICS, PIQP_UNSOLVED, PIQP_INVALID_SETTINGS and anything new: failures
+    }
+    return table.get(st, Status.ERROR)
+
+
+class PiqpQP(PreparedQP):
+    """PIQP's sparse solver, updated in place when the pattern and row split allow."""
+
+    name = "piqp"
+
+    def _setup(self, problem: QPProblem) -> None:
+        import piqp
+
+        split = split_rows(problem)
+        solver = piqp.SparseSolver()
+        for key, val in _settings(self.options).items():
+            setattr(solver.settings, key, val)
+        P_triu = sp.triu(problem.P, format="csc")
+        solver.setup(P_triu, problem.q, *self._constraints(split))
+        self._solver, self._split, self._P_triu = solver, split, P_triu
+
+    @staticmethod
+    def _constraints(split) -> tuple:
+        eq = (split.A_eq, split.b) if split.n_eq else (None, None)
+        ineq = (split.A_in, split.l_in, split.u_in) if split.n_in else (None, None, None)
+        return (*eq, *ineq)
+
+    def update(self, problem: QPProblem) -> None:
+        self._check_same_shape(problem)
+        split = split_rows(problem)
+        if not split.same_partition(self._split):
+            super().update(problem)
+            return
+        P_triu = sp.triu(problem.P, format="csc")
+        if not (np.array_equal(P_triu.indptr, self._P_triu.indptr) and np.array_equal(P_triu.indices, self._P_triu.indices)):
+            super().update(problem)
+            return
+        self.problem = problem
+        A, b, G, h_l, h_u = self._constraints(split)
+        self._guarded(lambda: self._solver.update(P=P_triu, c=problem.q, A=A, b=b, G=G, h_l=h_l, h_u=h_u))
+        self._split, self._P_triu = split, P_triu
+
+    def _solve(self, warm_start):
+        # interior point: no warm start
+        st = self._solver.solve()
+        r = self._solver.result
+        y = self._split.scatter(r.y, np.asarray(r.z_u) - np.asarray(r.z_l))
+        return r.x, _status(st), str(st), r.info.iter, y
+
+
+BACKEND = Backend(
+    name="piqp",
+    entry=PiqpQP,
+    requires=("piqp",),
+    extra="piqp",
+    summary="PIQP: proximal interior point, sparse, accurate",
+    capabilities=frozenset({"inequalities", "detects_infeasibility"}),
+)

@@ -1,0 +1,340 @@
+"""Every registered QP backend against known optima, against each other, and on its errors.
+
+The backends come from the one registry (``solvers.qp.BACKENDS``); a backend that is not
+installed is skipped. References are in ``qp_reference.py`` (analytic, or constructed from
+a chosen KKT point, or a dense numpy KKT solve); no backend makes a reference.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import qp_reference as ref_problems
+from solvers import qp
+from solvers.errors import InfeasibleError, InvalidProblem, SolverError, SolverNotFound
+from solvers.registry import Backend, Registry
+
+NAMES = qp.BACKENDS.names()
+REFERENCES = ref_problems.all_references()
+ROOT = Path(__file__).resolve().parents[1]
+
+# agreement demanded of every backend with default Options (eps 1e-8)
+OBJ_RTOL = 1e-6
+X_TOL = 1e-5
+
+
+def installed(name: str) -> None:
+    if name not in qp.available():
+        pytest.skip(f"QP backend {name} is not installed")
+
+
+def equality_only(name: str) -> bool:
+    return not qp.BACKENDS.get(name).entry.supports_inequalities
+
+
+def assert_agrees(sol: qp.Solution, x_ref: np.ndarray, f_ref: float, what: str = "") -> None:
+    scale = max(1.0, abs(f_ref))
+    assert abs(sol.objective - f_ref) <= OBJ_RTOL * scale, (
+        f"{sol.backend}{what}: objective {sol.objective!r} vs reference {f_ref!r}")
+    dx = np.abs(sol.x - x_ref).max()
+    assert dx <= X_TOL * max(1.0, np.abs(x_ref).max()), f"{sol.backend}{what}: |x - x_ref|_inf = {dx:.2e}"
+
+
+def assert_kkt(problem: qp.QPProblem, sol: qp.Solution, tol: float = 1e-6) -> None:
+    """Backend-independent optimality check at the returned point: primal feasibility, and
+    with multipliers, stationarity ``Px + q + A'y = 0`` and their signs (``y_i > 0`` only at
+    an active upper side, ``< 0`` only at an active lower side)."""
+    x = sol.x
+    scale = max(1.0, np.abs(problem.q).max(), abs(problem.P).max(), np.abs(x).max())
+    assert problem.max_violation(x) <= tol * scale, f"{sol.backend}: infeasible by {problem.max_violation(x):.2e}"
+    if sol.y is None:
+        return
+    y = sol.y
+    assert y.shape == (problem.m,)
+    r = problem.P @ x + problem.q + problem.A.T @ y
+    assert np.abs(r).max() <= 10 * tol * scale * max(1.0, np.abs(y).max(initial=0.0)), (
+        f"{sol.backend}: stationarity residual {np.abs(r).max():.2e}")
+    ax = problem.A @ x
+    big = np.abs(y) > 1e-5 * max(1.0, np.abs(y).max(initial=0.0))
+    slack_up = problem.u - ax
+    slack_lo = ax - problem.l
+    active_tol = 1e-5 * scale
+    assert np.all(~(big & (y > 0)) | (slack_up <= active_tol)), f"{sol.backend}: y > 0 on a row not at its upper side"
+    assert np.all(~(big & (y < 0)) | (slack_lo <= active_tol)), f"{sol.backend}: y < 0 on a row not at its lower side"
+
+
+# ------------------------------------------------------------------ known answers
+
+
+@pytest.mark.parametrize("ref", REFERENCES, ids=lambda r: r.name)
+@pytest.mark.parametrize("name", NAMES, ids=str)
+def test_known_optimum(name, ref):
+    installed(name)
+    if ref.has_inequalities and equality_only(name):
+        with pytest.raises(InvalidProblem, match="equality"):
+            qp.solve(ref.problem, name)
+        return
+    sol = qp.solve(ref.problem, name)
+    assert sol.status.ok and sol.backend == name
+    assert_agrees(sol, ref.x, ref.objective)
+    assert_kkt(ref.problem, sol)
+    if sol.y is not None and ref.y is not None:  # these references have unique multipliers
+        dy = np.abs(sol.y - ref.y).max(initial=0.0)
+        assert dy <= 1e-4 * max(1.0, np.abs(ref.y).max(initial=0.0)), f"{name}: |y - y_ref|_inf = {dy:.2e}"
+    assert sol.iterations >= 0 and sol.setup_time_s >= 0 and sol.solve_time_s >= 0
+
+
+def test_references_are_what_they_claim():
+    """The references' own KKT conditions hold (guards the reference code itself)."""
+    for r in REFERENCES:
+        p = r.problem
+        assert p.max_violation(r.x) <= 1e-9 * max(1.0, np.abs(r.x).max()), r.name
+        res = p.P @ r.x + p.q + p.A.T @ r.y
+        assert np.abs(res).max() <= 1e-8 * max(1.0, np.abs(p.q).max(), np.abs(r.y).max(initial=0.0)), r.name
+    nw = ref_problems.nocedal_wright_16_4()
+    assert nw.objective == pytest.approx(-6.45)
+
+
+@pytest.mark.parametrize("name", NAMES, ids=str)
+def test_infeasible_raises(name):
+    """No backend returns a point for an infeasible problem: those whose record has the
+    ``detects_infeasibility`` capability raise :class:`InfeasibleError`, the others (proxsuite,
+    which runs to its iteration cap) a plain :class:`SolverError` carrying their status.
+
+    ``max_iter=1000`` keeps the run short for a backend that cannot tell (proxsuite's dense
+    API would otherwise iterate for seconds); detection happens far earlier in the others.
+    """
+    installed(name)
+    problem = ref_problems.infeasible()
+    backend = qp.BACKENDS.get(name)
+    if equality_only(name):
+        with pytest.raises(InvalidProblem):
+            qp.solve(problem, name)
+        # inconsistent equalities make a singular KKT matrix: also refused, not solved
+        A = sp.csc_matrix(np.array([[1.0, 1.0], [1.0, 1.0]]))
+        with pytest.raises(InvalidProblem, match="singular"):
+            qp.solve(qp.QPProblem(P=sp.eye(2), q=np.zeros(2), A=A, l=np.array([1.0, 2.0]), u=np.array([1.0, 2.0])), name)
+        return
+    expected = InfeasibleError if "detects_infeasibility" in backend.capabilities else SolverError
+    with pytest.raises(expected) as info:
+        qp.solve(problem, name, qp.Options(max_iter=1000))
+    assert info.value.backend == name and info.value.status
+
+
+# ------------------------------------------------------------------ setup once, update, warm start
+
+
+def _perturbed(problem: qp.QPProblem, seed: int, matrices: bool) -> qp.QPProblem:
+    """Same sparsity pattern and row kinds, new numbers (and new P, A values if ``matrices``)."""
+    rng = np.random.default_rng(seed)
+    P, A = problem.P.copy(), problem.A.copy()
+    if matrices:
+        P = P * 1.3  # stays symmetric PSD with the same pattern
+        A.data = A.data * rng.uniform(0.8, 1.2, A.nnz)
+    q = problem.q + 0.3 * rng.standard_normal(problem.n)
+    shift = 0.1 * rng.standard_normal(problem.m)
+    l, u = problem.l + shift, problem.u + shift  # infinite sides stay infinite, equalities stay equalities
+    return qp.QPProblem(P=P, q=q, A=A, l=l, u=u)
+
+
+@pytest.mark.parametrize("matrices", [False, True], ids=["vectors", "matrices"])
+@pytest.mark.parametrize("name", NAMES, ids=str)
+def test_update_and_warm_start_match_fresh_solve(name, matrices):
+    installed(name)
+    base = ref_problems.random_equality() if equality_only(name) else ref_problems.random_inequality()
+    first = base.problem
+    prepared = qp.prepare(first, name)
+    s1 = prepared.solve()
+    assert_agrees(s1, base.x, base.objective, " (before update)")
+    for k in range(2):
+        nxt = _perturbed(first, seed=10 + k, matrices=matrices)
+        prepared.update(nxt)
+        warm = prepared.solve(warm_start=s1.x)
+        cold = prepared.solve()
+        fresh = qp.solve(nxt, name)
+        assert_agrees(warm, fresh.x, fresh.objective, " (updated, warm)")
+        assert_agrees(cold, fresh.x, fresh.objective, " (updated, cold)")
+        assert_kkt(nxt, warm)
+        s1 = warm
+
+
+def test_updated_solutions_agree_across_backends():
+    """The updated problems themselves: every backend on one, against a high-accuracy solve
+    (piqp with tight tolerances, checked by the KKT test above) - guards against backends that
+    agree with themselves but ignore the update."""
+    names = [n for n in qp.available() if not equality_only(n)]
+    nxt = _perturbed(ref_problems.random_inequality().problem, seed=10, matrices=True)
+    sols = {n: qp.solve(nxt, n) for n in names}
+    for s in sols.values():
+        assert_kkt(nxt, s)
+    best = min(sols.values(), key=lambda s: s.objective)
+    for s in sols.values():
+        assert_agrees(s, best.x, best.objective, f" vs {best.backend}")
+
+
+@pytest.mark.parametrize("name", NAMES, ids=str)
+def test_update_rejects_another_pattern(name):
+    installed(name)
+    base = ref_problems.random_equality().problem
+    prepared = qp.prepare(base, name)
+    other = ref_problems.random_equality(seed=9).problem  # same sizes, other pattern
+    with pytest.raises(InvalidProblem, match="pattern"):
+        prepared.update(other)
+    with pytest.raises(InvalidProblem, match="warm_start"):
+        prepared.solve(warm_start=np.zeros(base.n + 1))
+
+
+def test_proxsuite_sparse_api(monkeypatch):
+    """proxsuite switches to its sparse API above ``DENSE_MAX_N`` variables; force it here."""
+    installed("proxsuite")
+    from solvers.qp import proxsuite_
+
+    monkeypatch.setattr(proxsuite_, "DENSE_MAX_N", 0)
+    for r in (ref_problems.random_inequality(), ref_problems.min_snap_reference()):
+        prepared = qp.prepare(r.problem, "proxsuite")
+        assert not prepared._dense
+        sol = prepared.solve()
+        assert_agrees(sol, r.x, r.objective, " (sparse API)")
+        assert_kkt(r.problem, sol)
+        nxt = _perturbed(r.problem, seed=1, matrices=True)
+        prepared.update(nxt)
+        assert_agrees(prepared.solve(warm_start=sol.x), qp.solve(nxt, "piqp").x, qp.solve(nxt, "piqp").objective,
+                      " (sparse API, updated)")
+
+
+# ------------------------------------------------------------------ registry, records, availability
+
+
+def test_missing_backend_is_reported_with_its_extra():
+    reg = Registry("QP", [qp.BACKENDS.get("osqp"),
+                          Backend(name="ghost", entry=lambda *a: None, requires=("no_such_module_xyz",), extra="ghost")])
+    assert reg.available() == ["osqp"]
+    with pytest.raises(SolverNotFound, match=r'not installed.*no_such_module_xyz.*mrfswarm\[ghost\].*installed: osqp'):
+        reg.get("ghost")
+
+
+def test_unknown_backend_names_every_installed_one():
+    with pytest.raises(SolverNotFound) as info:
+        qp.solve(ref_problems.least_norm().problem, backend="no_such_backend")
+    for name in qp.available():
+        assert name in str(info.value)
+
+
+@pytest.mark.parametrize("name", NAMES, ids=str)
+def test_backend_record(name):
+    b = qp.BACKENDS.get(name) if name in qp.available() else next(x for x in qp.BACKENDS if x.name == name)
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    assert b.extra == "" or b.extra in extras, f"{name}: extra {b.extra!r} not in pyproject.toml"
+    assert b.requires and issubclass(b.entry, qp.PreparedQP) and b.entry.name == name
+    doc = sys.modules[b.entry.__module__].__doc__
+    assert doc and any(str(y) in doc for y in range(1990, 2030)), f"{name}: the module docstring cites no paper"
+
+
+def test_importing_solvers_qp_imports_no_native_backend():
+    code = ("import sys, solvers.qp; "
+            "print(sorted(m for m in ('osqp','piqp','proxsuite','cvxpy','casadi','clarabel') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         env={"PYTHONPATH": str(ROOT), "PATH": ""}).stdout.strip()
+    assert out == "[]"
+
+
+# ------------------------------------------------------------------ the closed form
+
+
+def test_closed_form_min_snap_chain_200_pieces():
+    """A 200-piece min-snap chain (block-banded KKT, 1600 variables): tiny KKT residual,
+    agreement with a dense solve, and the snap optimum's C^6 smoothness at the knots (only
+    C^3 is imposed; continuity of derivatives 4-6 is a property of the optimum)."""
+    installed("closed_form")
+    problem, durations, _ = ref_problems.min_snap_chain(200)
+    sol = qp.solve(problem, "closed_form")
+    assert sol.status is qp.Status.OPTIMAL
+    P, A, b = problem.P, problem.A, problem.l
+    scale = max(1.0, np.abs(sol.x).max())
+    assert np.abs(A @ sol.x - b).max() <= 1e-10 * scale
+    assert np.abs(P @ sol.x + problem.q + A.T @ sol.y).max() <= 1e-8 * abs(P).max() * scale
+    n, m = problem.n, problem.m
+    K = np.block([[P.toarray(), A.T.toarray()], [A.toarray(), np.zeros((m, m))]])
+    x_dense = np.linalg.solve(K, np.r_[-problem.q, b])[:n]
+    assert np.abs(sol.x - x_dense).max() <= 1e-8 * scale
+    for d in (4, 5, 6):
+        jumps = ref_problems.derivative_jumps(sol.x, durations, d)
+        typical = max(1.0, np.abs([ref_problems._deriv_row(0.0, d) @ c for c in sol.x.reshape(-1, 8)]).max())
+        assert np.abs(jumps).max() <= 1e-7 * typical, f"derivative {d} jumps by {np.abs(jumps).max():.2e}"
+
+
+def test_closed_form_factor_is_linear_in_chain_length():
+    """Fill-reducing ordering keeps the LU of the block-banded KKT matrix linear in size."""
+    installed("closed_form")
+    nnz = {}
+    for k in (100, 400):
+        problem, _, _ = ref_problems.min_snap_chain(k)
+        nnz[k] = qp.prepare(problem, "closed_form").factor_nnz
+    assert nnz[400] / nnz[100] < 4 * 1.2, nnz
+
+
+def test_closed_form_rejects_singular_kkt():
+    installed("closed_form")
+    n = 4
+    # duplicated equality row: A rank deficient
+    A = sp.csc_matrix(np.array([[1.0, 1.0, 0, 0], [1.0, 1.0, 0, 0]]))
+    p = qp.QPProblem(P=sp.eye(n), q=np.zeros(n), A=A, l=np.ones(2), u=np.ones(2))
+    with pytest.raises(InvalidProblem, match="singular"):
+        qp.solve(p, "closed_form")
+    # P zero on a direction the constraints leave free
+    P = sp.diags([1.0, 1.0, 1.0, 0.0])
+    A = sp.csc_matrix(np.array([[1.0, 0, 0, 0]]))
+    p = qp.QPProblem(P=P, q=np.ones(n), A=A, l=np.zeros(1), u=np.zeros(1))
+    with pytest.raises(InvalidProblem, match="singular"):
+        qp.solve(p, "closed_form")
+    # nearly singular: rows dependent up to 1e-15
+    A = sp.csc_matrix(np.array([[1.0, 2.0, 3.0, 4.0], [1.0, 2.0, 3.0, 4.0 + 1e-15]]))
+    p = qp.QPProblem(P=sp.eye(n), q=np.zeros(n), A=A, l=np.ones(2), u=np.ones(2))
+    with pytest.raises((InvalidProblem, SolverError)):
+        qp.solve(p, "closed_form")
+
+
+def test_closed_form_update_reuses_factor_for_new_vectors():
+    installed("closed_form")
+    base = ref_problems.random_equality()
+    prepared = qp.prepare(base.problem, "closed_form")
+    lu = prepared._lu
+    nxt = _perturbed(base.problem, seed=3, matrices=False)
+    prepared.update(nxt)
+    assert prepared._lu is lu  # same P and A: no refactorization
+    prepared.update(_perturbed(base.problem, seed=3, matrices=True))
+    assert prepared._lu is not lu
+
+
+# ------------------------------------------------------------------ the NLP entry point of the ipopt backend
+
+
+def test_ipopt_solve_nlp_general_nonlinear():
+    installed("ipopt")
+    import casadi as ca
+
+    from solvers.qp.ipopt_ import IpoptNLP, solve_nlp
+
+    # Rosenbrock min (a - x)^2 + 100 (y - x^2)^2 (minimum (a, a^2)) with a disc constraint
+    x = ca.SX.sym("x", 2)
+    a = ca.SX.sym("a")
+    f = (a - x[0]) ** 2 + 100 * (x[1] - x[0] ** 2) ** 2
+    g = x[0] ** 2 + x[1] ** 2
+    r = solve_nlp(x, f, g, a, p_value=[1.0], ubg=3.0, x0=[-1.0, 1.0])  # disc inactive at (1, 1)
+    assert r.status.ok and np.allclose(r.x, [1.0, 1.0], atol=1e-6)
+    nlp = IpoptNLP(x, f, g, a)
+    r2 = nlp.solve([0.0, 0.0], [2.0], ubg=2.0)  # disc active: the optimum is on x^2 + y^2 = 2
+    assert r2.status.ok and r2.g[0] == pytest.approx(2.0, abs=1e-7)
+    # stationarity of the Lagrangian with the returned multiplier
+    x1, y1 = r2.x
+    grad = np.array([-2 * (2.0 - x1) - 400 * x1 * (y1 - x1**2), 200 * (y1 - x1**2)])
+    assert np.allclose(grad + r2.lam_g[0] * np.array([2 * x1, 2 * y1]), 0.0, atol=1e-6)
+    with pytest.raises(InvalidProblem):
+        nlp.solve([0.0, 0.0], None)
