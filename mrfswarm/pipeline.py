@@ -37,7 +37,8 @@ class Result:
     metrics
         Metrics of the discrete paths.
     pruned
-        Per robot, step indices kept by waypoint pruning (per planning horizon).
+        Per robot, step indices kept by waypoint pruning: per planning horizon (the
+        paper's) for a discrete-only run; per execution block, made safe, when smoothing.
     continuous
         The smooth, checked trajectories (None when smoothing is disabled or failed).
     flight
@@ -189,12 +190,9 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
                                tol=cfg.mrf.tol, patience=cfg.mrf.patience, options=options,
                                on_step=lambda t, out: bar.update(1))
         timings["discrete"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    pruned = prune_paths(plan_d.paths, scn.grid.free, cfg.smoothing.horizon)
-    timings["pruning"] = time.perf_counter() - t0
     metrics = discrete_metrics(plan_d.paths, scn.grid.occupied, scn.grid.resolution, scn.goal,
                                cfg.scenario.goal_radius)
-    result = Result(config=cfg, scenario=scn, discrete=plan_d, metrics=metrics, pruned=pruned, timings_s=timings)
+    result = Result(config=cfg, scenario=scn, discrete=plan_d, metrics=metrics, pruned=[], timings_s=timings)
     try:
         if plan_d.n_steps == 0 and metrics.reached_goal is False:
             raise ScenarioError(
@@ -206,9 +204,19 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
             _simulate(result)
     except MrfswarmError as e:
         result.failure = str(e)
+        _paper_pruning(result)
         e.partial_result = result  # the CLI still writes what was computed
         raise
+    _paper_pruning(result)
     return result
+
+
+def _paper_pruning(result: Result) -> None:
+    """Without a receding horizon's pruning, the paper's: per planning horizon."""
+    if not result.pruned:
+        t0 = time.perf_counter()
+        result.pruned = prune_paths(result.discrete.paths, result.scenario.grid.free, result.config.smoothing.horizon)
+        result.timings_s["pruning"] = time.perf_counter() - t0
 
 
 def _continuous(result: Result, show: bool) -> None:
@@ -218,6 +226,8 @@ def _continuous(result: Result, show: bool) -> None:
 
     cfg = result.config
     rh = RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.smoothing.backend)
+    # pruned per execution block and made safe (the receding horizon's reference)
+    result.pruned = rh.kept
     with tqdm(total=len(rh.windows()), desc="smoothing", unit="window", disable=not show, leave=False) as bar:
         result.continuous = rh.run(on_window=lambda w: bar.update(1))
     result.timings_s.update(result.continuous.timings)

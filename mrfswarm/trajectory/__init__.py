@@ -39,6 +39,7 @@ from mrfswarm.trajectory.retiming import (
     TimeScaling,
     ToppraRetiming,
     max_derivative_norm,
+    max_derivative_norms,
     retime_toppra,
     scale_to_limits,
 )
@@ -72,6 +73,7 @@ __all__ = [
     "cost_and_gradient",
     "integral_squared_derivative",
     "max_derivative_norm",
+    "max_derivative_norms",
     "min_snap_qp",
     "read_uav_csv",
     "read_waypoints_csv",

@@ -51,8 +51,53 @@ from solvers.errors import InvalidProblem, SolverError
 log = logging.getLogger(__name__)
 
 
+def _piece_maxima(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact max over tau in [0, 1] of ||p(tau)|| for a stack of vector polynomials.
+
+    ``c`` is (P, n, dim) coefficients in increasing power of tau. With s = sum_d p_d^2,
+    the maximum is at tau = 0, 1 or a real root of s' in (0, 1); the roots of all pieces
+    are the eigenvalues of their companion matrices, computed in one stacked call. A
+    fixed grid of 33 points is added to the candidates (guarding degenerate leading
+    coefficients). Returns the maxima (P,) and the tau where each occurs.
+    """
+    P, n, _ = c.shape
+    s = np.zeros((P, 2 * n - 1))
+    for k in range(n):
+        s[:, k:k + n] += np.einsum("id,ijd->ij", c[:, k, :], c)
+    ds = s[:, 1:] * np.arange(1, 2 * n - 1)  # (P, m + 1), degree m = 2n - 3
+    grid = np.broadcast_to(np.linspace(0.0, 1.0, 33), (P, 33))
+    m = ds.shape[1] - 1
+    if m >= 1:
+        scale = np.abs(ds).max(axis=1, keepdims=True)
+        a = ds / np.where(scale > 0, scale, 1.0)
+        lead = a[:, -1:]
+        lead = np.where(np.abs(lead) < 1e-13, 1e-13, lead)  # degree drop: roots go far away, grid covers
+        comp = np.zeros((P, m, m))
+        comp[:, np.arange(1, m), np.arange(m - 1)] = 1.0
+        comp[:, :, -1] = -a[:, :m] / lead
+        r = np.linalg.eigvals(comp)
+        ok = (np.abs(r.imag) < 1e-7) & (r.real > 0) & (r.real < 1)
+        tau = np.concatenate([grid, np.where(ok, r.real, 0.0)], axis=1)
+    else:
+        tau = grid
+    V = tau[:, :, None] ** np.arange(n)[None, None, :]  # (P, C, n)
+    vals = np.linalg.norm(np.einsum("pck,pkd->pcd", V, c), axis=-1)
+    j = np.argmax(vals, axis=1)
+    return vals[np.arange(P), j], tau[np.arange(P), j]
+
+
+def max_derivative_norms(trajectories: list[PiecewisePolynomial], order: int) -> np.ndarray:
+    """Exact maxima over time of :math:`\|\sigma^{(r)}(t)\|`, one per trajectory (vectorized)."""
+    cs = [tr.derivative(order).tau_coefficients() for tr in trajectories]  # values in tau equal values in t
+    n = max(c.shape[1] for c in cs)
+    stack = np.concatenate([np.pad(c, ((0, 0), (0, n - c.shape[1]), (0, 0))) for c in cs])
+    vals, _ = _piece_maxima(stack)
+    ends = np.cumsum([c.shape[0] for c in cs])
+    return np.array([v.max() for v in np.split(vals, ends[:-1])])
+
+
 def max_derivative_norm(trajectory: PiecewisePolynomial, order: int) -> tuple[float, float]:
-    """The exact maximum over time of :math:`\\|\\sigma^{(r)}(t)\\|` and a time where it occurs.
+    """The exact maximum over time of :math:`\|\sigma^{(r)}(t)\|` and a time where it occurs.
 
     Parameters
     ----------
@@ -66,29 +111,9 @@ def max_derivative_norm(trajectory: PiecewisePolynomial, order: int) -> tuple[fl
     value : float
     time : float
     """
-    d = trajectory.derivative(order)
-    c = d.tau_coefficients()  # values in tau equal values in t
-    M, n, dim = c.shape
-    # s(tau) = sum_d p_d(tau)^2, coefficients by discrete convolution
-    s = np.zeros((M, 2 * n - 1))
-    for k in range(n):
-        s[:, k:k + n] += np.einsum("id,ijd->ij", c[:, k, :], c)
-    ds = s[:, 1:] * np.arange(1, 2 * n - 1)
-    candidates = [np.linspace(0.0, 1.0, 33)[None, :].repeat(M, axis=0)]
-    roots = np.full((M, max(2 * n - 3, 1)), 0.0)
-    for i in range(M):
-        coeffs = np.trim_zeros(ds[i], "b")
-        if coeffs.size < 2:
-            continue
-        r = np.polynomial.polynomial.polyroots(coeffs)
-        r = r.real[(np.abs(r.imag) < 1e-7) & (r.real > 0) & (r.real < 1)]
-        roots[i, : r.size] = r
-    candidates.append(roots)
-    tau = np.concatenate(candidates, axis=1)
-    t = trajectory.knots[:-1, None] + tau * trajectory.durations[:, None]
-    vals = np.linalg.norm(trajectory.evaluate(t, order), axis=-1)
-    j = np.unravel_index(int(np.argmax(vals)), vals.shape)
-    return float(vals[j]), float(t[j])
+    vals, tau = _piece_maxima(trajectory.derivative(order).tau_coefficients())
+    i = int(np.argmax(vals))
+    return float(vals[i]), float(trajectory.knots[i] + tau[i] * trajectory.durations[i])
 
 
 @dataclass(frozen=True)
