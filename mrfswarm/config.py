@@ -95,8 +95,10 @@ class SmoothingConfig:
 
     ``corridor`` is the half-width (cells) of the box around each robot's reference motion
     at each sample time; ``safety_distance`` (cells) the separation every output must keep;
-    ``speed`` (m/s) sets the step durations of the common time grid; ``v_max``/``a_max``
-    (m/s, m/s^2) are the limits the trajectories must meet.
+    ``speed`` (m/s) sets the step durations of the common time grid; ``v_max``/``a_max``/
+    ``j_max`` (m/s, m/s^2, m/s^3) are the limits the trajectories must meet. The jerk
+    limit bounds how far a tracking controller lags the trajectory (see
+    :mod:`mrfswarm.simulation`).
     """
 
     enabled: bool = True
@@ -112,6 +114,7 @@ class SmoothingConfig:
     safety_distance: float = 0.5
     v_max: float = 2.0
     a_max: float = 4.0
+    j_max: float = 4.0
 
 
 @dataclass(frozen=True)
@@ -252,6 +255,7 @@ def _validate(cfg: Config) -> None:
          f"than smoothing.safety_distance = {sm.safety_distance}; need 2 * sqrt(2) * corridor + safety_distance <= 1")
     need(sm.v_max > 0, "smoothing.v_max", sm.v_max, "must be > 0")
     need(sm.a_max > 0, "smoothing.a_max", sm.a_max, "must be > 0")
+    need(sm.j_max > 0, "smoothing.j_max", sm.j_max, "must be > 0")
     need(cfg.simulation.rate_hz >= 100, "simulation.rate_hz", cfg.simulation.rate_hz, "must be >= 100")
 
 

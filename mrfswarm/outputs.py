@@ -53,6 +53,64 @@ def write_discrete_csv(path: Path, paths_world: np.ndarray) -> Path:
     return atomic_write(path, write)
 
 
+def write_outputs(result: Result, out: Path, animate: bool = False) -> list[Path]:
+    """Everything a run computed: discrete outputs, trajectories, continuous figures, GIF."""
+    written = write_discrete_outputs(result, out)
+    if result.continuous is not None:
+        written += write_continuous_outputs(result, Path(out), animate)
+    return written
+
+
+def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -> list[Path]:
+    """trajectories/robot_<i>.csv (uav_trajectories format) and the continuous figures."""
+    from mrfswarm.trajectory import write_uav_csv
+
+    c = result.continuous
+    cfg = result.config
+    written = []
+    for i, tr in enumerate(c.trajectories):
+        written.append(atomic_write(out / "trajectories" / f"robot_{i}.csv",
+                                    lambda p, tr=tr: write_uav_csv(tr, p, altitude=cfg.scenario.altitude)))
+    figs = out / "figures"
+    grid = result.scenario.grid
+    goal = result.scenario.goal_world
+    t = np.linspace(0.0, c.makespan_s, max(2, int(c.makespan_s * 20) + 1))
+    pos = c.positions(t)
+    n = pos.shape[1]
+    world = result.discrete_paths_world()
+    title = f"smoothed trajectories ({cfg.smoothing.seam} seams, {result.qp}): makespan {c.makespan_s:.1f} s"
+
+    def traj_fig(p: Path) -> None:
+        plt = plots._plt()
+        fig, ax = plt.subplots(figsize=(6, 6), dpi=110)
+        plots.draw_map(ax, grid)
+        for i in range(n):
+            ax.plot(world[:, i, 0], world[:, i, 1], ":", color="0.5", lw=0.8)
+        plots.draw_paths(ax, grid, [pos[:, i] for i in range(n)], goal)
+        ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
+        ax.set_title(title, fontsize=9)
+        fig.tight_layout()
+        fig.savefig(p)
+        plt.close(fig)
+
+    written.append(atomic_write(figs / "trajectories.png", traj_fig))
+    from mrfswarm.continuous_check import separation_series
+
+    dmin, dmean = separation_series(t, pos)
+    safety = cfg.smoothing.safety_distance * grid.resolution
+    written.append(atomic_write(figs / "distances.png", lambda p: plots.plot_distances(p, t, dmin, dmean, safety)))
+    written.append(atomic_write(figs / "robot_xy.png", lambda p: plots.plot_xy(p, t, pos)))
+    f = result.flight
+    if f is not None:
+        err = np.stack([fl.tracking_error for fl in f.flights], axis=1)
+        written.append(atomic_write(figs / "tracking_error.png", lambda p: plots.plot_tracking(p, f.flights[0].times, err)))
+    if animate:
+        frames = np.linspace(0.0, c.makespan_s, max(2, int(c.makespan_s * 5) + 1))  # 5 frames per flown second
+        written.append(atomic_write(out / "animation.gif", lambda p: plots.animate(p, grid, frames, c.positions(frames),
+                                                                                 goal, fps=10)))
+    return written
+
+
 def write_discrete_outputs(result: Result, out: Path) -> list[Path]:
     """result.json, discrete_paths.csv and the discrete figures into ``out``."""
     out = Path(out)

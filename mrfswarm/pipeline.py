@@ -13,6 +13,7 @@ import numpy as np
 
 from mrfswarm.config import Config, load_config
 from mrfswarm.discrete import DiscretePlan, plan_discrete
+from mrfswarm.errors import MrfswarmError, ScenarioError
 from mrfswarm.metrics import DiscreteMetrics, discrete_metrics
 from mrfswarm.pruning import prune_paths
 from mrfswarm.scenario import Scenario, build_scenario
@@ -37,8 +38,15 @@ class Result:
         Metrics of the discrete paths.
     pruned
         Per robot, step indices kept by waypoint pruning (per planning horizon).
+    continuous
+        The smooth, checked trajectories (None when smoothing is disabled or failed).
+    flight
+        The simulated quadrotors (None when the simulation is disabled or failed).
     timings_s
         Seconds per pipeline stage.
+    failure
+        The message of the error that stopped the run, if one did (the stages before it
+        are kept).
     """
 
     config: Config
@@ -46,7 +54,10 @@ class Result:
     discrete: DiscretePlan
     metrics: DiscreteMetrics
     pruned: list[np.ndarray]
+    continuous: object | None = None
+    flight: object | None = None
     timings_s: dict[str, float] = field(default_factory=dict)
+    failure: str | None = None
 
     @property
     def mrf(self) -> str:
@@ -64,7 +75,9 @@ class Result:
         """The content of ``result.json``."""
         m = self.metrics
         g = self.scenario.goal_world
-        return {
+        c = self.continuous
+        sm = self.config.smoothing
+        out = {
             "n_robots": self.scenario.n_robots,
             "mrf_steps": self.discrete.n_steps,
             "converged": self.discrete.converged,
@@ -74,11 +87,12 @@ class Result:
             "final_goal_distance": m.final_goal_distance,
             "swarm_energy": [float(e) for e in self.discrete.energy],
             "min_separation_discrete": _num(m.min_separation),
-            "min_separation_continuous": None,
-            "min_obstacle_clearance": _num(m.min_obstacle_clearance),
+            "min_separation_continuous": None if c is None else _num(c.check.min_separation),
+            "min_obstacle_clearance": _num(m.min_obstacle_clearance if c is None else c.check.min_clearance),
+            "min_obstacle_clearance_discrete": _num(m.min_obstacle_clearance),
             "mean_inter_robot_distance_final": _num(m.mean_distance[-1]),
             "path_lengths": [float(v) for v in m.path_lengths],
-            "makespan_s": None,
+            "makespan_s": None if c is None else c.makespan_s,
             "mrf": self.mrf,
             "qp": self.qp,
             "mrf_order": self.config.mrf.order,
@@ -87,8 +101,33 @@ class Result:
             "mrf_step_time_s": {k: float(np.mean(v)) if len(v) else 0.0 for k, v in self.discrete.timings.items()},
             "mrf_repaired": int(sum(s["repaired"] for s in self.discrete.steps)),
             "timings_s": {k: float(v) for k, v in self.timings_s.items()},
-            "config": self.config.to_dict(),
+            "failure": self.failure,
         }
+        if c is not None:
+            out.update({
+                "seam": sm.seam,
+                "safety_distance_m": sm.safety_distance * self.scenario.grid.resolution,
+                "limits": {"v_max": sm.v_max, "a_max": sm.a_max, "j_max": sm.j_max},
+                "achieved": {"v_max": c.v_max, "a_max": c.a_max, "j_max": c.j_max},
+                "windows": len(c.windows),
+                "repairs": [{"steps": [w.a, w.c], "did": w.repairs} for w in c.windows if w.repairs],
+                "unpruned_robot_blocks": int(c.unpruned),
+                "fallbacks": int(sum(w.fallback for w in c.windows)),
+                "slowest_window_factor": float(max((w.alpha for w in c.windows), default=1.0)),
+            })
+        f = self.flight
+        out["simulation"] = None if f is None else {
+            "vehicle": self.config.simulation.vehicle,
+            "rate_hz": self.config.simulation.rate_hz,
+            "max_tracking_error_m": f.max_tracking_error,
+            "tracking_error_bound_m": f.tracking_bound,
+            "rms_tracking_error_m": f.rms_tracking_error,
+            "min_separation_m": _num(f.min_separation),
+            "min_obstacle_clearance_m": _num(f.min_clearance),
+            "entered_obstacle": f.in_obstacle,
+        }
+        out["config"] = self.config.to_dict()
+        return out
 
 
 def _num(v: float | None) -> float | None:
@@ -109,6 +148,14 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     if qp is not None:
         cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, backend=qp))
     mrf_solvers.METHODS.get(cfg.mrf.optimizer)  # fail now, not after the map is loaded
+    if cfg.smoothing.enabled:
+        from mrfswarm.trajectory import MinSnapSolver
+
+        MinSnapSolver(cfg.smoothing.backend)  # an unknown or missing QP backend fails now too
+        if cfg.simulation.enabled:
+            from mrfswarm.simulation import check_available
+
+            check_available(cfg.simulation.vehicle)
     return cfg
 
 
@@ -147,4 +194,40 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     timings["pruning"] = time.perf_counter() - t0
     metrics = discrete_metrics(plan_d.paths, scn.grid.occupied, scn.grid.resolution, scn.goal,
                                cfg.scenario.goal_radius)
-    return Result(config=cfg, scenario=scn, discrete=plan_d, metrics=metrics, pruned=pruned, timings_s=timings)
+    result = Result(config=cfg, scenario=scn, discrete=plan_d, metrics=metrics, pruned=pruned, timings_s=timings)
+    try:
+        if plan_d.n_steps == 0 and metrics.reached_goal is False:
+            raise ScenarioError(
+                f"the swarm cannot move: no robot has a free move that lowers the swarm energy from the start "
+                f"(goal {metrics.final_goal_distance:.1f} m away)")
+        if cfg.smoothing.enabled:
+            _continuous(result, show)
+        if cfg.smoothing.enabled and cfg.simulation.enabled:
+            _simulate(result)
+    except MrfswarmError as e:
+        result.failure = str(e)
+        e.partial_result = result  # the CLI still writes what was computed
+        raise
+    return result
+
+
+def _continuous(result: Result, show: bool) -> None:
+    from tqdm import tqdm
+
+    from mrfswarm.receding_horizon import RecedingHorizon
+
+    cfg = result.config
+    rh = RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.smoothing.backend)
+    with tqdm(total=len(rh.windows()), desc="smoothing", unit="window", disable=not show, leave=False) as bar:
+        result.continuous = rh.run(on_window=lambda w: bar.update(1))
+    result.timings_s.update(result.continuous.timings)
+
+
+def _simulate(result: Result) -> None:
+    from mrfswarm.simulation import fly_swarm
+
+    cfg = result.config
+    t0 = time.perf_counter()
+    result.flight = fly_swarm(result.continuous.trajectories, cfg.scenario.altitude, result.scenario.grid,
+                              cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=result.continuous.j_max)
+    result.timings_s["simulation"] = time.perf_counter() - t0

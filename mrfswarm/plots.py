@@ -111,3 +111,67 @@ def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndar
     fig.savefig(path)
     plt.close(fig)
     return Path(path)
+
+
+def plot_xy(path: Path, t: np.ndarray, positions: np.ndarray) -> Path:
+    """Each robot's x and y over time (the paper's Fig. 7a); ``positions`` (S, N, 2)."""
+    plt = _plt()
+    fig, axes = plt.subplots(2, 1, figsize=(7, 5), dpi=110, sharex=True)
+    colors = _robot_colors(positions.shape[1])
+    for i in range(positions.shape[1]):
+        axes[0].plot(t, positions[:, i, 0], color=colors[i], lw=1.2)
+        axes[1].plot(t, positions[:, i, 1], color=colors[i], lw=1.2)
+    axes[0].set_ylabel("x [m]")
+    axes[1].set_ylabel("y [m]")
+    axes[1].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_tracking(path: Path, t: np.ndarray, errors: np.ndarray) -> Path:
+    """Tracking error of each simulated robot over time; ``errors`` (S, N) metres."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 3.5), dpi=110)
+    colors = _robot_colors(errors.shape[1])
+    for i in range(errors.shape[1]):
+        ax.plot(t, errors[:, i] * 100, color=colors[i], lw=1.0)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("tracking error [cm]")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return Path(path)
+
+
+def animate(path: Path, grid: OccupancyGrid, t: np.ndarray, positions: np.ndarray, goal: np.ndarray | None = None,
+            fps: int = 10, trail_s: float = 3.0) -> Path:
+    """A GIF of the swarm flying: ``positions`` (S, N, 2) at times ``t`` (one frame each)."""
+    plt = _plt()
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    fig, ax = plt.subplots(figsize=(5, 5), dpi=80)
+    draw_map(ax, grid)
+    if goal is not None:
+        ax.plot(goal[0], goal[1], "*", ms=14, color="gold", mec="k")
+    colors = _robot_colors(positions.shape[1])
+    dots = ax.scatter(positions[0, :, 0], positions[0, :, 1], s=30, c=colors, edgecolors="k", zorder=5)
+    trails = [ax.plot([], [], "-", color=colors[i], lw=1.0, alpha=0.7)[0] for i in range(positions.shape[1])]
+    title = ax.set_title("")
+    span = max(1, int(round(trail_s * fps)))
+
+    def frame(k: int):
+        dots.set_offsets(positions[k])
+        for i, ln in enumerate(trails):
+            ln.set_data(positions[max(0, k - span):k + 1, i, 0], positions[max(0, k - span):k + 1, i, 1])
+        title.set_text(f"t = {t[k]:.1f} s")
+        return [dots, *trails, title]
+
+    anim = FuncAnimation(fig, frame, frames=len(t), blit=False)
+    anim.save(str(path), writer=PillowWriter(fps=fps))
+    plt.close(fig)
+    return Path(path)

@@ -146,7 +146,7 @@ def test_warm_resolve_after_new_waypoints(name):
 
 
 def test_closed_form_with_corridor_is_a_clear_error():
-    with pytest.raises(InvalidProblem, match="corridor constraints need a QP backend"):
+    with pytest.raises(InvalidProblem, match="corridor constraints and waypoint tolerances need a QP backend"):
         MinSnapSolver(CLOSED_FORM).solve(corridor_problem())
 
 

@@ -22,15 +22,28 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from mrfswarm.outputs import write_discrete_outputs
+    from mrfswarm.errors import MrfswarmError
+    from mrfswarm.outputs import write_outputs
     from mrfswarm.pipeline import plan
 
     cfg = load_config(args.config, args.overrides)
     out = args.out if args.out is not None else Path("out") / args.config.stem
-    result = plan(cfg, mrf=args.mrf, qp=args.qp, seed=args.seed)
-    write_discrete_outputs(result, out)
+    try:
+        result = plan(cfg, mrf=args.mrf, qp=args.qp, seed=args.seed)
+    except MrfswarmError as e:
+        partial = getattr(e, "partial_result", None)
+        if partial is not None:  # keep what was computed before the failure
+            write_outputs(partial, out)
+            raise type(e)(f"{e} (what was computed is in {out})") from e
+        raise
+    write_outputs(result, out, animate=args.animate)
     s = result.summary()
     goal = "" if s["reached_goal"] is None else f", reached goal: {s['reached_goal']}"
-    print(f"{s['n_robots']} robots, {s['mrf_steps']} MRF steps ({s['mrf']}), {s['stop_reason']}{goal}, "
-          f"min separation {s['min_separation_discrete']:.2f} m -> {out}")
+    line = (f"{s['n_robots']} robots, {s['mrf_steps']} MRF steps ({s['mrf']}, {s['stop_reason']}{goal}), "
+            f"min separation {s['min_separation_discrete']:.2f} m discrete")
+    if s["min_separation_continuous"] is not None:
+        line += f", {s['min_separation_continuous']:.2f} m smooth ({s['qp']}), makespan {s['makespan_s']:.1f} s"
+    if s["simulation"] is not None:
+        line += f", flown: max tracking error {s['simulation']['max_tracking_error_m'] * 100:.1f} cm"
+    print(f"{line} -> {out}")
     return 0

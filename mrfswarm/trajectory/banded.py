@@ -199,8 +199,9 @@ class BandedSolution:
 
 
 def supports(problem: MinSnapProblem) -> bool:
-    """True when the banded closed form applies: degree 2q-1 and no corridor."""
-    return problem.degree == 2 * problem.derivative - 1 and not problem.has_corridor
+    """True when the banded closed form applies: degree 2q-1, no corridor, exact waypoints."""
+    return (problem.degree == 2 * problem.derivative - 1 and not problem.has_corridor
+            and problem.waypoint_tolerance is None)
 
 
 def solve_banded(problem: MinSnapProblem, gradient: bool = False) -> BandedSolution:

@@ -207,6 +207,9 @@ class CompiledMinSnap:
         g_all = ca.vertcat(*g)
         A = ca.jacobian(g_all, x)
         self.m = g_all.numel()
+        # rows of the knot positions y_{j,0}, per dimension (their bounds widen by a waypoint tolerance)
+        rows_per_dim = (M + 1) + ks + ke + (c - q + 1) * max(M - 1, 0) + K * M
+        self._position_rows = np.arange(dim)[:, None] * rows_per_dim + np.arange(M + 1)[None, :]  # (dim, M+1)
         self._fn = ca.Function("min_snap_qp", [W, T, lo, hi, g0, g1], [P, A, ca.vertcat(*lb), ca.vertcat(*ub)])
         sP, sA = self._fn.sparsity_out(0), self._fn.sparsity_out(1)
         self._P_pattern = (np.asarray(sP.row(), np.int32), np.asarray(sP.colind(), np.int32))
@@ -220,7 +223,8 @@ class CompiledMinSnap:
         log.debug("compiled min-snap QP %s in %.3f s (n=%d, m=%d)", shape, self.compile_time_s, self.n, self.m)
 
     def evaluate(self, waypoints: np.ndarray, durations: np.ndarray, lower: np.ndarray | None,
-                 upper: np.ndarray | None, start: np.ndarray, end: np.ndarray) -> QPProblem:
+                 upper: np.ndarray | None, start: np.ndarray, end: np.ndarray,
+                 waypoint_tolerance: np.ndarray | None = None) -> QPProblem:
         """The standard-form QP for normalized data.
 
         Parameters
@@ -233,6 +237,9 @@ class CompiledMinSnap:
             (M, K, dim) corridor bounds, or ``None`` when ``K = 0``.
         start, end
             (k, dim) given derivatives (normalized time) at each end.
+        waypoint_tolerance
+            (M+1, dim) half-widths: knot j may lie within ``waypoints[j] +- tolerance[j]``
+            (0: exactly on it). Only bounds change, so the shape does not.
         """
         args = [
             np.ascontiguousarray(waypoints.T, dtype=float).reshape(-1),
@@ -250,6 +257,10 @@ class CompiledMinSnap:
         self._eval()
         P = sp.csc_matrix((outs[0], *self._P_pattern), shape=(self.n, self.n))
         A = sp.csc_matrix((outs[1], *self._A_pattern), shape=(self.m, self.n))
+        if waypoint_tolerance is not None:
+            rows = self._position_rows.T  # (M+1, dim)
+            outs[2][rows] -= waypoint_tolerance
+            outs[3][rows] += waypoint_tolerance
         return QPProblem(P=P, q=np.zeros(self.n), A=A, l=outs[2], u=outs[3])
 
     def coefficients(self, x: np.ndarray, durations: np.ndarray) -> np.ndarray:

@@ -73,7 +73,8 @@ class Normalization:
             hi = (problem.corridor.upper - c) / L
         g0 = problem.start * (Ts ** np.arange(1, s.start_order + 1))[:, None] / L
         g1 = problem.end * (Ts ** np.arange(1, s.end_order + 1))[:, None] / L
-        return compiled_min_snap(s).evaluate((problem.waypoints - c) / L, problem.durations / Ts, lo, hi, g0, g1)
+        tol = None if problem.waypoint_tolerance is None else problem.waypoint_tolerance / L
+        return compiled_min_snap(s).evaluate((problem.waypoints - c) / L, problem.durations / Ts, lo, hi, g0, g1, tol)
 
     def tau_coefficients(self, problem: MinSnapProblem, x: np.ndarray) -> np.ndarray:
         """(M, D+1, dim) physical tau-coefficients from a normalized QP solution ``x``."""
@@ -186,9 +187,9 @@ class MinSnapSolver:
         if name is None:
             name = solvers.qp.DEFAULT_BACKEND if problem.has_corridor else CLOSED_FORM
         if name == CLOSED_FORM:
-            if problem.has_corridor:
+            if problem.has_corridor or problem.waypoint_tolerance is not None:
                 raise InvalidProblem(
-                    "corridor constraints need a QP backend (installed: "
+                    "corridor constraints and waypoint tolerances need a QP backend (installed: "
                     f"{', '.join(b for b in solvers.qp.available() if b != CLOSED_FORM) or 'none'}); "
                     "closed_form solves equality-only problems"
                 )
@@ -228,16 +229,22 @@ class MinSnapSolver:
         t_form = time.perf_counter() - t0
         record = _backend(name)
         reuse = self.warm and self._prepared is not None and self._shape == problem.shape and self._prepared.name == name
-        if reuse:
-            t1 = time.perf_counter()
-            self._prepared.update(qp)
-            setup = time.perf_counter() - t1
-            sol = self._prepared.solve(warm_start=self._x if "warm_start" in record.capabilities else None)
-        else:
-            self._prepared = record.entry(qp, self.options)  # what solvers.qp.prepare does
-            self._shape = problem.shape
-            setup = self._prepared.setup_time_s
-            sol = self._prepared.solve()
+        try:
+            if reuse:
+                t1 = time.perf_counter()
+                self._prepared.update(qp)
+                setup = time.perf_counter() - t1
+                sol = self._prepared.solve(warm_start=self._x if "warm_start" in record.capabilities else None)
+            else:
+                self._prepared = record.entry(qp, self.options)  # what solvers.qp.prepare does
+                self._shape = problem.shape
+                setup = self._prepared.setup_time_s
+                sol = self._prepared.solve()
+        except Exception:
+            # A failed solve leaves the backend's iterates (and duals) where they are: an
+            # infeasibility certificate would be the next warm start. Start afresh next time.
+            self._prepared, self._shape, self._x = None, None, None
+            raise
         self._x = sol.x
         c_tau = norm.tau_coefficients(problem, sol.x)
         traj = PiecewisePolynomial(T, tau_to_time(c_tau, T))

@@ -106,6 +106,11 @@ class MinSnapProblem:
         a velocity).
     corridor
         Optional per-sample position boxes for these pieces.
+    waypoint_tolerance
+        Optional (M+1,) or (M+1, dim) non-negative half-widths: knot j may lie anywhere in
+        the box ``waypoints[j] +- tolerance[j]`` instead of exactly on it (0 keeps it
+        exact). ``None`` (or all zeros) means every waypoint is exact. A tolerance turns
+        the waypoint rows into inequalities, so it needs a QP backend.
 
     Raises
     ------
@@ -124,6 +129,7 @@ class MinSnapProblem:
         start: EndSpec = "rest",
         end: EndSpec = "rest",
         corridor: Corridor | None = None,
+        waypoint_tolerance: np.ndarray | None = None,
     ) -> None:
         W = np.array(waypoints, dtype=float)
         if W.ndim != 2 or W.shape[0] < 2 or W.shape[1] < 1:
@@ -158,8 +164,22 @@ class MinSnapProblem:
                 raise InvalidProblem(
                     f"corridor has {corridor.pieces} pieces in {corridor.dim}-D, the problem {M} pieces in {dim}-D"
                 )
+        tol = None
+        if waypoint_tolerance is not None:
+            tol = np.array(waypoint_tolerance, dtype=float)
+            if tol.ndim == 1:
+                tol = np.repeat(tol[:, None], dim, axis=1)
+            if tol.shape != (M + 1, dim):
+                raise InvalidProblem(f"waypoint_tolerance must have shape ({M + 1},) or ({M + 1}, {dim}), got {tol.shape}")
+            if not np.all(np.isfinite(tol)) or np.any(tol < 0):
+                raise InvalidProblem("waypoint_tolerance must be finite and >= 0")
+            if not np.any(tol > 0):
+                tol = None
+            else:
+                tol.setflags(write=False)
         for a in (W, T, g0, g1):
             a.setflags(write=False)
+        self.waypoint_tolerance = tol
         self.waypoints, self.durations = W, T
         self.degree, self.derivative, self.continuity = D, q, c
         self.start, self.end, self.corridor = g0, g1, corridor
@@ -192,4 +212,5 @@ class MinSnapProblem:
             self.durations if durations is None else durations,
             degree=self.degree, derivative=self.derivative, continuity=self.continuity,
             start=self.start, end=self.end, corridor=self.corridor if corridor is None else corridor,
+            waypoint_tolerance=self.waypoint_tolerance,
         )
