@@ -208,3 +208,29 @@ def test_continuity_above_q_minus_1_changes_nothing_without_corridor():
     np.testing.assert_allclose(a.coefficients, b.coefficients, atol=1e-12)
     ref = kkt_trajectory(MinSnapProblem(W, T, continuity=6))
     np.testing.assert_allclose(ref.coefficients, a.coefficients, atol=1e-7 * np.abs(a.coefficients).max())
+
+
+def test_min_velocity_is_piecewise_linear():
+    # q = 1, degree 1: the straight segments, cost sum |w_{i+1} - w_i|^2 / T_i
+    W = np.array([[0.0, 0.0], [1.0, 2.0], [4.0, 2.0]])
+    T = np.array([0.5, 3.0])
+    res = solve_min_snap(W, T, degree=1, derivative=1)
+    np.testing.assert_allclose(res.trajectory(0.25), [0.5, 1.0])
+    np.testing.assert_allclose(res.trajectory(2.0), [2.5, 2.0])
+    assert res.cost == pytest.approx(5 / 0.5 + 9 / 3.0)
+
+
+def test_closed_form_name_with_a_higher_degree():
+    # degree > 2q-1: the registry's generic closed_form backend if registered, else a clear error
+    import solvers.qp
+    from solvers.errors import SolverNotFound
+
+    rng = np.random.default_rng(12)
+    W = random_walk(rng, 4)
+    T = np.ones(4)
+    if "closed_form" in solvers.qp.available():
+        res = solve_min_snap(W, T, degree=9, backend="closed_form")
+        assert res.method == "qp" and res.cost == pytest.approx(solve_min_snap(W, T).cost, rel=1e-8)
+    else:
+        with pytest.raises(SolverNotFound, match="needs the generic closed_form"):
+            solve_min_snap(W, T, degree=9, backend="closed_form")

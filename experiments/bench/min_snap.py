@@ -14,7 +14,8 @@ durations at 1 m/s) it times, median of repeats:
 - RotorPy's ``MinSnap`` (cvxopt, dense) on the same waypoints in 3-D at constant z,
   with its own time allocation at the same average speed (identical durations here),
   ``verbose=False``; in a child process with a time limit (default 60 s per size),
-  reported as a timeout beyond it. It solves four QPs (x, y, z, yaw), adds snap
+  reported as a timeout beyond it (every backend's measurement also runs in a child
+  with a time limit, ``--timeout``, default 120 s). It solves four QPs (x, y, z, yaw), adds snap
   continuity and a speed bound at each piece's midpoint: a slightly larger problem,
   but the same job (what a user of RotorPy runs to smooth waypoints).
 
@@ -73,11 +74,9 @@ def bench_closed_form(W, T, budget):
     return statistics.median(r[0] for r in runs), runs[-1][1]
 
 
-def bench_backend(name, W, T, budget, rng):
+def bench_backend(name, W, T, budget, rng, ref):
+    """Cold and warm medians of one backend (run in a child: see :func:`in_child`)."""
     problem = MinSnapProblem(W, T)
-    t0 = time.perf_counter()
-    compiled_min_snap(problem.shape)
-    compile_s = time.perf_counter() - t0
 
     def cold():
         t0 = time.perf_counter()
@@ -105,11 +104,40 @@ def bench_backend(name, W, T, budget, rng):
             iters=statistics.median(r[1].solution.iterations for r in runs),
         )
 
-    return compile_s, parts(cold_runs), parts(warm_runs), cold_runs[-1][1]
+    return parts(cold_runs), parts(warm_runs), max_err(cold_runs[-1][1].trajectory, ref)
 
 
-def _rotorpy_child(W3, reps, conn):
-    try:
+def in_child(fn, timeout_s: float):
+    """Run ``fn()`` in a forked child; return ``(result, "")`` or ``(None, reason)`` on timeout/error.
+
+    A solver that does not scale (a dense method on 8000 variables) or RotorPy's dense
+    cvxopt QPs would otherwise hold the benchmark for minutes.
+    """
+    ctx = mp.get_context("fork")
+    parent, child = ctx.Pipe(duplex=False)
+
+    def target():
+        try:
+            child.send(("ok", fn()))
+        except BaseException as e:  # report, do not hang the parent
+            msg = str(e).splitlines()[0] if str(e) else ""
+            child.send(("error", f"failed: {type(e).__name__}: {msg}"))
+
+    p = ctx.Process(target=target, daemon=True)
+    p.start()
+    if not parent.poll(timeout_s):
+        p.terminate()
+        p.join(5)
+        return None, f"timeout > {timeout_s:.0f} s"
+    status, payload = parent.recv()
+    p.join(5)
+    return (payload, "") if status == "ok" else (None, payload)
+
+
+def bench_rotorpy(W, timeout_s, reps):
+    W3 = np.c_[W, np.ones(len(W))]
+
+    def run():
         from rotorpy.trajectories.minsnap import MinSnap
 
         times = []
@@ -117,27 +145,9 @@ def _rotorpy_child(W3, reps, conn):
             t0 = time.perf_counter()
             MinSnap(W3, v_avg=1.0, verbose=False)
             times.append(time.perf_counter() - t0)
-        conn.send(("ok", times))
-    except Exception as e:  # report, do not hang the parent
-        conn.send(("error", f"{type(e).__name__}: {e}"))
+        return statistics.median(times)
 
-
-def bench_rotorpy(W, timeout_s, reps):
-    W3 = np.c_[W, np.ones(len(W))]
-    ctx = mp.get_context("fork")
-    parent, child = ctx.Pipe(duplex=False)
-    p = ctx.Process(target=_rotorpy_child, args=(W3, reps, child), daemon=True)
-    p.start()
-    ok = parent.poll(timeout_s)
-    if not ok:
-        p.terminate()
-        p.join(5)
-        return None, f"timeout > {timeout_s:.0f} s"
-    status, payload = parent.recv()
-    p.join(5)
-    if status != "ok":
-        return None, payload
-    return statistics.median(payload), ""
+    return in_child(run, timeout_s)
 
 
 def max_err(traj, ref):
@@ -151,33 +161,45 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--budget", type=float, default=1.0, help="seconds of repeats per measurement")
     ap.add_argument("--rotorpy-timeout", type=float, default=60.0)
+    ap.add_argument("--timeout", type=float, default=120.0, help="seconds per backend and size (child process)")
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed + 1)
     names = solvers.qp.available()
+    # warm-up: imports, first-call costs of numpy/scipy/LAPACK and of every backend
+    Wu = waypoints(3, 99)
+    for _ in range(3):
+        solve_min_snap(Wu, constant_speed_durations(Wu, 1.0))
+        for name in names:
+            MinSnapSolver(name, formulated=True).solve(MinSnapProblem(Wu, constant_speed_durations(Wu, 1.0)))
     rows = []
     for M in args.sizes:
         W = waypoints(M, args.seed + M)
         T = constant_speed_durations(W, 1.0)
-        reps = 5 if M <= 100 else 1
-        rp, rp_note = bench_rotorpy(W, args.rotorpy_timeout, reps)
         cf, ref = bench_closed_form(W, T, args.budget)
-        rows.append(dict(pieces=M, method="closed_form (banded)", compile_ms="", cold_formulate_ms=0.0, cold_setup_ms=0.0,
+        ours = []
+        ours.append(dict(pieces=M, method="closed_form (banded)", compile_ms="", cold_formulate_ms=0.0, cold_setup_ms=0.0,
                          cold_solve_ms=ms(cf), cold_total_ms=ms(cf), warm_formulate_ms="", warm_setup_ms="",
-                         warm_solve_ms="", warm_total_ms="", iterations=0, max_err=0.0,
-                         x_rotorpy=(rp / cf) if rp else "", note=""))
+                         warm_solve_ms="", warm_total_ms="", iterations=0, max_err=0.0, total_s=cf, note=""))
+        t0 = time.perf_counter()
+        compiled_min_snap(MinSnapProblem(W, T).shape)  # once, in the parent: the children inherit it
+        compile_ms = ms(time.perf_counter() - t0)
         for name in names:
-            try:
-                comp, cold, warm, res = bench_backend(name, W, T, args.budget, rng)
-            except Exception as e:  # a backend failing is a result, not a crash of the bench
-                rows.append(dict(pieces=M, method=name, note=f"failed: {type(e).__name__}: {str(e).splitlines()[0]}"))
+            out, note = in_child(lambda: bench_backend(name, W, T, args.budget, rng, ref.trajectory), args.timeout)
+            if out is None:
+                ours.append(dict(pieces=M, method=name, compile_ms=compile_ms, note=note))
                 continue
-            rows.append(dict(pieces=M, method=name, compile_ms=ms(comp),
+            cold, warm, err = out
+            ours.append(dict(pieces=M, method=name, compile_ms=compile_ms,
                              cold_formulate_ms=ms(cold["formulate"]), cold_setup_ms=ms(cold["setup"]),
                              cold_solve_ms=ms(cold["solve"]), cold_total_ms=ms(cold["total"]),
                              warm_formulate_ms=ms(warm["formulate"]), warm_setup_ms=ms(warm["setup"]),
                              warm_solve_ms=ms(warm["solve"]), warm_total_ms=ms(warm["total"]),
-                             iterations=cold["iters"], max_err=max_err(res.trajectory, ref.trajectory),
-                             x_rotorpy=(rp / cold["total"]) if rp else "", note=""))
+                             iterations=cold["iters"], max_err=err, total_s=cold["total"], note=""))
+        # RotorPy last, in a child process, so that its imports and memory do not disturb our timings
+        rp, rp_note = bench_rotorpy(W, args.rotorpy_timeout, 15 if M <= 10 else (3 if M <= 100 else 1))
+        for r in ours:
+            r["x_rotorpy"] = rp / r["total_s"] if (rp and r.get("total_s")) else ""
+        rows += ours
         rows.append(dict(pieces=M, method="rotorpy MinSnap (cvxopt)", cold_total_ms=ms(rp) if rp else "",
                          x_rotorpy=1.0 if rp else "", note=rp_note))
         print_table([r for r in rows if r["pieces"] == M])
