@@ -60,8 +60,8 @@ from mrfswarm.motion import MIN_SEPARATION, step_min_separation
 from mrfswarm.pruning import prune_robot
 from mrfswarm.trajectory import (
     Corridor,
+    MinSnapBatchSolver,
     MinSnapProblem,
-    MinSnapSolver,
     PiecewisePolynomial,
     PolylineReference,
     concatenate,
@@ -243,9 +243,8 @@ class RecedingHorizon:
         self.E = max(1, int(round(cfg.execution * cfg.horizon)))
         self.dt = step_durations(self.paths, self.res, cfg.speed)
         self.qp_options = qp_options or QPOptions(eps_abs=1e-7, eps_rel=1e-7, max_iter=50000)
-        self._solvers: dict = {}
         self._check_s = 0.0
-        MinSnapSolver(self.backend)  # fail now on an unknown or missing backend
+        self._batch = MinSnapBatchSolver(self.backend, self.qp_options)  # fails now on an unknown backend
         t0 = time.perf_counter()
         self.kept, self.unpruned = safe_pruning(self.paths, grid.free, self.E)
         self.reference = grid.cell_to_world(np.stack([chord_positions(self.paths[:, i], self.kept[i])
@@ -267,12 +266,6 @@ class RecedingHorizon:
         return out
 
     # ------------------------------------------------------------------ solving
-    def _solver(self, shape) -> MinSnapSolver:
-        s = self._solvers.get(shape)
-        if s is None:
-            s = self._solvers[shape] = MinSnapSolver(self.backend, self.qp_options)
-        return s
-
     def _corridor(self, i: int, a: int, b: int, t: np.ndarray, K: int, half: np.ndarray) -> Corridor:
         """Boxes of half-width ``half[j]`` (metres, per step) around robot i's reference."""
         ref = PolylineReference(self.reference[a:b + 1, i], t[a:b + 1], law=TIME_LAW)
@@ -281,8 +274,8 @@ class RecedingHorizon:
         h = half[:, None, None]
         return Corridor(centre - h, centre + h)
 
-    def _solve_robot(self, i: int, a: int, b: int, t: np.ndarray, K: int, half: np.ndarray, start) -> PiecewisePolynomial:
-        """Robot i's trajectory over steps a..b (local time 0 at t[a]), one piece per step."""
+    def _problem(self, i: int, a: int, b: int, t: np.ndarray, K: int, half: np.ndarray, start) -> MinSnapProblem:
+        """Robot i's smoothing problem over steps a..b (local time 0 at t[a]), one piece per step."""
         waypoints = self.reference[a:b + 1, i].copy()
         # a pruned knot may move within the narrower of its two pieces' boxes; windows
         # start and end exactly on a waypoint
@@ -291,10 +284,9 @@ class RecedingHorizon:
         tol[0] = tol[-1] = 0.0
         if isinstance(start, tuple):  # continuous seam: the previous trajectory's state
             waypoints[0], start = start
-        problem = MinSnapProblem(waypoints, np.diff(t[a:b + 1]), degree=self.cfg.degree,
-                                 derivative=self.cfg.derivative, start=start, end="rest",
-                                 corridor=self._corridor(i, a, b, t, K, half), waypoint_tolerance=tol)
-        return self._solver(problem.shape).solve(problem).trajectory
+        return MinSnapProblem(waypoints, np.diff(t[a:b + 1]), degree=self.cfg.degree,
+                              derivative=self.cfg.derivative, start=start, end="rest",
+                              corridor=self._corridor(i, a, b, t, K, half), waypoint_tolerance=tol)
 
     def _check(self, trajs: list[PiecewisePolynomial], t0: float, t1: float) -> SampledCheck:
         tic = time.perf_counter()
@@ -339,7 +331,9 @@ class RecedingHorizon:
             tic = time.perf_counter()
             trajs, problem = None, ""
             try:
-                trajs = [self._solve_robot(i, a, b, t, att.samples_per_step, half, starts[i]) for i in range(self.N)]
+                # every robot's problem has the same shape: one block-diagonal QP per window
+                trajs = self._batch.solve([self._problem(i, a, b, t, att.samples_per_step, half, starts[i])
+                                           for i in range(self.N)])
             except (InfeasibleError, SolverError) as e:
                 problem = f"smoothing failed ({e})"
             rec.solve_s += time.perf_counter() - tic

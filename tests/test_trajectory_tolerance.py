@@ -39,3 +39,28 @@ def test_tolerance_validation_and_routing():
         MinSnapSolver(CLOSED_FORM).solve(MinSnapProblem(W, T, waypoint_tolerance=np.full(5, 0.1)))
     p = MinSnapProblem(W, T, waypoint_tolerance=np.full(5, 0.1))
     assert p.with_data(durations=2 * T).waypoint_tolerance is not None
+
+
+@pytest.mark.parametrize("backend", [b for b in ("osqp", "piqp") if b in solvers.qp.available()])
+def test_batch_equals_separate_solves(backend):
+    from mrfswarm.trajectory import MinSnapBatchSolver, PolylineReference, tube_corridor
+
+    rng = np.random.default_rng(7)
+    problems = []
+    for _ in range(6):
+        Wk = np.cumsum(rng.normal(size=(4, 2)), axis=0) * rng.uniform(0.5, 3)
+        Tk = np.array([1.0, 1.5, 0.8])
+        ref = PolylineReference(Wk, np.concatenate(([0.0], np.cumsum(Tk))), law="smooth")
+        problems.append(MinSnapProblem(Wk, Tk, corridor=tube_corridor(ref, Tk, 5, 0.3),
+                                       waypoint_tolerance=np.array([0.0, 0.2, 0.2, 0.0]),
+                                       start=0.1 * rng.normal(size=(3, 2))))
+    batch = MinSnapBatchSolver(backend)
+    for _ in range(2):  # the second call reuses the prepared backend (update + warm start)
+        got = batch.solve(problems)
+    t = np.linspace(0, 3.3, 200)
+    for p, g in zip(problems, got):
+        ref = MinSnapSolver(backend).solve(p).trajectory
+        np.testing.assert_allclose(g.evaluate(t), ref.evaluate(t), atol=2e-4)
+        assert p.corridor.violation(g) < 1e-5
+    with pytest.raises(InvalidProblem, match="one shape"):
+        batch.solve([problems[0], MinSnapProblem(W, T)])

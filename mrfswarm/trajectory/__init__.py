@@ -26,7 +26,14 @@ Modules, one job each:
 
 from mrfswarm.trajectory.banded import BandedSolution, solve_banded
 from mrfswarm.trajectory.corridor import Corridor, sample_taus, sample_times, tube_corridor
-from mrfswarm.trajectory.min_snap import CLOSED_FORM, MinSnapResult, MinSnapSolver, min_snap_qp, solve_min_snap
+from mrfswarm.trajectory.min_snap import (
+    CLOSED_FORM,
+    MinSnapBatchSolver,
+    MinSnapResult,
+    MinSnapSolver,
+    min_snap_qp,
+    solve_min_snap,
+)
 from mrfswarm.trajectory.polynomial import (
     PiecewisePolynomial,
     concatenate,
@@ -58,6 +65,7 @@ __all__ = [
     "TIME_LAWS",
     "BandedSolution",
     "Corridor",
+    "MinSnapBatchSolver",
     "MinSnapProblem",
     "MinSnapResult",
     "MinSnapShape",

@@ -134,6 +134,7 @@ class CompiledMinSnap:
         offset = np.concatenate([np.arange(q), stride + np.arange(q), q + np.arange(nb)])
         rpow = np.concatenate([np.arange(q), np.arange(q), np.zeros(nb, int)])
         G = E.T @ cost_hessian(D, q) @ E  # cost of piece i: T_i^(1-2q) sum_ab G_ab T_i^(r_a + r_b) z_a z_b
+        G = (G + G.T) / 2  # exactly symmetric, so P's (a, b) and (b, a) entries are the same float
         G[np.abs(G) < 1e-12 * np.abs(G).max()] = 0.0
         powers: dict = {}
 
@@ -241,6 +242,20 @@ class CompiledMinSnap:
             (M+1, dim) half-widths: knot j may lie within ``waypoints[j] +- tolerance[j]``
             (0: exactly on it). Only bounds change, so the shape does not.
         """
+        outs = [np.empty(self._nnz[0]), np.empty(self._nnz[1]), np.empty(self.m), np.empty(self.m)]
+        self.evaluate_into(outs, waypoints, durations, lower, upper, start, end, waypoint_tolerance)
+        P = sp.csc_matrix((outs[0], *self._P_pattern), shape=(self.n, self.n))
+        A = sp.csc_matrix((outs[1], *self._A_pattern), shape=(self.m, self.n))
+        return QPProblem(P=P, q=np.zeros(self.n), A=A, l=outs[2], u=outs[3])
+
+    def evaluate_into(self, outs: list[np.ndarray], waypoints: np.ndarray, durations: np.ndarray,
+                      lower: np.ndarray | None, upper: np.ndarray | None, start: np.ndarray, end: np.ndarray,
+                      waypoint_tolerance: np.ndarray | None = None) -> None:
+        """Write the nonzeros of P and A, and l and u, into the contiguous arrays ``outs``.
+
+        The arguments are those of :meth:`evaluate`; the patterns are :attr:`patterns`.
+        Used to stack many problems of this shape into one block-diagonal QP.
+        """
         args = [
             np.ascontiguousarray(waypoints.T, dtype=float).reshape(-1),
             np.ascontiguousarray(durations, dtype=float),
@@ -249,19 +264,20 @@ class CompiledMinSnap:
             np.ascontiguousarray(start.T, dtype=float).reshape(-1),
             np.ascontiguousarray(end.T, dtype=float).reshape(-1),
         ]
-        outs = [np.empty(self._nnz[0]), np.empty(self._nnz[1]), np.empty(self.m), np.empty(self.m)]
         for i, a in enumerate(args):
             self._buf.set_arg(i, memoryview(a))
         for i, o in enumerate(outs):
             self._buf.set_res(i, memoryview(o))
         self._eval()
-        P = sp.csc_matrix((outs[0], *self._P_pattern), shape=(self.n, self.n))
-        A = sp.csc_matrix((outs[1], *self._A_pattern), shape=(self.m, self.n))
         if waypoint_tolerance is not None:
             rows = self._position_rows.T  # (M+1, dim)
             outs[2][rows] -= waypoint_tolerance
             outs[3][rows] += waypoint_tolerance
-        return QPProblem(P=P, q=np.zeros(self.n), A=A, l=outs[2], u=outs[3])
+
+    @property
+    def patterns(self) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """CSC (row indices, column pointers) of P and of A."""
+        return self._P_pattern, self._A_pattern
 
     def coefficients(self, x: np.ndarray, durations: np.ndarray) -> np.ndarray:
         """(M, D+1, dim) tau-coefficients (normalized units) of a solution ``x``.

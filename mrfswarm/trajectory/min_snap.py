@@ -25,6 +25,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 import solvers.qp
 from mrfswarm.trajectory import banded
@@ -63,8 +64,8 @@ class Normalization:
         return cls(center=(lo + hi) / 2, scale=half if half > 0 else 1.0,
                    time_scale=float(np.exp(np.mean(np.log(problem.durations)))))
 
-    def qp(self, problem: MinSnapProblem) -> QPProblem:
-        """The normalized standard-form QP of ``problem`` (compiled formulation evaluated)."""
+    def arguments(self, problem: MinSnapProblem) -> tuple:
+        """The normalized data of ``problem``, as the compiled formulation takes it."""
         s = problem.shape
         c, L, Ts = self.center, self.scale, self.time_scale
         lo = hi = None
@@ -74,7 +75,11 @@ class Normalization:
         g0 = problem.start * (Ts ** np.arange(1, s.start_order + 1))[:, None] / L
         g1 = problem.end * (Ts ** np.arange(1, s.end_order + 1))[:, None] / L
         tol = None if problem.waypoint_tolerance is None else problem.waypoint_tolerance / L
-        return compiled_min_snap(s).evaluate((problem.waypoints - c) / L, problem.durations / Ts, lo, hi, g0, g1, tol)
+        return (problem.waypoints - c) / L, problem.durations / Ts, lo, hi, g0, g1, tol
+
+    def qp(self, problem: MinSnapProblem) -> QPProblem:
+        """The normalized standard-form QP of ``problem`` (compiled formulation evaluated)."""
+        return compiled_min_snap(problem.shape).evaluate(*self.arguments(problem))
 
     def tau_coefficients(self, problem: MinSnapProblem, x: np.ndarray) -> np.ndarray:
         """(M, D+1, dim) physical tau-coefficients from a normalized QP solution ``x``."""
@@ -250,6 +255,96 @@ class MinSnapSolver:
         traj = PiecewisePolynomial(T, tau_to_time(c_tau, T))
         log.debug("min-snap %s via %s: %d iterations, status %s", problem.shape, name, sol.iterations, sol.status)
         return MinSnapResult(traj, _cost(c_tau, T, q), name, "qp", t_form, setup, sol.solve_time_s, sol)
+
+
+class MinSnapBatchSolver:
+    """Solves many problems of one shape as a single block-diagonal QP.
+
+    The receding horizon smooths every robot of a window with the same shape (pieces,
+    samples, end conditions; only data differ), and the robots' problems are
+    independent, so stacking them costs one backend setup and solve per window instead
+    of one per robot. Each block is normalized on its own (see :class:`Normalization`),
+    so the blocks' optima are exactly those of the separate problems. The stacked
+    pattern is built once per (shape, number of problems); with ``warm`` the prepared
+    backend is updated and warm-started across calls of the same size.
+
+    Parameters
+    ----------
+    backend
+        A QP backend name (not ``closed_form``'s banded path: batches carry corridors).
+    options
+        QP options.
+    warm
+        Reuse the prepared backend across same-size batches.
+    """
+
+    def __init__(self, backend: str | None = None, options: Options | None = None, *, warm: bool = True) -> None:
+        self.backend = backend or solvers.qp.DEFAULT_BACKEND
+        _backend(self.backend)
+        self.options = options
+        self.warm = warm
+        self._patterns: dict = {}
+        self._prepared: dict = {}
+
+    def _pattern(self, shape: MinSnapShape, N: int):
+        key = (shape, N)
+        if key not in self._patterns:
+            comp = compiled_min_snap(shape)
+            (pr, pc), (ar, ac) = comp.patterns
+
+            def stack(rows: np.ndarray, colptr: np.ndarray, n_rows: int) -> tuple[np.ndarray, np.ndarray]:
+                nnz = colptr[-1]
+                r = (rows[None, :] + n_rows * np.arange(N)[:, None]).ravel()
+                c = np.concatenate([(colptr[:-1][None, :] + nnz * np.arange(N)[:, None]).ravel(), [N * nnz]])
+                return r.astype(np.int32), c.astype(np.int32)
+
+            self._patterns[key] = (stack(pr, pc, comp.n), stack(ar, ac, comp.m))
+        return self._patterns[key]
+
+    def solve(self, problems: list[MinSnapProblem]) -> list[PiecewisePolynomial]:
+        """The optimal trajectory of each problem (all of one shape).
+
+        Raises
+        ------
+        InvalidProblem
+            Problems of different shapes.
+        InfeasibleError, SolverError
+            As :meth:`MinSnapSolver.solve` (for the batch as a whole).
+        """
+        shape = problems[0].shape
+        if any(p.shape != shape for p in problems):
+            raise InvalidProblem("a batch must hold problems of one shape")
+        N = len(problems)
+        comp = compiled_min_snap(shape)
+        nP, nA = (int(comp.patterns[0][1][-1]), int(comp.patterns[1][1][-1]))
+        n, m = comp.n, comp.m
+        Pd, Ad, lo, up = np.empty(N * nP), np.empty(N * nA), np.empty(N * m), np.empty(N * m)
+        norms = [Normalization.of(p) for p in problems]
+        for k, (p, norm) in enumerate(zip(problems, norms)):
+            comp.evaluate_into([Pd[k * nP:(k + 1) * nP], Ad[k * nA:(k + 1) * nA], lo[k * m:(k + 1) * m],
+                                up[k * m:(k + 1) * m]], *norm.arguments(p))
+        (pr, pc), (ar, ac) = self._pattern(shape, N)
+        qp = QPProblem(P=sp.csc_matrix((Pd, pr, pc), shape=(N * n, N * n)), q=np.zeros(N * n),
+                       A=sp.csc_matrix((Ad, ar, ac), shape=(N * m, N * n)), l=lo, u=up)
+        record = _backend(self.backend)
+        key = (shape, N)
+        entry = self._prepared.get(key) if self.warm else None
+        try:
+            if entry is not None:
+                prepared, x0 = entry
+                prepared.update(qp)
+                sol = prepared.solve(warm_start=x0 if "warm_start" in record.capabilities else None)
+            else:
+                prepared = record.entry(qp, self.options)
+                sol = prepared.solve()
+        except Exception:
+            self._prepared.pop(key, None)  # never warm-start from a failed solve's iterates
+            raise
+        if self.warm:
+            self._prepared[key] = (prepared, sol.x)
+        X = sol.x.reshape(N, n)
+        return [PiecewisePolynomial(p.durations, tau_to_time(norm.tau_coefficients(p, X[k]), p.durations))
+                for k, (p, norm) in enumerate(zip(problems, norms))]
 
 
 def solve_min_snap(

@@ -55,10 +55,17 @@ class OsqpQP(PreparedQP):
     def _setup(self, problem: QPProblem) -> None:
         import osqp
 
-        self._solver = osqp.OSQP()
-        self._P_triu = sp.triu(problem.P, format="csc")
+        # OSQP takes the upper triangle; P's pattern is fixed across updates, so the
+        # positions of its upper-triangle entries are found once.
+        P = problem.P
+        rows = P.indices
+        cols = np.repeat(np.arange(P.shape[1]), np.diff(P.indptr))
+        self._triu = rows <= cols
+        indptr = np.concatenate(([0], np.cumsum(np.bincount(cols[self._triu], minlength=P.shape[1]))))
+        P_triu = sp.csc_matrix((P.data[self._triu], rows[self._triu], indptr), shape=P.shape)
+        self._solver = osqp.OSQP(algebra="builtin")  # without it, every construction probes for CUDA/MKL builds
         self._solver.setup(
-            self._P_triu,
+            P_triu,
             problem.q,
             problem.A,
             np.clip(problem.l, -_INF, _INF),
@@ -67,18 +74,13 @@ class OsqpQP(PreparedQP):
         )
 
     def update(self, problem: QPProblem) -> None:
-        self._check_same_shape(problem)
-        P_triu = sp.triu(problem.P, format="csc")
-        if not (np.array_equal(P_triu.indices, self._P_triu.indices) and np.array_equal(P_triu.indptr, self._P_triu.indptr)):
-            super().update(problem)
-            return
+        self._check_same_shape(problem)  # same patterns of P and A, so the same triangle
         self.problem = problem
-        self._P_triu = P_triu
         self._solver.update(
             q=problem.q,
             l=np.clip(problem.l, -_INF, _INF),
             u=np.clip(problem.u, -_INF, _INF),
-            Px=P_triu.data,
+            Px=problem.P.data[self._triu],
             Ax=problem.A.data,
         )
 

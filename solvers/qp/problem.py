@@ -20,6 +20,21 @@ import scipy.sparse as sp
 from solvers.errors import InvalidProblem
 
 
+def _is_symmetric(P: sp.csc_matrix, rtol: float = 1e-9) -> bool:
+    """P == P' up to rtol: the entries keyed (row, col) match those keyed (col, row)."""
+    n = P.shape[0]
+    rows = P.indices.astype(np.int64)
+    cols = np.repeat(np.arange(n, dtype=np.int64), np.diff(P.indptr))
+    keep = P.data != 0
+    rows, cols, data = rows[keep], cols[keep], P.data[keep]
+    a = np.argsort(rows * n + cols, kind="stable")
+    b = np.argsort(cols * n + rows, kind="stable")
+    if not np.array_equal((rows * n + cols)[a], (cols * n + rows)[b]):
+        return False
+    scale = max(1.0, float(np.abs(data).max(initial=0.0)))
+    return bool(np.all(np.abs(data[a] - data[b]) <= rtol * scale))
+
+
 @dataclass(frozen=True, eq=False)
 class QPProblem:
     """A validated quadratic program in standard form.
@@ -63,10 +78,9 @@ class QPProblem:
         if np.any(l > u):
             i = int(np.argmax(l > u))
             raise InvalidProblem(f"l[{i}] = {l[i]} > u[{i}] = {u[i]}")
-        asym = abs(P - P.T)
-        if asym.nnz and asym.max() > 1e-9 * max(1.0, abs(P).max()):
-            raise InvalidProblem("P must be symmetric (store the whole matrix, not a triangle)")
         P.sort_indices()
+        if not _is_symmetric(P):
+            raise InvalidProblem("P must be symmetric (store the whole matrix, not a triangle)")
         A.sort_indices()
         object.__setattr__(self, "P", P)
         object.__setattr__(self, "q", q)
