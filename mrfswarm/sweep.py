@@ -25,6 +25,7 @@ import os
 import re
 import signal
 import sys
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterable, Sequence
@@ -230,6 +231,12 @@ def _slug(values: dict[str, Any], seed: int | None, limit: int = 60) -> str:
 # --- one point -----------------------------------------------------------------------------
 
 
+# plan() is not thread-safe (the continuous stage shares compiled CasADi functions and caches:
+# concurrent runs in one process produced corrupted QPs), so a process plans one point at a
+# time, even on a Dask worker with several threads (start those with --nthreads 1).
+_PLAN_LOCK = threading.Lock()
+
+
 def _ignore_sigint() -> None:
     """Pool workers leave Ctrl-C to the parent, which stops them (no traceback per worker)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -243,20 +250,21 @@ def _run_point(task: _Task) -> dict:
     """
     from mrfswarm.pipeline import plan
 
-    t0 = time.perf_counter()
-    summary, error, result = None, None, None
-    try:
-        result = plan(task.config, seed=task.seed, progress=False)
-    except MrfswarmError as e:
-        error = str(e).splitlines()[0] if str(e) else type(e).__name__
-        result = getattr(e, "partial_result", None)
-    wall = time.perf_counter() - t0
-    if result is not None:
-        summary = result.summary()
-        if task.figures:
-            from mrfswarm.outputs import write_outputs
+    with _PLAN_LOCK:
+        t0 = time.perf_counter()
+        summary, error, result = None, None, None
+        try:
+            result = plan(task.config, seed=task.seed, progress=False)
+        except MrfswarmError as e:
+            error = str(e).splitlines()[0] if str(e) else type(e).__name__
+            result = getattr(e, "partial_result", None)
+        wall = time.perf_counter() - t0
+        if result is not None:
+            summary = result.summary()
+            if task.figures:
+                from mrfswarm.outputs import write_outputs
 
-            write_outputs(result, Path(task.point_dir))
+                write_outputs(result, Path(task.point_dir))
     return {"summary": summary, "error": error, "wall_s": wall, "config": task.config.to_dict()}
 
 
@@ -307,7 +315,14 @@ def _run_local(tasks: list[_Task], workers: int, done: Callable[[int, dict], Non
     try:
         futures = {pool.submit(_run_point, t): i for i, t in enumerate(tasks)}
         for f in cf.as_completed(futures):
-            done(futures[f], f.result())
+            try:
+                out = f.result()
+            except cf.process.BrokenProcessPool as e:
+                raise cf.process.BrokenProcessPool(
+                    f"a sweep worker process died ({e}); it was killed (out of memory?) or crashed, or the script "
+                    "that started the sweep lacks `if __name__ == \"__main__\":` (worker processes are spawned "
+                    "and import the main script)") from e
+            done(futures[f], out)
     except BaseException:
         running = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
@@ -425,11 +440,15 @@ def run_sweep(config: str | Path, grid: dict[str, Sequence], out_dir: str | Path
         ``distributed.Client`` or a cluster object: that Dask cluster.
     workers
         Local processes (default ``os.cpu_count()``); 1 runs the points in this process.
-        Ignored with a scheduler (the cluster decides).
+        The processes are spawned, so a script that starts a sweep must do it under
+        ``if __name__ == "__main__":``. Ignored with a scheduler (the cluster decides; a
+        worker process plans one point at a time, so give Dask workers one thread each).
     progress
         Show a progress bar on stderr (default: when stderr is a terminal).
     seeds
-        If given, each point is planned once per seed, ``plan(cfg, seed=s)`` (column ``seed``).
+        If given, each point is planned once per seed, ``plan(cfg, seed=s)``: one row per
+        (point, seed), seeds varying fastest, with the grid point's index in ``point`` and the
+        seed in ``seed``.
     overrides
         ``--set`` items applied to every point, before the grid's.
     figures
@@ -440,7 +459,10 @@ def run_sweep(config: str | Path, grid: dict[str, Sequence], out_dir: str | Path
     Returns
     -------
     SweepResult
-        The rows, in the order of the points.
+        The rows, in the order of the points. A point that failed with a
+        :class:`MrfswarmError` (a scenario the planner rejects, e.g. ``k >= N``, a goal in an
+        obstacle, Morse parameters with ``k_a <= k_r``) is a row with ``error`` set and
+        whatever the run computed before failing.
 
     Raises
     ------
@@ -517,8 +539,8 @@ def _sweep(config: Path, grid: dict, seeds: list[int] | None, overrides: list[st
         rows[i] = _row(bases[i], out)
         if out["error"] is not None:
             log.info("sweep point %s failed: %s", bases[i], out["error"])
-        bar.update(1)
         bar.set_postfix(failed=sum(r["error"] is not None for r in rows.values()), refresh=False)
+        bar.update(1)
         now = time.monotonic()
         if now - last_write[0] >= 1.0:  # the table, as points finish (at most once a second)
             _write_table(out_dir, *table(), meta | {"complete": False})

@@ -270,3 +270,32 @@ def test_grid_values_from_python(tmp_path):
     with pytest.raises(ConfigError, match="cannot be written in TOML"):
         run_sweep(cfg, {"scenario.goal": [None]}, tmp_path / "p")
     assert not (tmp_path / "p").exists()
+
+
+def test_one_point_at_a_time_per_process(monkeypatch):
+    """plan() is not thread-safe: points on the threads of one (Dask worker) process run one by one."""
+    import threading
+    import time
+
+    import mrfswarm.pipeline
+    from mrfswarm import sweep
+
+    running, peak, lock = [0], [0], threading.Lock()
+
+    def slow(cfg, **kw):
+        with lock:
+            running[0] += 1
+            peak[0] = max(peak[0], running[0])
+        time.sleep(0.05)
+        with lock:
+            running[0] -= 1
+        raise ConfigError("stop here")
+
+    monkeypatch.setattr(mrfswarm.pipeline, "plan", slow)
+    task = sweep._Task(load_config(FREE5), None, "unused", False)
+    threads = [threading.Thread(target=sweep._run_point, args=(task,)) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert peak[0] == 1
