@@ -367,6 +367,8 @@ def connect(scheduler: Any, timeout: float = 10.0) -> tuple[Any, bool]:
         if hasattr(scheduler, "scheduler_address"):  # a cluster object (LocalCluster, ...)
             return distributed.Client(scheduler, timeout=timeout), True
         raise TypeError(f"scheduler must be an address, a dask Client or a cluster, got {type(scheduler).__name__}")
+    if not scheduler.strip():  # Client("") would start a new local cluster instead
+        raise ConfigError("--scheduler: empty address")
     try:
         return distributed.Client(scheduler, timeout=timeout), True
     except (OSError, TimeoutError, ValueError) as e:

@@ -186,6 +186,9 @@ BAD = {
     "out of range": (["--grid", "mrf.order=2,0"], "mrf.order = 0: must be >= 1"),
     "unknown optimizer": (["--grid", "mrf.optimizer=icm,nosuch"], "nosuch"),
     "bad seeds": (["--grid", "interaction.k=2", "--seeds", "0,x"], "--seeds"),
+    "empty scheduler address": (["--grid", "interaction.k=2", "--scheduler", " "], "--scheduler: empty address"),
+    "zero workers": (["--grid", "interaction.k=2", "--workers", "0"], "--workers 0"),
+    "no grid": ([], "--grid"),
     "unreachable scheduler": (["--grid", "interaction.k=2,3", "--scheduler", "tcp://127.0.0.1:9",
                                "--connect-timeout", "1"], "cannot reach the Dask scheduler at 'tcp://127.0.0.1:9'"),
 }
@@ -197,7 +200,10 @@ def test_bad_input_one_line_exit_2_nothing_written(name, tmp_path, capsys):
     if "--scheduler" in args:
         pytest.importorskip("distributed")
     out = tmp_path / "out"
-    rc = main(["sweep", str(FREE5), "--out", str(out), "--set", "smoothing.enabled=false", *args])
+    try:
+        rc = main(["sweep", str(FREE5), "--out", str(out), "--set", "smoothing.enabled=false", *args])
+    except SystemExit as e:  # argparse's own errors (a missing option, a non-integer --workers)
+        rc = e.code
     err = capsys.readouterr().err
     assert rc == 2
     assert err.startswith("mrfswarm: error:") and err.count("\n") == 1, err
