@@ -175,3 +175,69 @@ def animate(path: Path, grid: OccupancyGrid, t: np.ndarray, positions: np.ndarra
     anim.save(str(path), writer=PillowWriter(fps=fps))
     plt.close(fig)
     return Path(path)
+
+
+# --- small helpers for multi-panel figures (used by mrfswarm.figures) -------------------------
+
+#: Font sizes of the paper figures: readable when a panel is a quarter of a page wide.
+PAPER_RC = {
+    "font.size": 10,
+    "axes.titlesize": 10.5,
+    "axes.labelsize": 10,
+    "xtick.labelsize": 9,
+    "ytick.labelsize": 9,
+    "legend.fontsize": 8.5,
+    "figure.titlesize": 12.5,
+}
+
+
+def paper_style():
+    """A context manager applying :data:`PAPER_RC` (``with plots.paper_style(): ...``)."""
+    return _plt().rc_context(PAPER_RC)
+
+
+def panel_title(ax, letter: str, text: str, **kw) -> None:
+    """A panel title in the paper's style: "(a) text"."""
+    ax.set_title(f"({letter}) {text}", **kw)
+
+
+def draw_graph(ax, points: np.ndarray, edges: np.ndarray, labels: bool = True, node_size: float = 260,
+               color: str = "tab:blue", edge_color: str = "0.35") -> None:
+    """Robots as numbered nodes (1-based, as the paper's figures) and their undirected edges."""
+    pts = np.asarray(points, dtype=float)
+    for a, b in np.asarray(edges).reshape(-1, 2):
+        ax.plot(pts[[a, b], 0], pts[[a, b], 1], "-", color=edge_color, lw=1.6, zorder=2)
+    ax.scatter(pts[:, 0], pts[:, 1], s=node_size, c=color, edgecolors="k", linewidths=0.8, zorder=3)
+    if labels:
+        for i, p in enumerate(pts):
+            ax.text(p[0], p[1], str(i + 1), ha="center", va="center", color="white", fontsize=9,
+                    fontweight="bold", zorder=4)
+
+
+def draw_field(ax, field: np.ndarray, extent: tuple[float, float, float, float], label: str = "",
+               cmap: str = "viridis", contours: int = 0, **imshow_kw):
+    """A scalar field indexed ``[ix, iy]`` as an image in world coordinates, with a colour bar.
+
+    ``contours`` > 0 overlays that many thin contour lines. Returns the image.
+    """
+    im = ax.imshow(np.asarray(field).T, origin="lower", extent=extent, cmap=cmap, interpolation="nearest",
+                   **imshow_kw)
+    if contours:
+        x0, x1, y0, y1 = extent
+        W, H = np.asarray(field).shape
+        xs = np.linspace(x0, x1, W, endpoint=False) + (x1 - x0) / (2 * W)
+        ys = np.linspace(y0, y1, H, endpoint=False) + (y1 - y0) / (2 * H)
+        ax.contour(xs, ys, np.asarray(field).T, levels=contours, colors="w", linewidths=0.5, alpha=0.6)
+    cb = ax.figure.colorbar(im, ax=ax, fraction=0.046, pad=0.03)
+    if label:
+        cb.set_label(label)
+    ax.set_aspect("equal")
+    return im
+
+
+def save_figure(fig, path: Path, dpi: int = 100) -> Path:
+    """Save a figure as a compact PNG (limited dpi, optimized) and close it."""
+    plt = _plt()
+    fig.savefig(path, dpi=dpi, pil_kwargs={"optimize": True})
+    plt.close(fig)
+    return Path(path)

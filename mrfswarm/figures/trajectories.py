@@ -1,0 +1,329 @@
+"""Figs. 1 and 6, the animations, and the trajectory numbers behind Figs. 7a and 7c.
+
+- Fig. 6 (a)-(d): final discrete trajectories of free5, free10, corridor and blocks;
+  (e)(f): free5 and free10 smoothed in one min-snap window ("optimized trajectories");
+  (g)(h): corridor and blocks smoothed in the paper's receding horizon (4 MRF steps
+  planned, 50 % executed, at rest at the seams: the "stop-start" sharp edges).
+- Fig. 1: the blocks flight in 3-D (the paper's is a Gazebo render; ours draws the
+  smoothed trajectories at the flight altitude among the blocks).
+- Fig. 7a/7c numbers: robot positions and the minimum and average inter-robot
+  distances over time in the corridor (receding horizon).
+- The free-space formation census: the shape 5 robots settle into, over seeds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import ConvexHull
+from scipy.spatial.distance import pdist, squareform
+
+from mrfswarm import plots
+from mrfswarm.continuous_check import separation_series
+from mrfswarm.figures.runs import SCENARIOS, discrete_run, scenario_run
+from mrfswarm.pipeline import Result
+
+#: How each scenario is smoothed in Fig. 6 (e)-(h) (a key of ``runs.SMOOTHING``).
+SMOOTHED = {"free5": "single", "free10": "single", "corridor": "rhp", "blocks": "rhp"}
+#: Samples per second of flight for the time series.
+RATE_HZ = 20.0
+#: Speed (m/s) under which a robot counts as stopped.
+STOP_SPEED = 0.02
+#: Seeds of the formation census.
+CENSUS_SEEDS = 20
+
+
+def smoothed_run(name: str) -> Result:
+    """The run of Fig. 6 (e)-(h) for a scenario (its discrete stage gives (a)-(d))."""
+    return scenario_run(name, SMOOTHED[name])
+
+
+@dataclass(frozen=True)
+class TimeSeries:
+    """Positions of every robot over time, and their separation.
+
+    Attributes
+    ----------
+    t
+        (S,) seconds.
+    positions
+        (S, N, 2) metres.
+    min_distance, mean_distance
+        (S,) smallest and average inter-robot distance.
+    safety
+        The configured safety distance (m).
+    """
+
+    t: np.ndarray
+    positions: np.ndarray
+    min_distance: np.ndarray
+    mean_distance: np.ndarray
+    safety: float
+
+    def expansion(self, window_s: float = 10.0) -> dict:
+        """The initial expansion: when the average distance first rises and peaks.
+
+        Returns the average distance at t = 0, its first maximum within ``window_s``
+        (value and time), and the interval over which it rises to that maximum (from the
+        first sample 1 % above the start to the first sample within 1 % of the peak).
+        """
+        m = self.mean_distance
+        sel = self.t <= window_s
+        k = int(np.argmax(m[sel]))
+        peak = float(m[k])
+        rising = np.flatnonzero(m[: k + 1] > m[0] * 1.01)
+        near = np.flatnonzero(m[: k + 1] >= m[0] + 0.99 * (peak - m[0]))
+        return {
+            "start_m": float(m[0]),
+            "peak_m": peak,
+            "rise_m": peak - float(m[0]),
+            "rise_from_s": float(self.t[rising[0]]) if len(rising) else None,
+            "peak_reached_s": float(self.t[near[0]]) if len(near) else None,
+            "peak_held_until_s": float(self.t[k + np.argmax(m[k:] < peak - 0.05)]) if np.any(m[k:] < peak - 0.05)
+            else float(self.t[-1]),
+        }
+
+    def speeds(self) -> np.ndarray:
+        """(S - 1, N) speed of each robot between samples."""
+        return np.linalg.norm(np.diff(self.positions, axis=0), axis=-1) / np.diff(self.t)[:, None]
+
+    def stops(self) -> np.ndarray:
+        """Per robot, how many times it comes to rest and starts again (interior stops)."""
+        slow = self.speeds() < STOP_SPEED
+        out = np.zeros(slow.shape[1], dtype=int)
+        for i in range(slow.shape[1]):
+            s = slow[:, i].astype(int)
+            starts = np.flatnonzero(np.diff(s) == 1) + 1
+            ends = np.flatnonzero(np.diff(s) == -1) + 1
+            out[i] = int(np.sum([(a > 0) and np.any(ends > a) for a in starts]))
+        return out
+
+
+def time_series(name: str, rate_hz: float = RATE_HZ) -> TimeSeries:
+    """The smoothed flight of a scenario sampled at ``rate_hz``."""
+    r = smoothed_run(name)
+    c = r.continuous
+    t = np.linspace(0.0, c.makespan_s, int(c.makespan_s * rate_hz) + 1)
+    pos = c.positions(t)
+    dmin, dmean = separation_series(t, pos)
+    safety = r.config.smoothing.safety_distance * r.scenario.grid.resolution
+    return TimeSeries(t=t, positions=pos, min_distance=dmin, mean_distance=dmean, safety=safety)
+
+
+def corridor_series() -> TimeSeries:
+    """The corridor flight (Figs. 7a and 7c)."""
+    return time_series("corridor")
+
+
+def formation_shape(points: np.ndarray) -> str:
+    """``pentagon`` (5 robots on their convex hull), ``centred square`` (4 on it, 1 inside) or ``other``."""
+    p = np.asarray(points, dtype=float)
+    if len(p) != 5:
+        return "other"
+    hull = len(ConvexHull(p).vertices)
+    return {5: "pentagon", 4: "centred square"}.get(hull, "other")
+
+
+def nearest_distances(points: np.ndarray) -> np.ndarray:
+    """Each robot's distance to its nearest neighbour."""
+    D = squareform(pdist(np.asarray(points, dtype=float)))
+    np.fill_diagonal(D, np.inf)
+    return D.min(axis=1)
+
+
+@lru_cache(maxsize=None)
+def formation_census(seeds: int = CENSUS_SEEDS) -> dict:
+    """The shapes free5's swarm converges to over start seeds 0..seeds-1, and its steps."""
+    shapes, steps = [], []
+    for s in range(seeds):
+        r = discrete_run("free5", seed=s)
+        shapes.append(formation_shape(r.discrete_paths_world()[-1]))
+        steps.append(r.discrete.n_steps)
+    counts = {k: shapes.count(k) for k in ("pentagon", "centred square", "other")}
+    return {"seeds": seeds, "counts": counts, "shapes": shapes, "steps": steps}
+
+
+def scenario_numbers(name: str) -> dict:
+    """What Fig. 6 shows of one scenario, in numbers."""
+    r = smoothed_run(name)
+    d, m, c = r.discrete, r.metrics, r.continuous
+    final = r.discrete_paths_world()[-1]
+    nn = nearest_distances(final)
+    ts = time_series(name)
+    out = {
+        "n_robots": r.scenario.n_robots,
+        "k": r.config.interaction.k,
+        "order_n": r.config.mrf.order,
+        "mrf_steps": d.n_steps,
+        "stop_reason": d.stop_reason,
+        "reached_goal": m.reached_goal,
+        "final_goal_distance_m": m.final_goal_distance,
+        "min_separation_discrete_m": m.min_separation,
+        "final_mean_distance_m": float(m.mean_distance[-1]),
+        "final_nearest_neighbour_m": [float(nn.min()), float(nn.max())],
+        "smoothing": SMOOTHED[name],
+        "makespan_s": c.makespan_s,
+        "windows": len(c.windows),
+        "min_separation_continuous_m": float(c.check.min_separation),
+        "min_obstacle_clearance_continuous_m": None if c.check.min_clearance is None else float(c.check.min_clearance),
+        "v_max": c.v_max,
+        "stops_per_robot": ts.stops().tolist(),
+    }
+    if r.scenario.n_robots == 5 and r.scenario.goal is None:
+        out["formation"] = formation_shape(final)
+    return out
+
+
+def _view(r: Result, world: np.ndarray, free_space: bool) -> tuple[float, float, float, float]:
+    """Axis limits: the whole map, or (free space) a square around the swarm's paths."""
+    if not free_space:
+        return r.scenario.grid.extent
+    lo, hi = world.reshape(-1, 2).min(axis=0), world.reshape(-1, 2).max(axis=0)
+    c, half = (lo + hi) / 2, max(hi - lo) / 2 + 2.5
+    return (c[0] - half, c[0] + half, c[1] - half, c[1] + half)
+
+
+def _discrete_panel(ax, r: Result) -> None:
+    world = r.discrete_paths_world()
+    n = world.shape[1]
+    plots.draw_map(ax, r.scenario.grid)
+    plots.draw_paths(ax, r.scenario.grid, [world[:, i] for i in range(n)], r.scenario.goal_world, lw=1.3)
+    colors = plots._robot_colors(n)
+    for i in range(n):
+        ax.plot(world[1:-1, i, 0], world[1:-1, i, 1], ".", ms=3, color=colors[i])
+    x0, x1, y0, y1 = _view(r, world, r.scenario.goal is None)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+
+
+def _smooth_panel(ax, r: Result) -> None:
+    world = r.discrete_paths_world()
+    c = r.continuous
+    t = np.linspace(0.0, c.makespan_s, int(c.makespan_s * 40) + 2)
+    pos = c.positions(t)
+    n = pos.shape[1]
+    plots.draw_map(ax, r.scenario.grid)
+    for i in range(n):
+        ax.plot(world[:, i, 0], world[:, i, 1], ":", color="0.55", lw=0.8)
+    plots.draw_paths(ax, r.scenario.grid, [pos[:, i] for i in range(n)], r.scenario.goal_world, lw=1.5)
+    x0, x1, y0, y1 = _view(r, world, r.scenario.goal is None)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+
+
+def make_fig6(out: Path, quick: bool = False) -> list[Path]:
+    """Write ``fig6_trajectories.png`` (2 x 4 panels as in the paper)."""
+    plt = plots._plt()
+    with plots.paper_style():
+        fig, axes = plt.subplots(2, 4, figsize=(18, 9.4), layout="constrained")
+        for j, name in enumerate(SCENARIOS):
+            r = smoothed_run(name)
+            nums = scenario_numbers(name)
+            _discrete_panel(axes[0, j], r)
+            what = f"N = {r.scenario.n_robots}, k = {r.config.interaction.k}, {r.discrete.n_steps} steps"
+            if "formation" in nums:
+                what += f", {nums['formation']}"
+            if r.metrics.reached_goal is not None:
+                what += ", at goal" if r.metrics.reached_goal else ", goal NOT reached"
+            plots.panel_title(axes[0, j], "abcd"[j], f"{name}: {what}")
+            _smooth_panel(axes[1, j], r)
+            how = "smoothed, one window" if SMOOTHED[name] == "single" else "smoothed, receding horizon"
+            plots.panel_title(axes[1, j], "efgh"[j], f"{name} {how}: {r.continuous.makespan_s:.1f} s flight")
+            axes[0, j].legend(loc="upper left", fontsize=7.5, framealpha=0.9)
+            axes[1, j].legend().remove() if axes[1, j].get_legend() else None
+        fig.suptitle("Fig. 6: final discrete trajectories (a-d; n = 2, ICM), min-snap smoothed (e, f) and smoothed with "
+                     "receding-horizon planning (g, h; H = 4 steps, 50 % executed, at rest at the seams)\n"
+                     "green: start, blue: end, grey: obstacles, dotted: discrete paths")
+        return [plots.save_figure(fig, Path(out) / "fig6_trajectories.png", dpi=90)]
+
+
+def flight_3d(quick: bool = False) -> tuple[np.ndarray, str, Result]:
+    """(S, N, 3) positions of the blocks flight for Fig. 1, and what they are.
+
+    Full mode flies the smoothed trajectories in RotorPy (Crazyflie model, the
+    counterpart of the paper's Gazebo); quick mode draws the planned trajectories at the
+    flight altitude.
+    """
+    if quick:
+        r = smoothed_run("blocks")
+        c = r.continuous
+        t = np.linspace(0.0, c.makespan_s, int(c.makespan_s * 20) + 2)
+        xy = c.positions(t)
+        z = np.full(xy.shape[:2] + (1,), r.config.scenario.altitude)
+        return np.concatenate([xy, z], axis=2), "planned (quick mode: not flown)", r
+    r = scenario_run("blocks", SMOOTHED["blocks"], ("simulation.enabled=true",))
+    f = r.flight
+    pos = np.stack([fl.positions for fl in f.flights], axis=1)[::5]
+    return pos, (f"flown in RotorPy ({r.config.simulation.vehicle}), max tracking error "
+                 f"{f.max_tracking_error * 100:.1f} cm"), r
+
+
+def make_fig1(out: Path, quick: bool = False) -> list[Path]:
+    """Write ``fig1_flight.png``: the five robots' blocks flight in 3-D among the blocks."""
+    pos, what, r = flight_3d(quick)
+    grid = r.scenario.grid
+    z = r.config.scenario.altitude
+    n = pos.shape[1]
+    colors = plots._robot_colors(n)
+    plt = plots._plt()
+    with plots.paper_style():
+        fig = plt.figure(figsize=(10, 6.4))
+        ax = fig.add_axes([-0.05, -0.05, 1.1, 1.08], projection="3d")
+        occ = grid.occupied
+        xs = np.arange(grid.width + 1) - 0.5
+        ys = np.arange(grid.height + 1) - 0.5
+        filled = np.repeat(occ[:, :, None], 2, axis=2)
+        X, Y, Z = np.meshgrid(grid.origin[0] + xs * grid.resolution, grid.origin[1] + ys * grid.resolution,
+                              [0.0, 1.0 * z, 2.0 * z], indexing="ij")
+        ax.voxels(X, Y, Z, filled, facecolors=(0.55, 0.55, 0.55, 0.4), edgecolors=(0.45, 0.45, 0.45, 0.04))
+        for i in range(n):
+            ax.plot(pos[:, i, 0], pos[:, i, 1], pos[:, i, 2], "-", color=colors[i], lw=1.8)
+            ax.plot(pos[:, i, 0], pos[:, i, 1], np.zeros(len(pos)), "-", color=colors[i], lw=0.6, alpha=0.35)
+        ax.scatter(pos[0, :, 0], pos[0, :, 1], pos[0, :, 2], s=40, c="tab:green", edgecolors="k", depthshade=False)
+        ax.scatter(pos[-1, :, 0], pos[-1, :, 1], pos[-1, :, 2], s=40, c="tab:blue", edgecolors="k", depthshade=False)
+        x0, x1, y0, y1 = grid.extent
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
+        ax.set_zlim(0, 3 * z)
+        ax.set_box_aspect((x1 - x0, y1 - y0, 9 * z))
+        ax.view_init(elev=38, azim=-118)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_zlabel("z [m]")
+        ax.set_title(f"Fig. 1: {n} quadrotors flying through the blocks ({z:g} m altitude, "
+                     f"{r.continuous.makespan_s:.0f} s)\n{what}; thin lines: shadows on the ground", y=0.95)
+        return [plots.save_figure(fig, Path(out) / "fig1_flight.png")]
+
+
+def make_gifs(out: Path, quick: bool = False) -> list[Path]:
+    """Write ``anim_<scenario>.gif``: 2 frames per second of flight, played 5x faster."""
+    written = []
+    for name in SCENARIOS:
+        r = smoothed_run(name)
+        c = r.continuous
+        frames = np.linspace(0.0, c.makespan_s, max(2, int(c.makespan_s * 2) + 1))
+        path = Path(out) / f"anim_{name}.gif"
+        plots.animate(path, r.scenario.grid, frames, c.positions(frames), r.scenario.goal_world, fps=10, trail_s=30.0)
+        written.append(path)
+    return written
+
+
+def numbers_fig1(quick: bool = False) -> dict:
+    _, what, r = flight_3d(quick)
+    out = {"makespan_s": r.continuous.makespan_s, "altitude_m": r.config.scenario.altitude, "shown": what}
+    if r.flight is not None:
+        f = r.flight
+        out.update({"max_tracking_error_m": f.max_tracking_error, "tracking_error_bound_m": f.tracking_bound,
+                    "flown_min_separation_m": f.min_separation, "flown_min_clearance_m": f.min_clearance,
+                    "entered_obstacle": f.in_obstacle})
+    return out
+
+
+def numbers_fig6(quick: bool = False) -> dict:
+    out = {name: scenario_numbers(name) for name in SCENARIOS}
+    census = formation_census()
+    out["free5_formation_census"] = {k: census[k] for k in ("seeds", "counts", "steps")}
+    return out
