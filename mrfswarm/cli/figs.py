@@ -13,7 +13,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quick", action="store_true",
                    help="fewer sweep points and sizes, no animations (a smoke run of every figure)")
     p.add_argument("--only", default=None, metavar="NAME,...",
-                   help="comma-separated figure names (fig1, ..., fig8, gifs); default: all")
+                   help="comma-separated figure names (fig1, ..., fig8, authors, gifs); default: all")
     p.set_defaults(func=run)
 
 

@@ -30,7 +30,7 @@ class Figure:
     Attributes
     ----------
     name
-        What ``--only`` selects (``fig2``, ..., ``gifs``).
+        What ``--only`` selects (``fig1``, ..., ``fig8``, ``authors``, ``gifs``).
     paper
         The paper figure it reproduces and what it shows.
     files
@@ -67,7 +67,8 @@ FIGURES: tuple[Figure, ...] = (
            ("fig1_flight.png",), "trajectories"),
     Figure("fig2", "Fig. 2a/b: interaction graph (k = 3) of 5 robots and its factor graph",
            ("fig2_interaction_graph.png",), "graphs"),
-    Figure("fig3", "Fig. 3a-d: 5 robots, their interaction potential map, obstacle map m_hat, smoothed obstacle potential",
+    Figure("fig3", "Fig. 3a-d: 5 robots, their interaction potential map, obstacle map m_hat, smoothed "
+           "obstacle potential",
            ("fig3_potentials.png",), "potentials"),
     Figure("fig4", "Fig. 4: combined potential field (static field + interaction field)",
            ("fig4_combined_field.png",), "potentials"),
@@ -79,6 +80,8 @@ FIGURES: tuple[Figure, ...] = (
            ("fig7_robots_size_distances.png",), "studies"),
     Figure("fig8", "Fig. 8a/b: swarm-energy convergence, time per MRF step against N and n",
            ("fig8_convergence_timing.png",), "studies"),
+    Figure("authors", "Extra: the authors' own swarm sizes (corridor10, blocks12), discrete and receding horizon",
+           ("extra_authors_swarms.png",), "trajectories"),
     Figure("gifs", "Animations of the four scenarios (not in the paper)",
            tuple(f"anim_{s}.gif" for s in ("free5", "free10", "corridor", "blocks")), "trajectories",
            animation=True),

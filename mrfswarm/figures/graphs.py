@@ -138,7 +138,8 @@ def make_fig2(out: Path, quick: bool = False) -> list[Path]:
         plots.panel_title(axes[0], "a", f"interaction graph, k = {g.k} ({len(g.graph.edges)} edges)")
         draw_factor_graph(axes[1], g)
         plots.panel_title(axes[1], "b", f"factor graph: {len(g.graph.cliques)} maximal cliques")
-        fig.suptitle(r"Fig. 2: 5 robots on a 10 x 10 grid; swarm energy $\varepsilon(\mathbf{x}) = \Sigma_c\, E_c(\mathbf{x}_c)$"
+        fig.suptitle(r"Fig. 2: 5 robots on a 10 x 10 grid; swarm energy "
+                     r"$\varepsilon(\mathbf{x}) = \Sigma_c\, E_c(\mathbf{x}_c)$"
                      " over the maximal cliques c of the k-NN graph")
         return [plots.save_figure(fig, Path(out) / "fig2_interaction_graph.png")]
 

@@ -47,6 +47,7 @@ ORDERS = {False: (1, 2, 4, 8, 16), True: (1, 2, 8)}
 TIMING_SIZES = {False: (5, 10, 20, 50, 100, 200, 500, 1000, 2000), True: (5, 20, 100)}
 TIMING_ORDERS = {False: (1, 2, 4, 8), True: (1, 2, 4)}
 TIMING_STEPS = {False: 5, True: 3}
+TIMING_REPEATS = 3
 
 
 def valid_morse(a: float, b: float, k_a: float, k_r: float) -> str | None:
@@ -89,8 +90,9 @@ def run_points(base: str, grid: dict[str, list], seeds: int, fixed: dict[str, fl
                         overrides=overrides)
     if res.failed:
         raise MrfswarmError(f"sweep of {base}: {len(res.failed)} points failed, first: {res.failed[0]['error']}")
-    return [{**{k: row[k] for k in grid}, **fixed, "seed": row["seed"], "size_m": row["mean_inter_robot_distance_final"],
-             "steps": row["mrf_steps"], "stop_reason": row["stop_reason"]} for row in res.rows]
+    return [{**{k: row[k] for k in grid}, **fixed, "seed": row["seed"],
+             "size_m": row["mean_inter_robot_distance_final"], "steps": row["mrf_steps"],
+             "stop_reason": row["stop_reason"]} for row in res.rows]
 
 
 # --- Fig. 7b -----------------------------------------------------------------------------------
@@ -209,6 +211,23 @@ def steps_against_order(quick: bool = False) -> dict[str, dict[int, int]]:
             for name in SCENARIOS}
 
 
+#: Goals (x, y) of the steps-against-goal-distance study on the corridor map.
+CORRIDOR_GOALS = ((12, 20), (20, 20), (28, 20), (35, 20))
+
+
+@lru_cache(maxsize=None)
+def steps_against_goal_distance() -> list[dict]:
+    """MRF steps to converge in the corridor for goals at growing distance from the start."""
+    rows = []
+    for g in CORRIDOR_GOALS:
+        r = discrete_run("corridor", (f"scenario.goal=[{g[0]}, {g[1]}]",))
+        start = r.discrete_paths_world()[0].mean(axis=0)
+        rows.append({"goal": list(g), "distance_m": float(np.hypot(*(np.asarray(g) - start))),
+                     "steps": r.discrete.n_steps, "stop_reason": r.discrete.stop_reason,
+                     "reached_goal": r.metrics.reached_goal})
+    return rows
+
+
 # --- Fig. 8b -----------------------------------------------------------------------------------
 
 
@@ -224,11 +243,12 @@ def _bench_swarm():
 
 @lru_cache(maxsize=None)
 def step_times(quick: bool = False) -> list[dict]:
-    """Median seconds per MRF step (ICM) for each swarm size N and search order n.
+    """Seconds per MRF step (ICM) for each swarm size N and search order n.
 
-    Each cell runs a few consecutive steps of a Gaussian swarm pulled toward a goal in
-    free space (k = min(7, N - 1)); one warm-up step first. Also records the mean
-    label-set size (cells per robot), the work that grows with n.
+    The median over a few consecutive steps of each step's fastest of
+    :data:`TIMING_REPEATS` runs (the machine is shared). The steps move a Gaussian swarm
+    toward a goal in free space (k = min(7, N - 1)); one warm-up step first. Also records
+    the mean label-set size (cells per robot), the work that grows with n.
     """
     from mrfswarm.discrete import DiscreteProblem, mrf_step
     from mrfswarm.label_sets import label_sets
@@ -244,9 +264,12 @@ def step_times(quick: bool = False) -> list[dict]:
             labels = label_sets(problem.free, pos, n, problem.goal, problem.trim_backward)
             ts = []
             for _ in range(TIMING_STEPS[quick]):
-                t0 = time.perf_counter()
-                out = mrf_step(problem, pos)
-                ts.append(time.perf_counter() - t0)
+                best = np.inf
+                for _ in range(TIMING_REPEATS):  # the same step again: the fastest is the least disturbed
+                    t0 = time.perf_counter()
+                    out = mrf_step(problem, pos)
+                    best = min(best, time.perf_counter() - t0)
+                ts.append(best)
                 pos = out.positions
             rows.append({"N": N, "n": n, "k": problem.k, "step_s": statistics.median(ts),
                          "labels_per_robot": float(np.mean(labels.count))})
@@ -295,9 +318,10 @@ def make_fig7(out: Path, quick: bool = False) -> list[Path]:
         ax.legend(fontsize=8.5, title=f"$a_I$ = {sw.a:g}, $b_I$ = {sw.b:g}", title_fontsize=8.5)
         n_seeds = len({r['seed'] for r in sw.records})
         plots.panel_title(ax, "b", f"swarm size against $k_a$, $k_r$ (5 robots, {n_seeds} seeds)")
-        ax.text(0.98, 0.02, f"dashed: pair minimum $d_{{min}}$\n{len(sw.skipped)} invalid ($k_a$, $k_r$) skipped:\n"
-                "$k_a \\leq k_r$ or $b_I k_r / (a_I k_a) \\geq 1$", transform=ax.transAxes, ha="right", va="bottom", fontsize=8.5,
-                bbox={"fc": "w", "ec": "0.7", "alpha": 0.9})
+        ax.text(0.98, 0.02, f"dashed: pair minimum $d_{{min}}$\n"
+                f"{len(sw.skipped)} invalid ($k_a$, $k_r$) skipped:\n"
+                "$k_a \\leq k_r$ or $b_I k_r / (a_I k_a) \\geq 1$", transform=ax.transAxes, ha="right",
+                va="bottom", fontsize=8.5, bbox={"fc": "w", "ec": "0.7", "alpha": 0.9})
 
         ax = fig.add_subplot(gs[0:2, 2])
         a = [r["a"] for r in asw]
@@ -383,7 +407,7 @@ def make_fig8(out: Path, quick: bool = False) -> list[Path]:
         ax.set_ylabel("time per MRF step [ms]")
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8.5, title="search order", title_fontsize=8.5)
-        plots.panel_title(ax, "b", "time per MRF step (ICM, Python/numpy, 1 core)")
+        plots.panel_title(ax, "b", "time per MRF step (ICM, Python/numpy, this machine)")
         fig.suptitle("Fig. 8: convergence of the swarm energy and time per MRF step")
         return [plots.save_figure(fig, Path(out) / "fig8_convergence_timing.png")]
 
@@ -396,6 +420,12 @@ def numbers_fig7(quick: bool = False) -> dict:
     table = {f"k_r={k_r:g}": {f"k_a={k_a:g}": round(sw.mean_size(k_a, k_r)[0], 2) for k_a in sw.k_as(k_r)}
              for k_r in sw.k_rs}
     steps = [r["steps"] for r in sw.records]
+    by_dmin: dict[int, list[int]] = {}
+    for r in sw.records:
+        by_dmin.setdefault(round(sw.d_min(r["interaction.k_a"], r["interaction.k_r"])), []).append(r["steps"])
+    pts = sorted({(r["interaction.k_a"], r["interaction.k_r"]) for r in sw.records})
+    size = np.array([sw.mean_size(*p)[0] for p in pts])
+    dmin = np.array([sw.d_min(*p) for p in pts])
     return {
         "corridor_expansion": ts.expansion(),
         "corridor_min_distance_m": float(ts.min_distance.min()),
@@ -406,6 +436,11 @@ def numbers_fig7(quick: bool = False) -> dict:
                     for k_r in sw.k_rs},
         "skipped": [[ka, kr, why] for ka, kr, why in sw.skipped],
         "sweep_steps_range": [min(steps), max(steps)],
+        "sweep_all_converged": all(r["stop_reason"] == "converged" for r in sw.records),
+        "sweep_runs": len(sw.records),
+        "size_over_d_min_range": [float((size / dmin).min()), float((size / dmin).max())],
+        "size_d_min_correlation": float(np.corrcoef(size, dmin)[0, 1]),
+        "mean_steps_by_d_min_m": {str(k): round(float(np.mean(v)), 1) for k, v in sorted(by_dmin.items())},
         "seeds": len({r["seed"] for r in sw.records}),
         "size_against_a": a_sweep(quick),
     }
@@ -421,6 +456,7 @@ def numbers_fig8(quick: bool = False) -> dict:
                                       for k, e in energies.items()},
         "cliques_per_step": {k: clique_counts(k) for k in SCENARIOS if k.startswith("free")},
         "steps_against_order": {k: {str(n): v for n, v in d.items()} for k, d in steps_against_order(quick).items()},
+        "corridor_steps_against_goal_distance": steps_against_goal_distance(),
         "step_time_ms": [{"N": r["N"], "n": r["n"], "k": r["k"], "ms": round(r["step_s"] * 1e3, 3),
                           "labels_per_robot": round(r["labels_per_robot"], 2)} for r in step_times(quick)],
     }

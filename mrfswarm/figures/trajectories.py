@@ -233,9 +233,8 @@ def make_fig6(out: Path, quick: bool = False) -> list[Path]:
             how = "smoothed, one window" if SMOOTHED[name] == "single" else "smoothed, receding horizon"
             plots.panel_title(axes[1, j], "efgh"[j], f"{name} {how}: {r.continuous.makespan_s:.1f} s flight")
             axes[0, j].legend(loc="upper left", fontsize=7.5, framealpha=0.9)
-            axes[1, j].legend().remove() if axes[1, j].get_legend() else None
-        fig.suptitle("Fig. 6: final discrete trajectories (a-d; n = 2, ICM), min-snap smoothed (e, f) and smoothed with "
-                     "receding-horizon planning (g, h; H = 4 steps, 50 % executed, at rest at the seams)\n"
+        fig.suptitle("Fig. 6: final discrete trajectories (a-d; n = 2, ICM), min-snap smoothed (e, f) and smoothed "
+                     "with receding-horizon planning (g, h; H = 4 steps, 50 % executed, at rest at the seams)\n"
                      "green: start, blue: end, grey: obstacles, dotted: discrete paths")
         return [plots.save_figure(fig, Path(out) / "fig6_trajectories.png", dpi=90)]
 
@@ -259,6 +258,48 @@ def flight_3d(quick: bool = False) -> tuple[np.ndarray, str, Result]:
     pos = np.stack([fl.positions for fl in f.flights], axis=1)[::5]
     return pos, (f"flown in RotorPy ({r.config.simulation.vehicle}), max tracking error "
                  f"{f.max_tracking_error * 100:.1f} cm"), r
+
+
+#: The authors' own swarm sizes (their experiment data; not in the paper's figures).
+AUTHORS = ("corridor10", "blocks12")
+
+
+def make_authors(out: Path, quick: bool = False) -> list[Path]:
+    """Write ``extra_authors_swarms.png``: corridor10 and blocks12, discrete and receding horizon."""
+    plt = plots._plt()
+    with plots.paper_style():
+        fig, axes = plt.subplots(2, 2, figsize=(11, 11), layout="constrained")
+        for j, name in enumerate(AUTHORS):
+            r = scenario_run(name, "rhp")
+            _discrete_panel(axes[0, j], r)
+            goal = "at goal" if r.metrics.reached_goal else "goal NOT reached"
+            plots.panel_title(axes[0, j], "ab"[j], f"{name}: N = {r.scenario.n_robots}, k = {r.config.interaction.k}, "
+                              f"{r.discrete.n_steps} steps ({r.discrete.stop_reason}), {goal}")
+            axes[0, j].legend(loc="upper left", fontsize=7.5, framealpha=0.9)
+            _smooth_panel(axes[1, j], r)
+            sep = r.continuous.check.min_separation
+            plots.panel_title(axes[1, j], "cd"[j], f"{name} smoothed, receding horizon: "
+                              f"{r.continuous.makespan_s:.0f} s, min separation {sep:.2f} m")
+        fig.suptitle("Extra (not a paper figure): the authors' own swarm sizes, 10 drones in the corridor and 12 among "
+                     "the blocks")
+        return [plots.save_figure(fig, Path(out) / "extra_authors_swarms.png", dpi=90)]
+
+
+def numbers_authors(quick: bool = False) -> dict:
+    out = {}
+    for name in AUTHORS:
+        r = scenario_run(name, "rhp")
+        final = r.discrete.paths[-1]
+        out[name] = {
+            "n_robots": r.scenario.n_robots, "k": r.config.interaction.k, "mrf_steps": r.discrete.n_steps,
+            "stop_reason": r.discrete.stop_reason, "reached_goal": r.metrics.reached_goal,
+            "final_goal_distance_m": r.metrics.final_goal_distance,
+            "min_separation_discrete_m": r.metrics.min_separation,
+            "min_separation_continuous_m": float(r.continuous.check.min_separation),
+            "final_cells_distinct": len({tuple(c) for c in final.tolist()}) == len(final),
+            "makespan_s": r.continuous.makespan_s,
+        }
+    return out
 
 
 def make_fig1(out: Path, quick: bool = False) -> list[Path]:
@@ -306,7 +347,8 @@ def make_gifs(out: Path, quick: bool = False) -> list[Path]:
         c = r.continuous
         frames = np.linspace(0.0, c.makespan_s, max(2, int(c.makespan_s * 2) + 1))
         path = Path(out) / f"anim_{name}.gif"
-        plots.animate(path, r.scenario.grid, frames, c.positions(frames), r.scenario.goal_world, fps=10, trail_s=30.0)
+        plots.animate(path, r.scenario.grid, frames, c.positions(frames), r.scenario.goal_world, fps=10,
+                      trail_s=30.0)
         written.append(path)
     return written
 
