@@ -237,6 +237,7 @@ def make_fig4(out: Path, quick: bool = False) -> list[Path]:
 
 
 def numbers_fig3(quick: bool = False) -> dict:
+    """The numbers behind Fig. 3, for ``measured.json``."""
     im = interaction_map()
     p, v = im.minimum()
     c = im.robots.mean(axis=0)
@@ -255,6 +256,7 @@ def numbers_fig3(quick: bool = False) -> dict:
 
 
 def numbers_fig4(quick: bool = False) -> dict:
+    """The numbers behind Fig. 4, for ``measured.json``."""
     cf = combined_field()
     start = cf.grid.world_to_cell(cf.robots.mean(axis=0))
     return {

@@ -128,6 +128,7 @@ def make_fig5(out: Path, quick: bool = False) -> list[Path]:
 
 
 def numbers_fig5(quick: bool = False) -> dict:
+    """The numbers behind Fig. 5, for ``measured.json``."""
     snap = mrf_snapshots()
     r = snap.result
     before, after = snap.waypoints()

@@ -413,6 +413,7 @@ def make_fig8(out: Path, quick: bool = False) -> list[Path]:
 
 
 def numbers_fig7(quick: bool = False) -> dict:
+    """The numbers behind Fig. 7, for ``measured.json``."""
     from mrfswarm.figures.trajectories import corridor_series
 
     ts = corridor_series()
@@ -447,6 +448,7 @@ def numbers_fig7(quick: bool = False) -> dict:
 
 
 def numbers_fig8(quick: bool = False) -> dict:
+    """The numbers behind Fig. 8, for ``measured.json``."""
     energies = convergence()
     return {
         "steps": {k: len(e) - 1 for k, e in energies.items()},

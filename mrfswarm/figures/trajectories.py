@@ -286,6 +286,7 @@ def make_authors(out: Path, quick: bool = False) -> list[Path]:
 
 
 def numbers_authors(quick: bool = False) -> dict:
+    """The numbers behind the authors' swarm sizes, for ``measured.json``."""
     out = {}
     for name in AUTHORS:
         r = scenario_run(name, "rhp")
@@ -354,6 +355,7 @@ def make_gifs(out: Path, quick: bool = False) -> list[Path]:
 
 
 def numbers_fig1(quick: bool = False) -> dict:
+    """The numbers behind Fig. 1, for ``measured.json``."""
     _, what, r = flight_3d(quick)
     out = {"makespan_s": r.continuous.makespan_s, "altitude_m": r.config.scenario.altitude, "shown": what}
     if r.flight is not None:
@@ -365,6 +367,7 @@ def numbers_fig1(quick: bool = False) -> dict:
 
 
 def numbers_fig6(quick: bool = False) -> dict:
+    """The numbers behind Fig. 6, for ``measured.json``."""
     out = {name: scenario_numbers(name) for name in SCENARIOS}
     census = formation_census()
     out["free5_formation_census"] = {k: census[k] for k in ("seeds", "counts", "steps")}
