@@ -220,16 +220,29 @@ def test_every_method_is_safe_on_step_mrfs_with_overlapping_label_sets(method, d
     tiny = method in TINY_ONLY
     free, static, pos, k, order = data.draw(dense_swarms(max_robots=3 if tiny else 10))
     paths = [pos]
-    conflicts = 0
     for _ in range(3):
         labels = full_stencil_labels(free, pos, order)
         m = step_mrf(labels, graph_weights(pos, k), static, Morse(), 1.0)
         if tiny:
             assume(np.prod(m.n_labels.astype(float)) <= MAX_LABELLINGS / 20)
-        conflicts += len(m.conflicts)
         res = raw_result(m, method, mrf.Options(seed=0, max_iter=50))
         assert m.is_feasible(res.labels), f"{method} returned a labelling that breaks a conflict"
         pos = pos + labels.offsets[np.arange(len(pos)), res.labels]
         paths.append(pos)
     check_paths(np.stack(paths), free)
-    assert conflicts > 0  # adjacent robots with full stencils always have forbidden pairs
+
+
+@pytest.mark.parametrize("order", ORDERS)
+def test_full_stencil_step_mrfs_are_full_of_binding_conflicts(order):
+    # what the test above relies on: packed robots with overlapping label sets conflict a lot,
+    # and an optimizer that ignored the conflicts would collide
+    free = np.ones((14, 14), bool)
+    start = clustered(np.random.default_rng(order), free, 10)
+    goal = start[0]  # the cluster's centre: every robot wants the same few cells
+    static = static_field(np.zeros(free.shape), goal, 1.0, GoalPotentialConfig(), ObstaclePotentialConfig())
+    labels = full_stencil_labels(free, start, order)
+    m = step_mrf(labels, graph_weights(start, 3), static, Morse(), 1.0)
+    assert len(m.conflicts) >= len(start)
+    x = mrf.minimize(without_conflicts(m), "icm").labels
+    assert not m.is_feasible(x)
+    assert brute_force_violations(np.stack([start, start + labels.offsets[np.arange(len(start)), x]]), free)
