@@ -147,7 +147,7 @@ def swarm_problems(draw, max_robots: int) -> DiscreteProblem:
 
 
 @pytest.mark.parametrize("method", METHODS)
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(data=st.data())
 def test_every_method_keeps_the_invariants_on_random_maps(method, data):
     problem = data.draw(swarm_problems(max_robots=3 if method in TINY_ONLY else 10))
@@ -214,7 +214,7 @@ def dense_swarms(draw, max_robots: int):
 
 
 @pytest.mark.parametrize("method", METHODS)
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(data=st.data())
 def test_every_method_is_safe_on_step_mrfs_with_overlapping_label_sets(method, data):
     tiny = method in TINY_ONLY
