@@ -7,7 +7,8 @@ starting from "everybody stays"; move. Stop when a step lowers the swarm energy 
 own graph) by less than ``tol`` (relative): converged. The k-NN graph changes as the
 swarm moves, so the dynamics need not have a fixed point (a swarm packed at its goal
 can keep circulating, each step lowering the energy of its own graph); such a run stops
-as *stalled* when the swarm energy has made no new minimum for ``patience`` steps.
+as *stalled* when the swarm energy has made no new minimum for ``patience`` steps, and
+its paths end at the step of that minimum (the steps after it only circulate).
 Otherwise it stops at ``max_steps``.
 
 ``energy[t]`` is the swarm energy of configuration x^t on its own interaction graph
@@ -98,7 +99,8 @@ class DiscretePlan:
     converged
         True if the energy converged (a step lowered it by less than the tolerance).
     stop_reason
-        "converged", "stalled" (no new minimum in ``patience`` steps) or "max_steps".
+        "converged", "stalled" (no new minimum in ``patience`` steps; the paths end at
+        the minimum) or "max_steps".
     timings
         stage -> (T,) seconds per step.
     steps
@@ -208,7 +210,7 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         out = mrf_step(problem, pos, method, options, weights, gt)
         if t == 1:
             energy.append(out.energy_before)
-            best = out.energy_before
+            best, best_t = out.energy_before, 0
         for s in STAGES:
             timings[s].append(out.timings[s])
         steps.append({
@@ -235,11 +237,15 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
             converged, reason = True, "converged"
             break
         if energy[-1] < best - tol * max(1.0, abs(best)):
-            best, since_best = energy[-1], 0
+            best, since_best, best_t = energy[-1], 0, t
         else:
             since_best += 1
             if since_best >= patience:
+                # the steps since the minimum only circulate: the plan ends at the minimum
                 reason = "stalled"
+                del paths[best_t + 1:], energy[best_t + 1:], steps[best_t:]
+                for s in STAGES:
+                    del timings[s][best_t:]
                 break
     log.info("discrete stage: %d steps, %s", len(paths) - 1, reason)
     stacked = np.stack(paths)

@@ -181,3 +181,17 @@ def test_receding_horizon_windows_cover_the_steps():
         assert wins[0][0] == 0 and wins[-1][1] == r.discrete.n_steps
         for (a, c, b), (a2, _, _) in zip(wins, wins[1:]):
             assert a < c <= b and c == a2 and (b == c if seam == "rest" else b <= a + H)
+
+
+def test_plans_in_threads_agree():
+    """Compiled formulations are shared per shape; threads planning at once must not interfere."""
+    import concurrent.futures as cf
+
+    cfg = mrfswarm.load_config(EXP / "corridor.toml", NO_SIM)
+    ref = plan(cfg).continuous
+    t = np.linspace(0.0, ref.makespan_s, 400)
+    with cf.ThreadPoolExecutor(4) as ex:
+        outs = list(ex.map(lambda _: plan(cfg).continuous, range(4)))
+    for c in outs:
+        assert c.makespan_s == pytest.approx(ref.makespan_s)
+        np.testing.assert_allclose(c.positions(t), ref.positions(t), atol=1e-6)

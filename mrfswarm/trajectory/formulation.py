@@ -59,6 +59,7 @@ mean :math:`T_s`. Both maps are exact (the optimum is equivariant under them).
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from functools import lru_cache
 
@@ -104,7 +105,8 @@ def hermite_basis(degree: int, order: int) -> tuple[np.ndarray, np.ndarray]:
 class CompiledMinSnap:
     """The compiled QP of one shape: evaluate it into a :class:`~solvers.qp.QPProblem`.
 
-    Not thread-safe (one evaluation buffer per shape).
+    One evaluation buffer per shape, guarded by a lock: instances are shared (cached per
+    shape), so threads planning at once take turns evaluating.
     """
 
     def __init__(self, shape: MinSnapShape) -> None:
@@ -217,6 +219,7 @@ class CompiledMinSnap:
         self._A_pattern = (np.asarray(sA.row(), np.int32), np.asarray(sA.colind(), np.int32))
         self._nnz = (sP.nnz(), sA.nnz())
         self._buf, self._eval = self._fn.buffer()
+        self._lock = threading.Lock()
         # numpy side of the basis, to turn a solution into tau-coefficients
         self._E, self._offset, self._rpow = E, offset, rpow
         self._stride, self._per_dim = stride, per_dim
@@ -264,11 +267,12 @@ class CompiledMinSnap:
             np.ascontiguousarray(start.T, dtype=float).reshape(-1),
             np.ascontiguousarray(end.T, dtype=float).reshape(-1),
         ]
-        for i, a in enumerate(args):
-            self._buf.set_arg(i, memoryview(a))
-        for i, o in enumerate(outs):
-            self._buf.set_res(i, memoryview(o))
-        self._eval()
+        with self._lock:
+            for i, a in enumerate(args):
+                self._buf.set_arg(i, memoryview(a))
+            for i, o in enumerate(outs):
+                self._buf.set_res(i, memoryview(o))
+            self._eval()
         if waypoint_tolerance is not None:
             rows = self._position_rows.T  # (M+1, dim)
             outs[2][rows] -= waypoint_tolerance

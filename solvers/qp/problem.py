@@ -13,6 +13,7 @@ problem.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
@@ -20,19 +21,45 @@ import scipy.sparse as sp
 from solvers.errors import InvalidProblem
 
 
-def _is_symmetric(P: sp.csc_matrix, rtol: float = 1e-9) -> bool:
-    """P == P' up to rtol: the entries keyed (row, col) match those keyed (col, row)."""
-    n = P.shape[0]
-    rows = P.indices.astype(np.int64)
-    cols = np.repeat(np.arange(n, dtype=np.int64), np.diff(P.indptr))
-    keep = P.data != 0
-    rows, cols, data = rows[keep], cols[keep], P.data[keep]
+def _is_csc_float(M) -> bool:
+    return sp.issparse(M) and M.format == "csc" and M.dtype == np.float64
+
+
+def _sorted(M: sp.csc_matrix) -> sp.csc_matrix:
+    """M with sorted indices; a copy when they are not (the caller's matrix is left alone)."""
+    if M.has_sorted_indices:
+        return M
+    M = M.copy()
+    M.sort_indices()
+    return M
+
+
+@lru_cache(maxsize=128)
+def _transpose_permutation(n: int, indices: bytes, indptr: bytes) -> tuple[np.ndarray, np.ndarray] | None:
+    """For a structurally symmetric CSC pattern, orders a, b of its entries with entry a[k]
+    at (i, j) and b[k] at (j, i); None if the pattern is not symmetric. Cached per pattern:
+    a formulation evaluated many times reuses one pattern."""
+    rows = np.frombuffer(indices, dtype=np.int64)
+    cols = np.repeat(np.arange(n, dtype=np.int64), np.diff(np.frombuffer(indptr, dtype=np.int64)))
     a = np.argsort(rows * n + cols, kind="stable")
     b = np.argsort(cols * n + rows, kind="stable")
     if not np.array_equal((rows * n + cols)[a], (cols * n + rows)[b]):
-        return False
-    scale = max(1.0, float(np.abs(data).max(initial=0.0)))
-    return bool(np.all(np.abs(data[a] - data[b]) <= rtol * scale))
+        return None
+    return a, b
+
+
+def _is_symmetric(P: sp.csc_matrix, rtol: float = 1e-9) -> bool:
+    """P == P' up to rtol (relative to the largest entry)."""
+    n = P.shape[0]
+    scale = max(1.0, float(np.abs(P.data).max(initial=0.0)))
+    perm = _transpose_permutation(n, P.indices.astype(np.int64).tobytes(), P.indptr.astype(np.int64).tobytes())
+    if perm is not None:
+        return bool(np.all(np.abs(P.data[perm[0]] - P.data[perm[1]]) <= rtol * scale))
+    # not structurally symmetric: compare the nonzero entries only (explicit zeros match absent ones)
+    nz = P.copy()
+    nz.eliminate_zeros()
+    perm = _transpose_permutation(n, nz.indices.astype(np.int64).tobytes(), nz.indptr.astype(np.int64).tobytes())
+    return perm is not None and bool(np.all(np.abs(nz.data[perm[0]] - nz.data[perm[1]]) <= rtol * scale))
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,10 +85,13 @@ class QPProblem:
     u: np.ndarray
 
     def __post_init__(self) -> None:
-        P = sp.csc_matrix(self.P, dtype=float)
+        P = self.P if _is_csc_float(self.P) else sp.csc_matrix(self.P, dtype=float)
         q = np.asarray(self.q, dtype=float).reshape(-1)
         n = q.size
-        A = sp.csc_matrix(self.A, dtype=float) if self.A is not None else sp.csc_matrix((0, n))
+        if self.A is None:
+            A = sp.csc_matrix((0, n))
+        else:
+            A = self.A if _is_csc_float(self.A) else sp.csc_matrix(self.A, dtype=float)
         l = np.asarray(self.l, dtype=float).reshape(-1)
         u = np.asarray(self.u, dtype=float).reshape(-1)
         if P.shape != (n, n):
@@ -78,10 +108,9 @@ class QPProblem:
         if np.any(l > u):
             i = int(np.argmax(l > u))
             raise InvalidProblem(f"l[{i}] = {l[i]} > u[{i}] = {u[i]}")
-        P.sort_indices()
+        P, A = _sorted(P), _sorted(A)
         if not _is_symmetric(P):
             raise InvalidProblem("P must be symmetric (store the whole matrix, not a triangle)")
-        A.sort_indices()
         object.__setattr__(self, "P", P)
         object.__setattr__(self, "q", q)
         object.__setattr__(self, "A", A)

@@ -1,0 +1,568 @@
+"""Parameter sweeps: one config, a grid of overrides, every point planned, one table.
+
+A sweep runs :func:`mrfswarm.pipeline.plan` once per point of a grid (the Cartesian
+product of the values given per config key, row-major in the order the keys are given),
+optionally once per seed, in local processes (:class:`concurrent.futures.ProcessPoolExecutor`)
+or on a Dask distributed cluster. Every point's config is built and validated before
+anything runs, so a typo fails at once. Each point's ``result.json`` is written as the
+point finishes, under ``OUT/points/<index>_<key=value slug>/``; ``OUT/sweep.csv`` and
+``OUT/sweep.json`` hold one row per point (per seed). A point that fails with a
+:class:`MrfswarmError` is a row whose ``error`` column holds the message; any other
+exception is a bug and stops the sweep.
+
+Rows are computed in the workers and written by the caller, so a remote cluster needs
+``mrfswarm`` installed and the config's map files readable, not a shared output folder
+(except with ``figures=True``: the figures are written by the workers).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+import numbers
+import os
+import re
+import signal
+import sys
+import threading
+import time
+import uuid
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from mrfswarm.config import Config, load_config, parse_override
+from mrfswarm.errors import ConfigError, MrfswarmError
+
+log = logging.getLogger(__name__)
+
+# summary keys that hold a list or a table when they are not None: never a column as such
+_STRUCTURED = {"goal", "simulation", "limits", "achieved"}
+
+
+def is_timing_column(name: str) -> bool:
+    """Whether a table column holds a measured time (it differs between runs of the same sweep)."""
+    return name == "wall_s" or (name.startswith(("mrf_step_time_", "time_")) and name.endswith("_s"))
+
+
+class SchedulerError(MrfswarmError, RuntimeError):
+    """The Dask scheduler cannot be reached, or Dask is not installed."""
+
+
+@dataclass
+class SweepResult:
+    """What a sweep produced.
+
+    Attributes
+    ----------
+    rows
+        One dict per run, in the order of the points (and of the seeds within a point):
+        ``point``, the grid values, ``seed`` (with seeds), the scalars of
+        ``result.json``, ``mrf_step_time_<stage>_s``, ``wall_s`` and ``error``.
+    csv_path
+        ``out_dir / "sweep.csv"``.
+    out_dir
+        The output folder.
+    columns
+        The CSV header (the union of the rows' keys, in a stable order).
+    grid
+        The grid swept (key -> values).
+    """
+
+    rows: list[dict]
+    csv_path: Path
+    out_dir: Path
+    columns: list[str] = field(default_factory=list)
+    grid: dict[str, list] = field(default_factory=dict)
+
+    @property
+    def json_path(self) -> Path:
+        return self.out_dir / "sweep.json"
+
+    @property
+    def failed(self) -> list[dict]:
+        """The rows of the points that failed."""
+        return [r for r in self.rows if r.get("error") is not None]
+
+
+@dataclass(frozen=True)
+class _Task:
+    """One run, as shipped to a worker (a validated config, not a path: no file needed there)."""
+
+    config: Config
+    seed: int | None
+    point_dir: str
+    figures: bool
+
+
+# --- the grid ------------------------------------------------------------------------------
+
+
+def parse_grid(items: Iterable[str]) -> dict[str, list]:
+    """Parse ``--grid KEY=V1,V2,...`` items into ``{key: [values]}``.
+
+    Each value is read as ``--set`` reads one: a TOML literal (integer, float, boolean,
+    quoted string, array, inline table), or a bare string when it is not one. Values are
+    split at the commas that are not inside brackets, braces or quotes, so
+    ``scenario.goal=[35,15],[30,20]`` gives two points.
+
+    Raises
+    ------
+    ConfigError
+        An item without ``=``, an empty key, an empty value list or value, a key given twice.
+    """
+    grid: dict[str, list] = {}
+    for item in items:
+        if "=" not in item:
+            raise ConfigError(f"--grid {item!r}: expected KEY=V1,V2,...")
+        key, raw = (s.strip() for s in item.split("=", 1))
+        if not key or not all(key.split(".")):
+            raise ConfigError(f"--grid {item!r}: empty key")
+        if key in grid:
+            raise ConfigError(f"--grid {item!r}: {key} is given twice")
+        if not raw:
+            raise ConfigError(f"--grid {item!r}: empty value list")
+        parts = _split_values(raw)
+        if any(not p for p in parts):
+            raise ConfigError(f"--grid {item!r}: empty value in the list")
+        grid[key] = [parse_override(f"{key}={p}")[1] for p in parts]
+    return grid
+
+
+def _split_values(raw: str) -> list[str]:
+    """Split at top-level commas (outside ``[]``, ``{}`` and quoted strings)."""
+    parts, buf, depth, quote = [], [], 0, ""
+    i = 0
+    while i < len(raw):
+        ch = raw[i]
+        if quote:
+            if ch == "\\" and quote == '"' and i + 1 < len(raw):
+                buf.append(raw[i:i + 2])
+                i += 2
+                continue
+            if ch == quote:
+                quote = ""
+        elif ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            parts.append("".join(buf).strip())
+            buf = []
+            i += 1
+            continue
+        buf.append(ch)
+        i += 1
+    parts.append("".join(buf).strip())
+    return parts
+
+
+def toml_literal(value: Any) -> str:
+    """``value`` written as a TOML literal, so ``--set`` reads back exactly ``value``.
+
+    Raises
+    ------
+    ConfigError
+        A value TOML cannot express (``None``, an object).
+    """
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, numbers.Integral):
+        return str(int(value))
+    if isinstance(value, numbers.Real):
+        v = float(value)
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(value, str):
+        return _toml_string(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_literal(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{_toml_string(str(k))} = {toml_literal(v)}" for k, v in value.items()) + " }"
+    raise ConfigError(f"grid value {value!r} cannot be written in TOML")
+
+
+def _toml_string(s: str) -> str:
+    """A TOML basic string: quotes, backslashes and control characters (with DEL) escaped."""
+    out = []
+    for ch in s:
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04x}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def grid_points(grid: dict[str, Sequence]) -> list[dict[str, Any]]:
+    """The Cartesian product of ``grid``, row-major in the order of its keys (last key fastest).
+
+    Raises
+    ------
+    ConfigError
+        No key, or a key with no values.
+    """
+    if not grid:
+        raise ConfigError("a sweep needs at least one --grid KEY=V1,V2,...")
+    for key, values in grid.items():
+        if isinstance(values, (str, bytes)) or not isinstance(values, Sequence):
+            raise ConfigError(f"grid {key}: expected a list of values, got {values!r}")
+        if len(values) == 0:
+            raise ConfigError(f"grid {key}: empty value list")
+    keys = list(grid)
+    return [dict(zip(keys, combo)) for combo in itertools.product(*(grid[k] for k in keys))]
+
+
+def _slug(values: dict[str, Any], seed: int | None, limit: int = 60) -> str:
+    """``k_a=8_k_r=2`` from the last part of each key; only filename-safe characters."""
+    parts = [f"{k.rsplit('.', 1)[-1]}={_cell(v)}" for k, v in values.items()]
+    s = re.sub(r"[^A-Za-z0-9_.=+-]+", "-", "_".join(parts)).strip("-")[:limit]
+    return s if seed is None else f"{s}_seed={seed}"
+
+
+# --- one point -----------------------------------------------------------------------------
+
+
+# plan() is not thread-safe (the continuous stage shares compiled CasADi functions and caches:
+# concurrent runs in one process produced corrupted QPs), so a process plans one point at a
+# time, even on a Dask worker with several threads (start those with --nthreads 1).
+_PLAN_LOCK = threading.Lock()
+
+
+def _ignore_sigint() -> None:
+    """Pool workers leave Ctrl-C to the parent, which stops them (no traceback per worker)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _run_point(task: _Task) -> dict:
+    """Plan one point in a worker; return ``{"summary", "error", "wall_s"}`` (JSON-able).
+
+    A :class:`MrfswarmError` is the point's result (its message, and what was computed
+    before it); anything else propagates: it is a bug.
+    """
+    from mrfswarm.pipeline import plan
+
+    with _PLAN_LOCK:
+        t0 = time.perf_counter()
+        summary, error, result = None, None, None
+        try:
+            result = plan(task.config, seed=task.seed, progress=False)
+        except MrfswarmError as e:
+            error = str(e).splitlines()[0] if str(e) else type(e).__name__
+            result = getattr(e, "partial_result", None)
+        wall = time.perf_counter() - t0
+        if result is not None:
+            summary = result.summary()
+            if task.figures:
+                from mrfswarm.outputs import write_outputs
+
+                write_outputs(result, Path(task.point_dir))
+    return {"summary": summary, "error": error, "wall_s": wall, "config": task.config.to_dict()}
+
+
+def _row(base: dict, out: dict) -> dict:
+    """A table row: ``base`` (point, grid values, seed), the summary's scalars, timings, error."""
+    row = dict(base)
+    s = out["summary"] or {}
+    for k, v in s.items():
+        if k not in _STRUCTURED and (v is None or isinstance(v, (bool, numbers.Number, str))):
+            row[k] = v
+    for k, v in (s.get("simulation") or {}).items():  # the flown metrics
+        if v is None or isinstance(v, (bool, numbers.Number, str)):
+            row[f"simulation_{k}"] = v
+    for stage, t in (s.get("mrf_step_time_s") or {}).items():  # mean seconds per MRF step, by stage
+        row[f"mrf_step_time_{stage}_s"] = t
+    for stage, t in (s.get("timings_s") or {}).items():  # seconds per pipeline stage
+        row[f"time_{stage}_s"] = t
+    row["wall_s"] = out["wall_s"]
+    row["error"] = out["error"]
+    return row
+
+
+def _point_json(out: dict) -> dict:
+    """The point's ``result.json``: the run's summary, plus ``error`` when it failed."""
+    if out["summary"] is None:
+        return {"error": out["error"], "config": out["config"]}
+    data = dict(out["summary"])
+    if out["error"] is not None:
+        data["error"] = out["error"]
+    return data
+
+
+# --- executors -----------------------------------------------------------------------------
+
+
+def _run_in_process(tasks: list[_Task], done: Callable[[int, dict], None]) -> None:
+    for i, t in enumerate(tasks):
+        done(i, _run_point(t))
+
+
+def _run_local(tasks: list[_Task], workers: int, done: Callable[[int, dict], None]) -> None:
+    import concurrent.futures as cf
+    import multiprocessing
+
+    # spawn, not fork: the caller may hold threads (a progress bar, a Dask client, a GUI)
+    ctx = multiprocessing.get_context("spawn")
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_ignore_sigint)
+    try:
+        futures = {pool.submit(_run_point, t): i for i, t in enumerate(tasks)}
+        for f in cf.as_completed(futures):
+            try:
+                out = f.result()
+            except cf.process.BrokenProcessPool as e:
+                raise cf.process.BrokenProcessPool(
+                    f"a sweep worker process died ({e}); it was killed (out of memory?) or crashed, or the script "
+                    "that started the sweep lacks `if __name__ == \"__main__\":` (worker processes are spawned "
+                    "and import the main script)") from e
+            done(futures[f], out)
+    except BaseException:
+        running = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in running:  # stop the points still running too: the sweep is over
+            proc.terminate()
+        raise
+    pool.shutdown(wait=True)
+
+
+def _run_dask(tasks: list[_Task], client: Any, done: Callable[[int, dict], None]) -> None:
+    from distributed import as_completed
+
+    tag = uuid.uuid4().hex[:8]
+    futures = [client.submit(_run_point, t, key=f"mrfswarm-sweep-{tag}-{i}", pure=False) for i, t in enumerate(tasks)]
+    index = {f.key: i for i, f in enumerate(futures)}
+    try:
+        for f in as_completed(futures):
+            done(index[f.key], f.result())
+    except BaseException:
+        client.cancel(futures)
+        raise
+
+
+def connect(scheduler: Any, timeout: float = 10.0) -> tuple[Any, bool]:
+    """A Dask client for ``scheduler`` (an address, a ``Client``, or a cluster); and whether we own it.
+
+    Raises
+    ------
+    SchedulerError
+        Dask is not installed, or nothing answers at the address within ``timeout`` seconds.
+    """
+    try:
+        import distributed
+    except ModuleNotFoundError as e:
+        if e.name not in ("distributed", "dask") and not (e.name or "").startswith(("distributed.", "dask.")):
+            raise
+        raise SchedulerError(f'--scheduler needs Dask distributed, which is not installed: pip install "mrfswarm[dask]"'
+                             ) from e
+    if isinstance(scheduler, distributed.Client):
+        return scheduler, False
+    if not isinstance(scheduler, str):
+        if hasattr(scheduler, "scheduler_address"):  # a cluster object (LocalCluster, ...)
+            return distributed.Client(scheduler, timeout=timeout), True
+        raise TypeError(f"scheduler must be an address, a dask Client or a cluster, got {type(scheduler).__name__}")
+    if not scheduler.strip():  # Client("") would start a new local cluster instead
+        raise ConfigError("--scheduler: empty address")
+    try:
+        return distributed.Client(scheduler, timeout=timeout), True
+    except (OSError, TimeoutError, ValueError) as e:
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler!r}: {msg}") from e
+
+
+# --- the table -----------------------------------------------------------------------------
+
+
+def _columns(rows: list[dict], lead: list[str]) -> list[str]:
+    cols = list(lead)
+    seen = set(cols)
+    for r in rows:
+        for k in r:
+            if k not in seen:
+                seen.add(k)
+                cols.append(k)
+    tail = [c for c in cols if is_timing_column(c) and c != "wall_s"] + ["wall_s", "error"]
+    return [c for c in cols if c not in tail] + [c for c in tail if c in seen]
+
+
+def _cell(v: Any) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (list, tuple, dict)):
+        return toml_literal(v)
+    if isinstance(v, numbers.Real) and not isinstance(v, numbers.Integral):
+        return repr(float(v))
+    return str(v)
+
+
+def _write_table(out_dir: Path, rows: list[dict], columns: list[str], meta: dict) -> None:
+    import csv
+
+    from mrfswarm.outputs import atomic_write, write_json
+
+    def write(p: Path) -> None:
+        with open(p, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(columns)
+            for r in rows:
+                w.writerow([_cell(r.get(c)) for c in columns])
+
+    atomic_write(out_dir / "sweep.csv", write)
+    write_json(out_dir / "sweep.json", {**meta, "finished": len(rows), "columns": columns, "rows": rows})
+
+
+# --- the sweep -----------------------------------------------------------------------------
+
+
+def run_sweep(config: str | Path, grid: dict[str, Sequence], out_dir: str | Path, *, scheduler: Any = None,
+              workers: int | None = None, progress: bool | None = None, seeds: Sequence[int] | None = None,
+              overrides: Sequence[str] = (), figures: bool = False, connect_timeout: float = 10.0) -> SweepResult:
+    """Plan every point of ``grid`` (and every seed) and tabulate the results.
+
+    Parameters
+    ----------
+    config
+        Path to a TOML experiment config. A point's config is
+        ``load_config(config, overrides + ["key=value" for each grid key])``.
+    grid
+        Config key (dotted, as ``--set``) -> values; the points are the Cartesian product,
+        row-major in the order of the keys (see :func:`grid_points`).
+    out_dir
+        Output folder: ``points/<index>_<slug>/result.json``, ``sweep.csv``, ``sweep.json``.
+    scheduler
+        ``None``: local processes. An address (``"tcp://host:8786"``), a
+        ``distributed.Client`` or a cluster object: that Dask cluster.
+    workers
+        Local processes (default ``os.cpu_count()``); 1 runs the points in this process.
+        The processes are spawned, so a script that starts a sweep must do it under
+        ``if __name__ == "__main__":``. Ignored with a scheduler (the cluster decides; a
+        worker process plans one point at a time, so give Dask workers one thread each).
+    progress
+        Show a progress bar on stderr (default: when stderr is a terminal).
+    seeds
+        If given, each point is planned once per seed, ``plan(cfg, seed=s)``: one row per
+        (point, seed), seeds varying fastest, with the grid point's index in ``point`` and the
+        seed in ``seed``.
+    overrides
+        ``--set`` items applied to every point, before the grid's.
+    figures
+        Also write each point's figures and paths (as ``mrfswarm run``) into its folder.
+    connect_timeout
+        Seconds to wait for the scheduler.
+
+    Returns
+    -------
+    SweepResult
+        The rows, in the order of the points. A point that failed with a
+        :class:`MrfswarmError` (a scenario the planner rejects, e.g. ``k >= N``, a goal in an
+        obstacle, Morse parameters with ``k_a <= k_r``) is a row with ``error`` set and
+        whatever the run computed before failing.
+
+    Raises
+    ------
+    ConfigError
+        A bad grid, or a point whose config is invalid (unknown key, wrong type, out of
+        range): raised before any point runs and before anything is written.
+    SchedulerError
+        An unreachable scheduler, or Dask not installed.
+    """
+    config = Path(config)
+    overrides = list(overrides)
+    points = grid_points(grid)
+    keys = list(grid)
+    if seeds is not None:
+        seeds = list(seeds)
+        if not seeds:
+            raise ConfigError("--seeds: empty list")
+        for s in seeds:
+            if isinstance(s, bool) or not isinstance(s, numbers.Integral):
+                raise ConfigError(f"--seeds: {s!r} is not an integer")
+        seeds = [int(s) for s in seeds]
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ConfigError(f"--workers {workers!r}: must be an integer >= 1")
+
+    from mrfswarm.pipeline import resolve_config
+
+    out_dir = Path(out_dir)
+    width = max(3, len(str(len(points) - 1)))
+    tasks: list[_Task] = []
+    bases: list[dict] = []
+    for p, values in enumerate(points):
+        items = overrides + [f"{k}={toml_literal(v)}" for k, v in values.items()]
+        try:
+            cfg = resolve_config(load_config(config, items))  # checks the optimizer and backends too
+        except MrfswarmError as e:
+            where = ", ".join(f"{k}={_cell(v)}" for k, v in values.items())
+            raise type(e)(f"sweep point {p} ({where}): {e}") from e
+        for s in [None] if seeds is None else seeds:
+            base = {"point": p, **values} | ({} if s is None else {"seed": s})
+            d = out_dir / "points" / f"{p:0{width}d}_{_slug(values, s)}"
+            tasks.append(_Task(cfg, s, str(d.resolve()), figures))
+            bases.append(base)
+
+    client, owned = (None, False) if scheduler is None else connect(scheduler, connect_timeout)
+    try:
+        return _sweep(config, grid, seeds, overrides, out_dir, tasks, bases, keys, client, workers, progress)
+    finally:
+        if owned:
+            client.close()
+
+
+def _sweep(config: Path, grid: dict, seeds: list[int] | None, overrides: list[str], out_dir: Path, tasks: list[_Task],
+           bases: list[dict], keys: list[str], client: Any, workers: int | None, progress: bool | None) -> SweepResult:
+    from tqdm import tqdm
+
+    from mrfswarm.outputs import write_json
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    lead = ["point", *keys] + ([] if seeds is None else ["seed"])
+    meta = {"config": str(config.resolve()), "overrides": overrides, "grid": {k: list(v) for k, v in grid.items()},
+            "seeds": seeds, "runs": len(tasks)}
+    rows: dict[int, dict] = {}
+    last_write = [0.0]
+
+    def table() -> tuple[list[dict], list[str]]:
+        ordered = [rows[i] for i in sorted(rows)]
+        return ordered, _columns(ordered, lead)
+
+    show = sys.stderr.isatty() if progress is None else progress
+    bar = tqdm(total=len(tasks), desc="sweep", unit="point", disable=not show, file=sys.stderr)
+
+    def done(i: int, out: dict) -> None:
+        write_json(Path(tasks[i].point_dir) / "result.json", _point_json(out))
+        rows[i] = _row(bases[i], out)
+        if out["error"] is not None:
+            log.info("sweep point %s failed: %s", bases[i], out["error"])
+        bar.set_postfix(failed=sum(r["error"] is not None for r in rows.values()), refresh=False)
+        bar.update(1)
+        now = time.monotonic()
+        if now - last_write[0] >= 1.0:  # the table, as points finish (at most once a second)
+            _write_table(out_dir, *table(), meta | {"complete": False})
+            last_write[0] = now
+
+    complete = False
+    try:
+        if client is not None:
+            if workers is not None:
+                log.info("--workers is ignored with a Dask scheduler")
+            _run_dask(tasks, client, done)
+        elif (workers or os.cpu_count() or 1) == 1 or len(tasks) == 1:
+            _run_in_process(tasks, done)
+        else:
+            _run_local(tasks, min(workers or os.cpu_count() or 1, len(tasks)), done)
+        complete = True
+    finally:
+        bar.close()
+        ordered, columns = table()
+        if ordered or complete:
+            _write_table(out_dir, ordered, columns, meta | {"complete": complete})
+    return SweepResult(rows=ordered, csv_path=out_dir / "sweep.csv", out_dir=out_dir, columns=columns,
+                       grid={k: list(v) for k, v in grid.items()})

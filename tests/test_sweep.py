@@ -1,0 +1,307 @@
+"""`mrfswarm sweep` and :func:`mrfswarm.sweep.run_sweep`: the same table locally and on Dask, bad input."""
+
+import csv
+import json
+import math
+import sys
+from pathlib import Path
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from mrfswarm.cli import main
+from mrfswarm.config import load_config
+from mrfswarm.errors import ConfigError
+from mrfswarm.pipeline import plan
+from mrfswarm.sweep import SchedulerError, is_timing_column, parse_grid, run_sweep, toml_literal
+
+ROOT = Path(__file__).resolve().parents[1]
+FREE5 = ROOT / "experiments" / "free5.toml"
+FAST = ["smoothing.enabled=false", "mrf.max_steps=8"]
+GRID = {"interaction.k_a": [10, 14], "interaction.k_r": [2.0, 4.0]}
+GOAL_GRID = {"scenario.goal": [[30, 20], [12, 12]], "interaction.k": [2, 3]}  # (12, 12) is inside a block
+
+BLOCKS5 = """[scenario]
+map = { kind = "boxes", size = [40, 40], boxes = [{ center = [12.5, 12.5], size = [5, 5] }] }
+start = { positions = [[2, 7], [4, 5], [4, 9], [6, 7], [4, 7]] }
+goal = [30, 20]
+"""
+
+
+def values(rows):
+    """The rows without the measured times (those differ between runs)."""
+    return [{k: v for k, v in r.items() if not is_timing_column(k)} for r in rows]
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        return list(csv.reader(f))
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    distributed = pytest.importorskip("distributed")
+    c = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                 dashboard_address=None)
+    yield c
+    c.close()
+
+
+@pytest.fixture(scope="module")
+def local(tmp_path_factory):
+    """The reference sweep: 2 x 2 points in local processes."""
+    return run_sweep(FREE5, GRID, tmp_path_factory.mktemp("local"), workers=2, overrides=FAST)
+
+
+def test_same_table_in_process_and_on_dask(local, cluster, tmp_path):
+    ref = values(local.rows)
+    assert [(r["point"], r["interaction.k_a"], r["interaction.k_r"]) for r in ref] == [
+        (0, 10, 2.0), (1, 10, 4.0), (2, 14, 2.0), (3, 14, 4.0)]  # row-major in the order given
+    assert all(r["error"] is None and r["n_robots"] == 5 for r in ref)
+    assert len({r["mean_inter_robot_distance_final"] for r in ref}) == 4  # the grid changes the result
+    one = run_sweep(FREE5, GRID, tmp_path / "one", workers=1, overrides=FAST)
+    on_dask = run_sweep(FREE5, GRID, tmp_path / "dask", scheduler=cluster.scheduler_address, overrides=FAST)
+    assert values(one.rows) == ref
+    assert values(on_dask.rows) == ref
+    assert on_dask.columns == local.columns == one.columns
+    # the CSVs agree cell by cell, timing columns aside
+    keep = [i for i, c in enumerate(local.columns) if not is_timing_column(c)]
+    tables = [[[row[i] for i in keep] for row in read_csv(r.csv_path)] for r in (local, one, on_dask)]
+    assert tables[0] == tables[1] == tables[2]
+
+
+def test_row_is_plan_of_the_overridden_config(local):
+    """Point 1 is load_config(config, overrides + [k_a=10, k_r=4.0]) planned, nothing else."""
+    s = plan(load_config(FREE5, FAST + ["interaction.k_a=10", "interaction.k_r=4.0"])).summary()
+    row = local.rows[1]
+    for k in ("mrf_steps", "converged", "stop_reason", "min_separation_discrete", "mean_inter_robot_distance_final"):
+        assert row[k] == s[k], k
+    cfg = json.loads((next((local.out_dir / "points").glob("001_*")) / "result.json").read_text())["config"]
+    assert cfg["interaction"]["k_a"] == 10.0 and cfg["interaction"]["k_r"] == 4.0 and cfg["mrf"]["max_steps"] == 8
+
+
+def test_result_json_and_csv_match_rows(local):
+    dirs = sorted((local.out_dir / "points").iterdir())
+    assert [d.name for d in dirs] == ["000_k_a=10_k_r=2.0", "001_k_a=10_k_r=4.0", "002_k_a=14_k_r=2.0",
+                                      "003_k_a=14_k_r=4.0"]
+    for d, row in zip(dirs, local.rows):
+        res = json.loads((d / "result.json").read_text())
+        assert res["config"]["interaction"]["k_a"] == row["interaction.k_a"]
+        for k, v in row.items():
+            if k in ("point", "interaction.k_a", "interaction.k_r", "wall_s", "error"):
+                continue
+            if k.startswith("mrf_step_time_"):
+                assert res["mrf_step_time_s"][k[len("mrf_step_time_"):-2]] == v, k
+            elif k.startswith("time_"):
+                assert res["timings_s"][k[len("time_"):-2]] == v, k
+            else:
+                assert res[k] == v, k
+        assert "error" not in res
+        assert {"graph", "cliques", "labels", "energy", "optimizer"} <= set(res["mrf_step_time_s"])
+    table = read_csv(local.csv_path)
+    assert table[0] == local.columns and len(table) == 1 + 4
+    assert table[0][:3] == ["point", "interaction.k_a", "interaction.k_r"] and table[0][-2:] == ["wall_s", "error"]
+    assert {"n_robots", "mrf_steps", "converged", "stop_reason", "reached_goal", "min_separation_discrete",
+            "min_separation_continuous", "mean_inter_robot_distance_final", "makespan_s",
+            "mrf_step_time_optimizer_s"} <= set(table[0])
+    col = table[0].index("mean_inter_robot_distance_final")
+    assert [float(r[col]) for r in table[1:]] == [r["mean_inter_robot_distance_final"] for r in local.rows]
+    meta = json.loads(local.json_path.read_text())
+    assert meta["complete"] is True and meta["grid"] == {"interaction.k_a": [10, 14], "interaction.k_r": [2.0, 4.0]}
+    assert meta["config"] == str(FREE5) and values(meta["rows"]) == values(local.rows)
+
+
+def test_seeds_one_row_per_point_and_seed(tmp_path):
+    res = run_sweep(FREE5, {"interaction.k": [2, 3]}, tmp_path, workers=1, seeds=[0, 5], overrides=FAST)
+    assert [(r["point"], r["interaction.k"], r["seed"]) for r in res.rows] == [(0, 2, 0), (0, 2, 5), (1, 3, 0),
+                                                                              (1, 3, 5)]
+    names = sorted(d.name for d in (tmp_path / "points").iterdir())
+    assert names == ["000_k=2_seed=0", "000_k=2_seed=5", "001_k=3_seed=0", "001_k=3_seed=5"]
+    s = plan(load_config(FREE5, FAST + ["interaction.k=3"]), seed=5).summary()
+    assert res.rows[3]["mean_inter_robot_distance_final"] == s["mean_inter_robot_distance_final"]
+    assert res.rows[2]["mean_inter_robot_distance_final"] != res.rows[3]["mean_inter_robot_distance_final"]
+    assert read_csv(res.csv_path)[0][:3] == ["point", "interaction.k", "seed"]
+
+
+@pytest.mark.parametrize("where", ["in process", "dask"])
+def test_failing_points_are_rows(where, tmp_path, request):
+    cfg = tmp_path / "blocks5.toml"
+    cfg.write_text(BLOCKS5)
+    grid = {"scenario.goal": [[30, 20], [12, 12]], "interaction.k": [2, 5]}  # goal in the block; k >= N = 5
+    kw = {"workers": 1} if where == "in process" else {"scheduler": request.getfixturevalue("cluster")}
+    res = run_sweep(cfg, grid, tmp_path / "out", overrides=FAST, **kw)
+    errors = [r["error"] for r in res.rows]
+    assert errors[0] is None and res.rows[0]["n_robots"] == 5 and res.rows[0]["mrf_steps"] >= 1
+    assert "interaction.k = 5" in errors[1] and "inside an obstacle" in errors[2] and errors[3] is not None
+    assert len(res.failed) == 3 and all("\n" not in e for e in errors[1:])
+    for d, row in zip(sorted((tmp_path / "out" / "points").iterdir()), res.rows):
+        assert json.loads((d / "result.json").read_text()).get("error") == row["error"]
+    table = read_csv(res.csv_path)
+    assert len(table) == 5 and table[1][table[0].index("error")] == ""
+    assert table[2][table[0].index("mrf_steps")] == ""  # a failed point has no results
+
+
+def test_bug_in_a_point_propagates_and_finished_points_are_kept(tmp_path, monkeypatch):
+    import mrfswarm.pipeline
+
+    real = mrfswarm.pipeline.plan
+    calls = []
+
+    def flaky(cfg, **kw):
+        calls.append(cfg)
+        if len(calls) == 3:
+            raise RuntimeError("a bug")
+        return real(cfg, **kw)
+
+    monkeypatch.setattr(mrfswarm.pipeline, "plan", flaky)
+    with pytest.raises(RuntimeError, match="a bug"):
+        run_sweep(FREE5, GRID, tmp_path, workers=1, overrides=FAST)
+    table = read_csv(tmp_path / "sweep.csv")
+    assert [r[0] for r in table[1:]] == ["0", "1"]
+    meta = json.loads((tmp_path / "sweep.json").read_text())
+    assert meta["complete"] is False and meta["finished"] == 2 and meta["runs"] == 4
+    assert len(list((tmp_path / "points").glob("*/result.json"))) == 2
+
+
+def test_cli_sweep(tmp_path, capsys):
+    out = tmp_path / "out"
+    rc = main(["sweep", str(FREE5), "--grid", "interaction.k=2,3", "--out", str(out), "--workers", "1",
+               "--seeds", "1,2", "--set", "smoothing.enabled=false", "--set", "mrf.max_steps=4"])
+    assert rc == 0
+    assert "4 runs (0 failed)" in capsys.readouterr().out
+    table = read_csv(out / "sweep.csv")
+    assert table[0][:3] == ["point", "interaction.k", "seed"] and len(table) == 5
+    assert all(int(r[table[0].index("mrf_steps")]) <= 4 for r in table[1:])
+
+
+BAD = {
+    "no equals sign": (["--grid", "interaction.k_a"], "expected KEY=V1,V2"),
+    "empty value list": (["--grid", "interaction.k_a="], "empty value list"),
+    "empty value": (["--grid", "interaction.k_a=8,,14"], "empty value"),
+    "unknown key": (["--grid", "interaction.k_x=1,2"], "unknown config key interaction.k_x"),
+    "unknown section": (["--grid", "interactions.k=1,2"], "unknown config section"),
+    "wrong type": (["--grid", "interaction.k=two"], "interaction.k must be an integer"),
+    "wrong type at the last point": (["--grid", "interaction.k=2,3,3.5"], "sweep point 2 (interaction.k=3.5)"),
+    "out of range": (["--grid", "mrf.order=2,0"], "mrf.order = 0: must be >= 1"),
+    "unknown optimizer": (["--grid", "mrf.optimizer=icm,nosuch"], "nosuch"),
+    "bad seeds": (["--grid", "interaction.k=2", "--seeds", "0,x"], "--seeds"),
+    "empty scheduler address": (["--grid", "interaction.k=2", "--scheduler", " "], "--scheduler: empty address"),
+    "zero workers": (["--grid", "interaction.k=2", "--workers", "0"], "--workers 0"),
+    "no grid": ([], "--grid"),
+    "unreachable scheduler": (["--grid", "interaction.k=2,3", "--scheduler", "tcp://127.0.0.1:9",
+                               "--connect-timeout", "1"], "cannot reach the Dask scheduler at 'tcp://127.0.0.1:9'"),
+}
+
+
+@pytest.mark.parametrize("name", list(BAD))
+def test_bad_input_one_line_exit_2_nothing_written(name, tmp_path, capsys):
+    args, match = BAD[name]
+    if "--scheduler" in args:
+        pytest.importorskip("distributed")
+    out = tmp_path / "out"
+    try:
+        rc = main(["sweep", str(FREE5), "--out", str(out), "--set", "smoothing.enabled=false", *args])
+    except SystemExit as e:  # argparse's own errors (a missing option, a non-integer --workers)
+        rc = e.code
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert err.startswith("mrfswarm: error:") and err.count("\n") == 1, err
+    assert match in err, err
+    assert not out.exists()
+
+
+def test_dask_not_installed(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # `import distributed` now fails as if absent
+    out = tmp_path / "out"
+    rc = main(["sweep", str(FREE5), "--grid", "interaction.k=2", "--out", str(out), "--scheduler", "tcp://x:1"])
+    err = capsys.readouterr().err
+    assert rc == 2 and 'pip install "mrfswarm[dask]"' in err and err.count("\n") == 1
+    assert not out.exists()
+    with pytest.raises(SchedulerError):
+        run_sweep(FREE5, {"interaction.k": [2]}, out, scheduler="tcp://x:1")
+
+
+def test_parse_grid_literals():
+    g = parse_grid(["interaction.k=3,7", "interaction.k_a=8,14.5,1e1", "mrf.optimizer=icm,\"gibbs\"",
+                    "mrf.trim_backward=true,false", "scenario.goal=[35,15], [30, 20.5]",
+                    "scenario.start={center=[1,2], n_robots=3},{positions=[[1,1],[2,2]]}", "x.s='a,b',c"])
+    assert g == {
+        "interaction.k": [3, 7],
+        "interaction.k_a": [8, 14.5, 10.0],
+        "mrf.optimizer": ["icm", "gibbs"],
+        "mrf.trim_backward": [True, False],
+        "scenario.goal": [[35, 15], [30, 20.5]],
+        "scenario.start": [{"center": [1, 2], "n_robots": 3}, {"positions": [[1, 1], [2, 2]]}],
+        "x.s": ["a,b", "c"],
+    }
+    assert [type(v) for v in g["interaction.k_a"]] == [int, float, float]
+    assert list(g) == ["interaction.k", "interaction.k_a", "mrf.optimizer", "mrf.trim_backward", "scenario.goal",
+                       "scenario.start", "x.s"]
+
+
+@pytest.mark.parametrize("item, match", [("k", "expected KEY="), ("=1", "empty key"), ("a..b=1", "empty key"),
+                                         ("a.b=", "empty value list"), ("a.b=1,", "empty value")])
+def test_parse_grid_errors(item, match):
+    with pytest.raises(ConfigError, match=match):
+        parse_grid([item])
+    with pytest.raises(ConfigError, match="given twice"):
+        parse_grid(["a.b=1", "a.b=2"])
+
+
+toml_values = st.recursive(
+    st.booleans() | st.integers(-2**63, 2**63 - 1) | st.floats(allow_nan=False)
+    | st.text(st.characters(blacklist_categories=("Cs",)), max_size=8),
+    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=4), inner, max_size=3),
+    max_leaves=8)
+
+
+@given(toml_values)
+def test_toml_literal_round_trips_through_parse_grid(v):
+    """A Python grid value becomes the --set item that reads back exactly that value."""
+    got = parse_grid([f"a.b={toml_literal(v)}"])["a.b"]
+    assert got == [v] and type(got[0]) is type(v)
+    if isinstance(v, float):
+        assert math.copysign(1, got[0]) == math.copysign(1, v)
+
+
+def test_grid_values_from_python(tmp_path):
+    """The Python API takes the grid as values (here floats and a list), written as TOML for load_config."""
+    cfg = tmp_path / "b.toml"
+    cfg.write_text(BLOCKS5)
+    res = run_sweep(cfg, {"scenario.goal": [(30.0, 20.0)], "interaction.a": [0.7]}, tmp_path / "o", workers=1,
+                    overrides=FAST)
+    assert res.rows[0]["error"] is None and res.rows[0]["scenario.goal"] == (30.0, 20.0)
+    assert read_csv(res.csv_path)[1][1] == "[30.0, 20.0]"
+    with pytest.raises(ConfigError, match="cannot be written in TOML"):
+        run_sweep(cfg, {"scenario.goal": [None]}, tmp_path / "p")
+    assert not (tmp_path / "p").exists()
+
+
+def test_one_point_at_a_time_per_process(monkeypatch):
+    """plan() is not thread-safe: points on the threads of one (Dask worker) process run one by one."""
+    import threading
+    import time
+
+    import mrfswarm.pipeline
+    from mrfswarm import sweep
+
+    running, peak, lock = [0], [0], threading.Lock()
+
+    def slow(cfg, **kw):
+        with lock:
+            running[0] += 1
+            peak[0] = max(peak[0], running[0])
+        time.sleep(0.05)
+        with lock:
+            running[0] -= 1
+        raise ConfigError("stop here")
+
+    monkeypatch.setattr(mrfswarm.pipeline, "plan", slow)
+    task = sweep._Task(load_config(FREE5), None, "unused", False)
+    threads = [threading.Thread(target=sweep._run_point, args=(task,)) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert peak[0] == 1
