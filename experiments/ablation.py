@@ -49,6 +49,7 @@ from mrfswarm.metrics import discrete_metrics
 from mrfswarm.scenario import build_scenario
 from mrfswarm.swarm_mrf import step_mrf
 from solvers import mrf
+from solvers.errors import SolverNotFound
 
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENTS = ROOT / "experiments"
@@ -168,6 +169,8 @@ def run_one(config: Path, method: str, max_steps: int | None = None, seed: int =
     plan = plan_discrete(problem, method=method, max_steps=max_steps or cfg.mrf.max_steps, tol=cfg.mrf.tol,
                          patience=cfg.mrf.patience, options=mrf.Options(seed=seed),
                          on_step=_recorder(problem, records))
+    if plan.stop_reason == "stalled":
+        del records[plan.n_steps:]  # the planner drops the steps after the energy's minimum; so do we
     m = discrete_metrics(plan.paths, scn.grid.occupied, scn.grid.resolution, scn.goal, cfg.scenario.goal_radius)
     gaps = np.array([r.gap for r in records])
     missed = np.array([r.missed for r in records])
@@ -285,7 +288,8 @@ def markdown(runs: list[Run], command: str) -> str:
         "- *opt gap*: the same against the exact optimum E* of the step MRF, computed where it has at",
         f"  most {EXACT_LIMIT:,} labellings (in parentheses: how many MRF solves that was; – if none).",
         "- *optimal steps*: MRF solves proved optimal (E = E*, or E = LB where E* is not computed) /",
-        "  all MRF solves (including the last one, which moves nobody when the run converges).",
+        "  all MRF solves of the plan (including the last one, which moves nobody when the run converges;",
+        "  a *stalled* run ends at its swarm energy's minimum, and the solves after it are dropped).",
         "- *below / above ICM*: MRF solves where the method's step energy is lower / higher than ICM's",
         "  on the same step MRF (same positions).",
         "- *opt ms/step*: optimizer time per MRF step; *step ms*: the whole step (graph, cliques, label",
@@ -389,7 +393,13 @@ def main(argv: list[str] | None = None) -> list[Run]:
     args = ap.parse_args(argv)
     methods = args.methods.split(",") if args.methods else default_methods()
     for m in methods:
-        mrf.METHODS.get(m)  # unknown names fail before any work
+        try:
+            mrf.METHODS.get(m)  # unknown names fail before any work
+        except SolverNotFound as e:
+            ap.error(str(e))
+    for name in args.scenarios.split(","):
+        if not scenario_path(name).is_file():
+            ap.error(f"no scenario config {scenario_path(name)}")
     max_steps = args.max_steps or (QUICK_STEPS if args.quick else None)
     t0 = time.perf_counter()
     runs = run(args.scenarios.split(","), methods, max_steps, args.seed, log=print)
