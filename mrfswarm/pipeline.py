@@ -201,7 +201,7 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         if cfg.smoothing.enabled:
             _continuous(result, show)
         if cfg.smoothing.enabled and cfg.simulation.enabled:
-            _simulate(result)
+            _simulate(result, show)
     except MrfswarmError as e:
         result.failure = str(e)
         _paper_pruning(result)
@@ -233,11 +233,12 @@ def _continuous(result: Result, show: bool) -> None:
     result.timings_s.update(result.continuous.timings)
 
 
-def _simulate(result: Result) -> None:
+def _simulate(result: Result, show: bool) -> None:
     from mrfswarm.simulation import fly_swarm
 
     cfg = result.config
     t0 = time.perf_counter()
     result.flight = fly_swarm(result.continuous.trajectories, cfg.scenario.altitude, result.scenario.grid,
-                              cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=result.continuous.j_max)
+                              cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=result.continuous.j_max,
+                              progress=show)
     result.timings_s["simulation"] = time.perf_counter() - t0

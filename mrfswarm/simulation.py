@@ -32,7 +32,8 @@ from __future__ import annotations
 import importlib.util
 import logging
 import os
-from concurrent.futures import ProcessPoolExecutor
+import sys
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
@@ -173,20 +174,33 @@ def _fly_job(args):
 
 
 def fly_swarm(trajectories: list[PiecewisePolynomial], altitude: float, grid: OccupancyGrid, rate_hz: float = 100.0,
-              vehicle: str = "crazyflie", workers: int | None = None, jerk: float | None = None) -> SwarmFlight:
+              vehicle: str = "crazyflie", workers: int | None = None, jerk: float | None = None,
+              progress: bool | None = None) -> SwarmFlight:
     """Fly every robot and measure tracking, separation and clearance on the common time grid.
 
     ``jerk``: the trajectories' maximum jerk, for the tracking bound (None: no bound).
+    ``progress``: a progress bar on stderr (default: when it is a terminal).
     """
     check_available(vehicle)
     duration = max(tr.duration for tr in trajectories) + SETTLE_S
+    from tqdm import tqdm
+
     jobs = [(tr, altitude, rate_hz, vehicle, duration) for tr in trajectories]
     workers = min(len(jobs), workers or os.cpu_count() or 1)
-    if workers <= 1:
-        flights = [_fly_job(j) for j in jobs]
-    else:
-        with ProcessPoolExecutor(max_workers=workers) as ex:
-            flights = list(ex.map(_fly_job, jobs))
+    show = sys.stderr.isatty() if progress is None else progress
+    with tqdm(total=len(jobs), desc="flying", unit="robot", disable=not show, leave=False) as bar:
+        if workers <= 1:
+            flights = []
+            for j in jobs:
+                flights.append(_fly_job(j))
+                bar.update(1)
+        else:
+            with ProcessPoolExecutor(max_workers=workers) as ex:
+                futures = [ex.submit(_fly_job, j) for j in jobs]
+                for f in as_completed(futures):
+                    f.result()
+                    bar.update(1)
+                flights = [f.result() for f in futures]
     err = np.concatenate([f.tracking_error for f in flights])
     pts = np.stack([f.positions for f in flights], axis=1)  # (S, N, 3)
     dmin, _ = min_pair_distance(pts[..., :2]) if len(flights) > 1 else (np.array([np.inf]), None)

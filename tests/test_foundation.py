@@ -70,3 +70,16 @@ def test_solvers_never_imports_mrfswarm():
     offenders = [str(p) for p in root.rglob("*.py") if "mrfswarm" in "".join(
         line for line in p.read_text().splitlines() if line.lstrip().startswith(("import ", "from ")))]
     assert offenders == []
+
+
+def test_public_api_and_a_quiet_import():
+    import subprocess
+    import sys
+
+    code = ("import sys, mrfswarm, solvers\n"
+            "assert callable(mrfswarm.plan) and callable(mrfswarm.load_config)\n"
+            "assert callable(solvers.qp.solve) and callable(solvers.mrf.minimize)\n"
+            "heavy = [m for m in ('matplotlib', 'rotorpy', 'dask', 'cvxpy', 'piqp', 'proxsuite', 'torch') if m in sys.modules]\n"
+            "assert not heavy, heavy\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr

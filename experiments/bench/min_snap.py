@@ -21,7 +21,7 @@ durations at 1 m/s) it times, median of repeats:
 
 ``x RotorPy`` is RotorPy's median time over the method's (cold total) at that size.
 ``max err`` is the largest position difference to the closed form (sampled at 50 Hz).
-Writes every row to ``experiments/bench/results/min_snap.csv``.
+Writes every row to ``experiments/bench/results/min_snap.csv`` (``--out`` to change).
 
     PYTHONPATH=. python experiments/bench/min_snap.py              # ~2-4 minutes
     PYTHONPATH=. python experiments/bench/min_snap.py --sizes 5 10 --rotorpy-timeout 20
@@ -162,6 +162,7 @@ def main() -> None:
     ap.add_argument("--budget", type=float, default=1.0, help="seconds of repeats per measurement")
     ap.add_argument("--rotorpy-timeout", type=float, default=60.0)
     ap.add_argument("--timeout", type=float, default=120.0, help="seconds per backend and size (child process)")
+    ap.add_argument("--out", type=pathlib.Path, default=RESULTS, help="CSV to write")
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed + 1)
     names = solvers.qp.available()
@@ -203,16 +204,16 @@ def main() -> None:
         rows.append(dict(pieces=M, method="rotorpy MinSnap (cvxopt)", cold_total_ms=ms(rp) if rp else "",
                          x_rotorpy=1.0 if rp else "", note=rp_note))
         print_table([r for r in rows if r["pieces"] == M])
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
     cols = ["pieces", "method", "compile_ms", "cold_formulate_ms", "cold_setup_ms", "cold_solve_ms", "cold_total_ms",
             "warm_formulate_ms", "warm_setup_ms", "warm_solve_ms", "warm_total_ms", "iterations", "max_err",
             "x_rotorpy", "note"]
-    with open(RESULTS, "w", newline="") as f:
+    with open(args.out, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=cols)
         w.writeheader()
         for r in rows:
             w.writerow({c: (f"{r[c]:.6g}" if isinstance(r.get(c), float) else r.get(c, "")) for c in cols})
-    print(f"\nwrote {RESULTS}")
+    print(f"\nwrote {args.out}")
 
 
 def fmt(v, spec=".3f"):

@@ -11,6 +11,23 @@ minimum than our colour-ordered ICM).
 
     python experiments/bench/mrf_step.py [--sizes 5,10,50,100,500,1000] [--orders 1,2,4,8]
         [--steps 3] [--baseline-max 1000] [--method icm] [--out experiments/bench/results/mrf_step.csv]
+
+With ``--methods [m1,m2,...]`` (default: every installed method of ``solvers.mrf.METHODS``
+except the exhaustive ones) it prints instead a table of the MRF methods on the same
+step MRFs: for N in ``--method-sizes`` (default 10, 100, 1000; order n = 2, k = 7) and two
+fields, the swarm above pulled to its goal (``goal``) and the same swarm without a goal
+(``none``, rho_S = 0: the paper's free-space formation, where only the interaction terms
+act), the swarm is stepped by ICM for ``--steps`` steps, and on each step's MRF (same
+positions for every method) every method runs once with default options (seed 0).
+Per N and method: median optimizer time per MRF step, median whole step time (the
+method-independent stages, timed once per step, plus the optimizer), the step energy
+relative to ICM's on the same MRF (mean over steps, % of |E_icm|; negative = lower; the
+goal potential is most of E, so these are small),
+the share of ICM's decrease from "everybody stays" that the method achieves (mean,
+100 = as ICM), on how many steps it ends below / above ICM, and the gap to the TRW-S
+lower bound of the same MRF (mean, % of |LB|). Written to ``--methods-out``.
+
+    python experiments/bench/mrf_step.py --methods [--method-sizes 10,100,1000] [--steps 5]
 """
 
 from __future__ import annotations
@@ -27,9 +44,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
-from mrfswarm.discrete import STAGES, DiscreteProblem, mrf_step
+from mrfswarm.discrete import STAGES, DiscreteProblem, graph_weights, mrf_step
+from mrfswarm.label_sets import label_sets
 from mrfswarm.motion import MIN_SEPARATION, min_distance_during_move, stencil
 from mrfswarm.potentials import Morse, static_field
+from mrfswarm.swarm_mrf import step_mrf
+from solvers import mrf as mrf_solvers
+
+RESULTS = Path(__file__).parent / "results"
 
 
 def swarm(n: int, seed: int = 0) -> DiscreteProblem:
@@ -129,6 +151,77 @@ def baseline_step(problem: DiscreteProblem, pos: np.ndarray) -> tuple[np.ndarray
     return new, float(energy)
 
 
+def write_csv(rows: list[dict], path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print(f"wrote {path}")
+
+
+def methods_table(methods: list[str], sizes: list[int], steps: int, out: Path, order: int = 2, k: int = 7) -> None:
+    """Every method on the same step MRFs of an ICM-driven swarm; see the module docstring."""
+    if "icm" not in methods:
+        methods = ["icm", *methods]
+    if "trws" not in methods:
+        raise SystemExit("--methods needs trws for the lower bound column")
+    rows = []
+    print(f"MRF methods on the same step MRFs (order n = {order}, k = min({k}, N - 1), {steps} ICM-driven steps; "
+          "medians over steps, energies means over steps)")
+    print(f"{'N':>5} {'field':>5} {'method':>13} {'opt ms':>9} {'step ms':>9} {'E vs ICM %':>11} "
+          f"{'decrease %ICM':>13} {'below/above':>11} {'LB gap %':>9} {'iters':>6}")
+    for n_rob, field in [(n, f) for n in sizes for f in ("goal", "none")]:
+        base = swarm(n_rob)
+        problem = DiscreteProblem(**{**base.__dict__, "order": order, "k": min(k, n_rob - 1)})
+        if field == "none":
+            problem = DiscreteProblem(**{**problem.__dict__, "goal": None, "static": np.zeros_like(problem.static)})
+        pos = problem.start
+        per: dict[str, dict[str, list]] = {m: {"t": [], "e": [], "it": []} for m in methods}
+        shared_t, stay_e, lbs, sizes_ec = [], [], [], []
+        for _ in range(steps):
+            t0 = time.perf_counter()
+            weights = graph_weights(pos, problem.k)
+            labels = label_sets(problem.free, pos, problem.order, problem.goal, problem.trim_backward)
+            model = step_mrf(labels, weights, problem.static, problem.morse, problem.resolution)
+            shared_t.append(time.perf_counter() - t0)
+            stay_e.append(model.energy(model.initial))
+            sizes_ec.append((len(model.edges), len(model.conflicts)))
+            results = {}
+            for m in methods:
+                res = mrf_solvers.minimize(model, m, mrf_solvers.Options(seed=0))
+                results[m] = res
+                per[m]["t"].append(res.time_s)
+                per[m]["e"].append(res.energy)
+                per[m]["it"].append(res.iterations)
+            lbs.append(results["trws"].lower_bound)
+            pos = pos + labels.offsets[np.arange(len(pos)), results["icm"].labels]
+        e_icm = np.array(per["icm"]["e"])
+        stay = np.array(stay_e)
+        lb = np.array(lbs, dtype=float)
+        for m in methods:
+            e = np.array(per[m]["e"])
+            rel = 100 * (e - e_icm) / np.abs(e_icm)
+            dec = np.where(stay - e_icm > 0, 100 * (stay - e) / np.where(stay - e_icm > 0, stay - e_icm, 1), np.nan)
+            tol = 1e-9 * np.maximum(1.0, np.abs(e_icm))
+            below, above = int(np.sum(e < e_icm - tol)), int(np.sum(e > e_icm + tol))
+            gap = 100 * (e - lb) / np.abs(lb)
+            opt_ms = statistics.median(per[m]["t"]) * 1e3
+            step_ms = statistics.median(np.array(per[m]["t"]) + np.array(shared_t)) * 1e3
+            row = {"N": n_rob, "field": field, "n": order, "k": problem.k, "method": m, "optimizer_ms": round(opt_ms, 3),
+                   "step_ms": round(step_ms, 3), "energy_vs_icm_pct": float(rel.mean()),
+                   "decrease_vs_icm_pct": float(np.nanmean(dec)) if np.isfinite(dec).any() else float("nan"),
+                   "steps_below_icm": below, "steps_above_icm": above, "lb_gap_pct": float(gap.mean()),
+                   "iterations": statistics.median(per[m]["it"]),
+                   "edges_mean": float(np.mean([e for e, _ in sizes_ec])),
+                   "conflicts_mean": float(np.mean([c for _, c in sizes_ec]))}
+            rows.append(row)
+            print(f"{n_rob:>5} {field:>5} {m:>13} {opt_ms:>9.2f} {step_ms:>9.2f} {rel.mean():>11.2e} "
+                  f"{row['decrease_vs_icm_pct']:>13.2f} {f'{below}/{above}':>11} {gap.mean():>9.2e} "
+                  f"{row['iterations']:>6g}", flush=True)
+    write_csv(rows, out)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="5,10,50,100,500,1000")
@@ -136,8 +229,19 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=3, help="steps timed per cell of the table (median)")
     ap.add_argument("--baseline-max", type=int, default=1000, help="largest N the baseline is run for")
     ap.add_argument("--method", default="icm")
-    ap.add_argument("--out", type=Path, default=Path(__file__).parent / "results" / "mrf_step.csv")
+    ap.add_argument("--out", type=Path, default=RESULTS / "mrf_step.csv")
+    ap.add_argument("--methods", nargs="?", const="", default=None,
+                    help="instead: compare MRF methods (comma-separated; default every installed one but exact)")
+    ap.add_argument("--method-sizes", default="10,100,1000", help="N for --methods")
+    ap.add_argument("--methods-out", type=Path, default=RESULTS / "mrf_step_methods.csv")
     args = ap.parse_args()
+    if args.methods is not None:
+        names = args.methods.split(",") if args.methods else [
+            b.name for b in mrf_solvers.METHODS if "optimal" not in b.capabilities and b.name in mrf_solvers.available()]
+        for name in names:
+            mrf_solvers.METHODS.get(name)
+        methods_table(names, [int(v) for v in args.method_sizes.split(",")], args.steps, args.methods_out)
+        return
     sizes = [int(v) for v in args.sizes.split(",")]
     orders = [int(v) for v in args.orders.split(",")]
     rows = []
@@ -170,12 +274,7 @@ def main() -> None:
             rows.append(row)
             print(f"{n_rob:>5} {order:>2} {problem.k:>2} " + " ".join(f"{med[s]:>9.2f}" for s in STAGES)
                   + f" {total:>9.2f} {bl:>9.1f} {bl / total:>7.1f}", flush=True)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    with open(args.out, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    print(f"wrote {args.out}")
+    write_csv(rows, args.out)
 
 
 if __name__ == "__main__":

@@ -33,9 +33,7 @@ import time
 
 import numpy as np
 
-from solvers.mrf.icm import descend
 from solvers.mrf.incumbent import Incumbent
-from solvers.mrf.local_energy import colour_sweep
 from solvers.mrf.penalized import auto_penalty, penalized_pairs
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
@@ -76,24 +74,9 @@ def minimize(mrf: PairwiseMRF, options: Options) -> MRFResult:
         trace.append(best.energy)
         if delta <= options.tol or (deadline is not None and time.perf_counter() >= deadline):
             break
-    labels, energy = best.labels, best.energy
     stats = {"penalty": penalty, "pairs": P, "max_message_change": delta, "converged": delta <= options.tol,
-             "decoded_energy": decoded, "initial_energy": mrf.energy(mrf.initial), **best.stats()}
-    if options.polish:
-        labels, ptrace, moves = descend(mrf, labels, colour_sweep(mrf), options.max_iter, options.tol, deadline)
-        energy = ptrace[-1]
-        trace.append(energy)
-        stats["polish_moves"] = moves
-    return MRFResult(
-        labels=labels,
-        energy=energy,
-        energy_trace=np.array(trace),
-        iterations=it,
-        time_s=time.perf_counter() - t_start,
-        method="bp",
-        repaired=best.repaired,
-        stats=stats,
-    )
+             "decoded_energy": decoded}
+    return best.result("bp", options, trace, it, t_start, deadline, stats)
 
 
 BACKEND = Backend(

@@ -36,7 +36,6 @@ import time
 
 import numpy as np
 
-from solvers.mrf.icm import descend
 from solvers.mrf.incumbent import Incumbent
 from solvers.mrf.local_energy import LocalEnergy, colour_sweep
 from solvers.mrf.problem import PairwiseMRF
@@ -96,23 +95,9 @@ def minimize(mrf: PairwiseMRF, options: Options) -> MRFResult:
         trace.append(best.energy)
         if deadline is not None and time.perf_counter() >= deadline:
             break
-    labels, energy = best.labels, best.energy
     stats = {"t0": t0, "t_final": temperature(options, t0, len(trace) - 1), "chain_energy": chain,
-             "colours": len(sweep), "initial_energy": mrf.energy(mrf.initial)}
-    if options.polish:
-        labels, ptrace, moves = descend(mrf, labels, sweep, options.max_iter, options.tol, deadline)
-        energy = ptrace[-1]
-        trace.append(energy)
-        stats["polish_moves"] = moves
-    return MRFResult(
-        labels=labels,
-        energy=energy,
-        energy_trace=np.array(trace),
-        iterations=len(chain),
-        time_s=time.perf_counter() - t_start,
-        method="gibbs",
-        stats=stats,
-    )
+             "colours": len(sweep)}
+    return best.result("gibbs", options, trace, len(chain), t_start, deadline, stats, sweep=sweep)
 
 
 BACKEND = Backend(

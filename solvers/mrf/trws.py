@@ -54,9 +54,8 @@ import time
 
 import numpy as np
 
-from solvers.mrf.icm import descend
 from solvers.mrf.incumbent import Incumbent
-from solvers.mrf.local_energy import colour_classes, colour_sweep
+from solvers.mrf.local_energy import colour_classes
 from solvers.mrf.penalized import auto_penalty, penalized_pairs
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
@@ -210,25 +209,10 @@ def minimize(mrf: PairwiseMRF, options: Options) -> MRFResult:
             break
         if deadline is not None and time.perf_counter() >= deadline:
             break
-    labels, energy = best.labels, best.energy
     stats = {"penalty": penalty, "pairs": ch.P, "colours": len(ch.classes), "bounds": bounds,
-             "decoded_energy": decoded, "initial_energy": mrf.energy(mrf.initial), **best.stats()}
-    if options.polish:
-        labels, ptrace, moves = descend(mrf, labels, colour_sweep(mrf), options.max_iter, options.tol, deadline)
-        energy = ptrace[-1]
-        trace.append(energy)
-        stats["polish_moves"] = moves
-    return MRFResult(
-        labels=labels,
-        energy=energy,
-        energy_trace=np.array(trace),
-        iterations=it,
-        time_s=time.perf_counter() - t_start,
-        method="trws",
-        lower_bound=float(lb) if np.isfinite(lb) else None,
-        repaired=best.repaired,
-        stats=stats,
-    )
+             "decoded_energy": decoded}
+    return best.result("trws", options, trace, it, t_start, deadline, stats,
+                       lower_bound=float(lb) if np.isfinite(lb) else None)
 
 
 BACKEND = Backend(

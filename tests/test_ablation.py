@@ -1,0 +1,108 @@
+"""experiments/ablation.py on a reduced setting: the table's shape and the sanity of its numbers."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrfswarm.config import load_config
+from mrfswarm.discrete import plan_discrete
+from mrfswarm.scenario import build_scenario
+from solvers import mrf
+
+ROOT = Path(__file__).resolve().parents[1]
+METHODS = ["icm", "trws", "gibbs"]
+STEPS = 4
+
+
+def load_ablation():
+    """The experiment script as a module (``experiments`` is not a package)."""
+    name = "experiments_ablation"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, ROOT / "experiments" / "ablation.py")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # dataclasses look their module up while the file executes
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
+@pytest.fixture(scope="module")
+def outputs(tmp_path_factory):
+    ablation = load_ablation()
+    out = tmp_path_factory.mktemp("ablation")
+    ablation.main(["--scenarios", "corridor", "--methods", ",".join(METHODS), "--max-steps", str(STEPS),
+                   "--out", str(out)])
+    with open(out / "ablation.csv") as f:
+        rows = list(csv.DictReader(f))
+    with open(out / "ablation.steps.csv") as f:
+        steps = list(csv.DictReader(f))
+    return ablation, out, rows, steps
+
+
+def test_writes_every_output(outputs):
+    _, out, _, _ = outputs
+    for name in ("ablation.csv", "ablation.steps.csv", "ablation.md", "ablation.png"):
+        assert (out / name).stat().st_size > 0
+    assert (out / "ablation.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_table_has_one_row_per_method_and_the_columns(outputs):
+    ablation, out, rows, _ = outputs
+    assert list(rows[0]) == ablation.COLUMNS
+    assert [r["method"] for r in rows] == METHODS and {r["scenario"] for r in rows} == {"corridor"}
+    md = (out / "ablation.md").read_text().splitlines()
+    table = [line for line in md if line.startswith("| corridor |")]
+    assert [line.split("|")[2].strip() for line in table] == METHODS
+    header = next(line for line in md if line.startswith("| scenario |"))
+    assert all(line.count("|") == header.count("|") for line in table)
+
+
+def test_values_are_sane(outputs):
+    _, _, rows, _ = outputs
+    for r in rows:
+        assert r["n_robots"] == "5" and r["k"] == "3" and r["order"] == "2"
+        assert 1 <= int(r["steps"]) <= STEPS and r["stop_reason"] in {"converged", "stalled", "max_steps"}
+        assert math.isfinite(float(r["final_energy"])) and float(r["final_energy"]) < float(r["initial_energy"])
+        assert float(r["gap_mean_pct"]) >= -1e-7 and float(r["gap_max_pct"]) >= float(r["gap_mean_pct"]) - 1e-9
+        assert float(r["min_separation_m"]) >= 1.0 - 1e-9
+        assert float(r["path_length_m"]) > 0 and float(r["optimizer_ms_per_step"]) > 0
+        assert int(r["steps_optimal"]) <= int(r["mrf_solves"]) and int(r["repaired"]) == 0
+        assert r["reached_goal"] == "False"  # 4 steps from x = 4 cannot reach x = 35
+    assert float(rows[0]["final_vs_icm_pct"]) == 0.0
+
+
+def test_bound_lies_below_every_step_energy(outputs):
+    _, _, rows, steps = outputs
+    assert len(steps) == sum(int(r["mrf_solves"]) for r in rows)
+    for s in steps:
+        lb, e, icm, stay = (float(s[k]) for k in ("lower_bound", "step_energy", "icm_step_energy", "step_energy_stay"))
+        tol = 1e-9 * max(1.0, abs(lb))
+        assert lb <= e + tol and lb <= icm + tol and e <= stay + tol
+        opt = float(s["optimum"])  # 5 robots, <= 9 labels: the exact optimum is computed
+        assert math.isfinite(opt) and lb <= opt + tol and opt <= min(e, icm) + tol
+
+
+def test_final_energy_matches_an_independent_run(outputs):
+    _, _, rows, _ = outputs
+    cfg = load_config(ROOT / "experiments" / "corridor.toml")
+    problem = build_scenario(cfg).discrete_problem()
+    for r in rows:
+        plan = plan_discrete(problem, method=r["method"], max_steps=STEPS, tol=cfg.mrf.tol, patience=cfg.mrf.patience,
+                             options=mrf.Options(seed=0))
+        assert float(r["final_energy"]) == pytest.approx(plan.energy[-1], rel=1e-9)
+        assert int(r["steps"]) == plan.n_steps
+        lengths = np.hypot(*np.diff(plan.paths, axis=0).astype(float).T).sum()
+        assert float(r["path_length_m"]) == pytest.approx(lengths, rel=1e-9)
+
+
+def test_default_methods_are_the_installed_heuristics():
+    ablation = load_ablation()
+    names = ablation.default_methods()
+    assert "exact" not in names and "icm" in names
+    assert set(names) == {b.name for b in mrf.METHODS if "optimal" not in b.capabilities} & set(mrf.available())

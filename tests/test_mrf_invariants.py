@@ -1,0 +1,248 @@
+"""The discrete safety invariants (DESIGN.md) hold for every MRF method, by brute force.
+
+Every method of ``solvers.mrf.METHODS`` (the registry, never a list of names) plans a few
+steps on hypothesis-generated maps and swarms, and the paths are checked by dense
+sampling of the straight moves, independently of the planner's geometry, and by
+:func:`mrfswarm.safety.discrete_violations`.
+
+The paper's label-set heuristics (disjoint label sets, cells of other robots removed)
+leave real swarm MRFs with almost no conflict pairs, so the conflict handling of the
+methods is exercised separately: on synthetic MRFs with many conflicts, and on step MRFs
+whose label sets are full, overlapping stencils (every clear move of every robot, other
+robots' cells included), where most neighbouring robots share forbidden label pairs.
+Methods flagged ``optimal`` (exhaustive search) only get problems small enough for them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
+from mrfswarm.discrete import DiscreteProblem, graph_weights, plan_discrete
+from mrfswarm.label_sets import LabelSets
+from mrfswarm.motion import moves_clear, stencil
+from mrfswarm.potentials import Morse, static_field
+from mrfswarm.safety import discrete_violations
+from mrfswarm.swarm_mrf import step_mrf
+from solvers import mrf
+from solvers.mrf.exact import MAX_LABELLINGS
+from solvers.mrf.synthetic import random_mrf, swarm_mrf
+
+METHODS = mrf.METHODS.names()
+#: Exhaustive methods: exponential in N, given tiny problems only.
+TINY_ONLY = {b.name for b in mrf.METHODS if "optimal" in b.capabilities}
+ORDERS = [1, 2, 4, 8]
+SAMPLES = 201  # per step and robot: a relative speed of <= 2 * sqrt(8) cells/step moves < 0.03 cell between samples
+
+
+def occupied_squares(free: np.ndarray) -> np.ndarray:
+    """Centres of occupied cells, with a ring of occupied cells around the map (off the map is a wall)."""
+    W, H = free.shape
+    padded = np.zeros((W + 2, H + 2), dtype=bool)
+    padded[1:-1, 1:-1] = free
+    return np.argwhere(~padded) - 1
+
+
+def brute_force_violations(paths: np.ndarray, free: np.ndarray) -> list[str]:
+    """The discrete invariants checked by dense sampling, all robot pairs, no library geometry.
+
+    At every step: positions are integer cells on the map, free, pairwise distinct. Within
+    every step, with all robots moving straight at the same time: every pair keeps at
+    least one cell apart at every sample, and every sample of a moving robot keeps half a
+    cell from every occupied square (the planner's wall clearance; off the map counts as
+    occupied), so no move enters or cuts an obstacle.
+    """
+    out = []
+    W, H = free.shape
+    walls = occupied_squares(free).astype(float)
+    paths = np.asarray(paths)
+    for t, p in enumerate(paths):
+        if not np.issubdtype(p.dtype, np.integer):
+            out.append(f"step {t}: positions are not integer cells")
+        if np.any((p < 0) | (p >= [W, H])):
+            out.append(f"step {t}: off the map")
+            continue
+        if not free[p[:, 0], p[:, 1]].all():
+            out.append(f"step {t}: a robot in an occupied cell")
+        if len({tuple(c) for c in p.tolist()}) != len(p):
+            out.append(f"step {t}: two robots share a cell")
+        if t == 0:
+            continue
+        a, b = paths[t - 1].astype(float), p.astype(float)
+        s = np.linspace(0.0, 1.0, SAMPLES)[:, None, None]
+        pos = a[None] + s * (b - a)[None]  # (S, N, 2)
+        if len(p) > 1:
+            diff = pos[:, :, None, :] - pos[:, None, :, :]
+            d = np.hypot(diff[..., 0], diff[..., 1])
+            iu = np.triu_indices(len(p), 1)
+            dmin = d[:, iu[0], iu[1]].min()
+            if dmin < 1.0 - 1e-9:
+                out.append(f"step {t}: two robots {dmin:.3f} cells apart during the step")
+        moving = np.any(a != b, axis=1)
+        if moving.any() and len(walls):
+            pts = pos[:, moving].reshape(-1, 2)
+            g = np.maximum(np.abs(pts[:, None, :] - walls[None, :, :]) - 0.5, 0.0)
+            clearance = np.hypot(g[..., 0], g[..., 1]).min()
+            if clearance < 0.5 - 1e-9:
+                out.append(f"step {t}: a move passes {clearance:.3f} cells from an obstacle")
+    return out
+
+
+def check_paths(paths: np.ndarray, free: np.ndarray) -> None:
+    assert brute_force_violations(paths, free) == []
+    assert discrete_violations(paths, free) == []
+
+
+def test_the_brute_force_check_catches_each_kind_of_violation():
+    free = np.ones((8, 8), bool)
+    free[4, 4] = False
+    assert brute_force_violations(np.array([[[0, 0], [2, 0]], [[1, 0], [3, 0]]]), free) == []  # a convoy
+    cases = {
+        "during the step": [[[0, 0], [1, 0]], [[1, 1], [0, 1]]],  # diagonal swap: they meet halfway
+        "share a cell": [[[0, 0], [2, 2]], [[2, 2], [2, 2]]],
+        "occupied cell": [[[3, 4]], [[4, 4]]],
+        "from an obstacle": [[[3, 3]], [[5, 5]]],  # diagonal through the obstacle's corner region
+        "off the map": [[[0, 0]], [[-1, 0]]],
+    }
+    for what, paths in cases.items():
+        found = brute_force_violations(np.array(paths), free)
+        assert any(what in v for v in found), (what, found)
+    # a diagonal move between two diagonal obstacles cuts their corners
+    free2 = np.ones((4, 4), bool)
+    free2[1, 0] = free2[0, 1] = False
+    assert any("obstacle" in v for v in brute_force_violations(np.array([[[0, 0]], [[1, 1]]]), free2))
+
+
+# ---------------------------------------------------------------- real swarm plans
+
+
+def clustered(rng: np.random.Generator, free: np.ndarray, n: int) -> np.ndarray:
+    """n distinct free cells near a random free cell (a packed swarm: moves interact)."""
+    cells = np.argwhere(free)
+    centre = cells[rng.integers(len(cells))]
+    d = np.hypot(*(cells - centre).T) + rng.random(len(cells)) * 1.5
+    return cells[np.argsort(d)[:n]]
+
+
+@st.composite
+def swarm_problems(draw, max_robots: int) -> DiscreteProblem:
+    rng = np.random.default_rng(draw(st.integers(0, 2**31 - 1)))
+    W, H = draw(st.integers(6, 14)), draw(st.integers(6, 14))
+    free = rng.random((W, H)) >= draw(st.floats(0.0, 0.4))
+    n_free = int(free.sum())
+    assume(n_free >= 3)
+    n = draw(st.integers(2, min(max_robots, n_free - 1)))
+    start = clustered(rng, free, n)
+    goal = None
+    if draw(st.booleans()):
+        others = np.argwhere(free)
+        others = others[~(others[:, None, :] == start[None]).all(axis=2).any(axis=1)]
+        goal = others[rng.integers(len(others))]
+    static = static_field((~free).astype(float), goal, 1.0, GoalPotentialConfig(), ObstaclePotentialConfig())
+    return DiscreteProblem(free=free, static=static, start=start, goal=goal, morse=Morse(),
+                           k=draw(st.integers(1, n - 1)), order=draw(st.sampled_from(ORDERS)))
+
+
+@pytest.mark.parametrize("method", METHODS)
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(data=st.data())
+def test_every_method_keeps_the_invariants_on_random_maps(method, data):
+    problem = data.draw(swarm_problems(max_robots=3 if method in TINY_ONLY else 10))
+    plan = plan_discrete(problem, method=method, max_steps=4, options=mrf.Options(seed=0))
+    assert plan.paths.shape[1:] == problem.start.shape and np.array_equal(plan.paths[0], problem.start)
+    check_paths(plan.paths, problem.free)
+    assert all(s["repaired"] == 0 for s in plan.steps)  # label sets are disjoint: nothing to repair
+
+
+# ---------------------------------------------------------------- conflict-heavy MRFs
+
+
+def raw_result(m: mrf.PairwiseMRF, method: str, options: mrf.Options) -> mrf.MRFResult:
+    """The method's own labelling, before :func:`solvers.mrf.minimize` would repair it."""
+    return mrf.METHODS.get(method).entry(m, options)
+
+
+def without_conflicts(m: mrf.PairwiseMRF) -> mrf.PairwiseMRF:
+    return mrf.PairwiseMRF(m.unary, m.edges, m.pairwise, np.zeros((0, 2)), np.zeros((0,) + m.unary.shape[1:] * 2),
+                           m.initial)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_every_method_is_feasible_on_synthetic_mrfs_with_many_conflicts(method):
+    rng = np.random.default_rng(11)
+    problems = [random_mrf(rng, 6, 4, p_edge=0.7, p_conf=0.9, p_forbid=0.5) for _ in range(8)]
+    if method not in TINY_ONLY:
+        problems += [swarm_mrf(60, seed=s, density=0.6, conflict_radius=2.9) for s in range(3)]
+    binding = 0
+    for m in problems:
+        assert len(m.conflicts) > 0
+        res = raw_result(m, method, mrf.Options(seed=0, max_iter=50))
+        assert m.is_feasible(res.labels), f"{method} returned a labelling that breaks a conflict"
+        assert res.energy == pytest.approx(m.energy(res.labels), abs=1e-9)
+        assert res.energy <= m.energy(m.initial) + 1e-9
+        # the conflicts matter: without them, ICM's labelling would break one
+        binding += not m.is_feasible(mrf.minimize(without_conflicts(m), "icm").labels)
+    assert binding >= len(problems) // 2
+
+
+def full_stencil_labels(free: np.ndarray, starts: np.ndarray, order: int) -> LabelSets:
+    """Every clear move of every robot, other robots' cells and contested cells included."""
+    S = len(stencil(order))
+    ok = moves_clear(free, starts, np.broadcast_to(np.arange(S), (len(starts), S)), order)
+    ok[:, 0] = True
+    count = ok.sum(axis=1)
+    L = int(count.max())
+    index = np.argsort(~ok, axis=1, kind="stable")[:, :L]
+    index = np.where(np.arange(L)[None, :] < count[:, None], index, 0)
+    return LabelSets(index=index, count=count, starts=starts, order=order)
+
+
+@st.composite
+def dense_swarms(draw, max_robots: int):
+    rng = np.random.default_rng(draw(st.integers(0, 2**31 - 1)))
+    W = H = draw(st.integers(9, 14))
+    free = rng.random((W, H)) >= draw(st.floats(0.0, 0.25))
+    n = draw(st.integers(2, max_robots))
+    assume(free.sum() > n + 1)
+    start = clustered(rng, free, n)
+    goal = np.argwhere(free)[rng.integers(free.sum())]
+    static = static_field((~free).astype(float), goal, 1.0, GoalPotentialConfig(), ObstaclePotentialConfig())
+    return free, static, start, draw(st.integers(1, n - 1)), draw(st.sampled_from(ORDERS))
+
+
+@pytest.mark.parametrize("method", METHODS)
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(data=st.data())
+def test_every_method_is_safe_on_step_mrfs_with_overlapping_label_sets(method, data):
+    tiny = method in TINY_ONLY
+    free, static, pos, k, order = data.draw(dense_swarms(max_robots=3 if tiny else 10))
+    paths = [pos]
+    for _ in range(3):
+        labels = full_stencil_labels(free, pos, order)
+        m = step_mrf(labels, graph_weights(pos, k), static, Morse(), 1.0)
+        if tiny:
+            assume(np.prod(m.n_labels.astype(float)) <= MAX_LABELLINGS / 20)
+        res = raw_result(m, method, mrf.Options(seed=0, max_iter=50))
+        assert m.is_feasible(res.labels), f"{method} returned a labelling that breaks a conflict"
+        pos = pos + labels.offsets[np.arange(len(pos)), res.labels]
+        paths.append(pos)
+    check_paths(np.stack(paths), free)
+
+
+@pytest.mark.parametrize("order", ORDERS)
+def test_full_stencil_step_mrfs_are_full_of_binding_conflicts(order):
+    # what the test above relies on: packed robots with overlapping label sets conflict a lot,
+    # and an optimizer that ignored the conflicts would collide
+    free = np.ones((14, 14), bool)
+    start = clustered(np.random.default_rng(order), free, 10)
+    goal = start[0]  # the cluster's centre: every robot wants the same few cells
+    static = static_field(np.zeros(free.shape), goal, 1.0, GoalPotentialConfig(), ObstaclePotentialConfig())
+    labels = full_stencil_labels(free, start, order)
+    m = step_mrf(labels, graph_weights(start, 3), static, Morse(), 1.0)
+    assert len(m.conflicts) >= len(start)
+    x = mrf.minimize(without_conflicts(m), "icm").labels
+    assert not m.is_feasible(x)
+    assert brute_force_violations(np.stack([start, start + labels.offsets[np.arange(len(start)), x]]), free)
