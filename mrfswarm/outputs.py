@@ -90,8 +90,7 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
         ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
         ax.set_title(title, fontsize=9)
         fig.tight_layout()
-        fig.savefig(p)
-        plt.close(fig)
+        plots.save_figure(fig, p, dpi=110)
 
     written.append(atomic_write(figs / "trajectories.png", traj_fig))
     from mrfswarm.continuous_check import separation_series

@@ -70,9 +70,7 @@ def plot_paths(path: Path, grid: OccupancyGrid, paths_world: Sequence[np.ndarray
     ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
     ax.set_title(title)
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return Path(path)
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_energy(path: Path, energies: dict[str, np.ndarray], title: str = "Swarm energy") -> Path:
@@ -88,9 +86,7 @@ def plot_energy(path: Path, energies: dict[str, np.ndarray], title: str = "Swarm
     if len(energies) > 1:
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return Path(path)
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndarray, safety: float | None = None,
@@ -108,9 +104,7 @@ def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndar
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return Path(path)
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_xy(path: Path, t: np.ndarray, positions: np.ndarray) -> Path:
@@ -127,9 +121,7 @@ def plot_xy(path: Path, t: np.ndarray, positions: np.ndarray) -> Path:
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return Path(path)
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_tracking(path: Path, t: np.ndarray, errors: np.ndarray) -> Path:
@@ -143,9 +135,7 @@ def plot_tracking(path: Path, t: np.ndarray, errors: np.ndarray) -> Path:
     ax.set_ylabel("tracking error [cm]")
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return Path(path)
+    return save_figure(fig, path, dpi=110)
 
 
 def animate(path: Path, grid: OccupancyGrid, t: np.ndarray, positions: np.ndarray, goal: np.ndarray | None = None,

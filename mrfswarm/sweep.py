@@ -25,7 +25,6 @@ import os
 import re
 import signal
 import sys
-import threading
 import time
 import uuid
 from collections.abc import Callable, Iterable, Sequence
@@ -231,12 +230,6 @@ def _slug(values: dict[str, Any], seed: int | None, limit: int = 60) -> str:
 # --- one point -----------------------------------------------------------------------------
 
 
-# plan() is not thread-safe (the continuous stage shares compiled CasADi functions and caches:
-# concurrent runs in one process produced corrupted QPs), so a process plans one point at a
-# time, even on a Dask worker with several threads (start those with --nthreads 1).
-_PLAN_LOCK = threading.Lock()
-
-
 def _ignore_sigint() -> None:
     """Pool workers leave Ctrl-C to the parent, which stops them (no traceback per worker)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -250,21 +243,20 @@ def _run_point(task: _Task) -> dict:
     """
     from mrfswarm.pipeline import plan
 
-    with _PLAN_LOCK:
-        t0 = time.perf_counter()
-        summary, error, result = None, None, None
-        try:
-            result = plan(task.config, seed=task.seed, progress=False)
-        except MrfswarmError as e:
-            error = str(e).splitlines()[0] if str(e) else type(e).__name__
-            result = getattr(e, "partial_result", None)
-        wall = time.perf_counter() - t0
-        if result is not None:
-            summary = result.summary()
-            if task.figures:
-                from mrfswarm.outputs import write_outputs
+    t0 = time.perf_counter()
+    summary, error, result = None, None, None
+    try:
+        result = plan(task.config, seed=task.seed, progress=False)
+    except MrfswarmError as e:
+        error = str(e).splitlines()[0] if str(e) else type(e).__name__
+        result = getattr(e, "partial_result", None)
+    wall = time.perf_counter() - t0
+    if result is not None:
+        summary = result.summary()
+        if task.figures:
+            from mrfswarm.outputs import write_outputs
 
-                write_outputs(result, Path(task.point_dir))
+            write_outputs(result, Path(task.point_dir))
     return {"summary": summary, "error": error, "wall_s": wall, "config": task.config.to_dict()}
 
 
@@ -359,7 +351,7 @@ def connect(scheduler: Any, timeout: float = 10.0) -> tuple[Any, bool]:
     except ModuleNotFoundError as e:
         if e.name not in ("distributed", "dask") and not (e.name or "").startswith(("distributed.", "dask.")):
             raise
-        raise SchedulerError(f'--scheduler needs Dask distributed, which is not installed: pip install "mrfswarm[dask]"'
+        raise SchedulerError('--scheduler needs Dask distributed, which is not installed: pip install "mrfswarm[dask]"'
                              ) from e
     if isinstance(scheduler, distributed.Client):
         return scheduler, False
@@ -443,8 +435,7 @@ def run_sweep(config: str | Path, grid: dict[str, Sequence], out_dir: str | Path
     workers
         Local processes (default ``os.cpu_count()``); 1 runs the points in this process.
         The processes are spawned, so a script that starts a sweep must do it under
-        ``if __name__ == "__main__":``. Ignored with a scheduler (the cluster decides; a
-        worker process plans one point at a time, so give Dask workers one thread each).
+        ``if __name__ == "__main__":``. Ignored with a scheduler (the cluster decides).
     progress
         Show a progress bar on stderr (default: when stderr is a terminal).
     seeds

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from mrfswarm.config import load_config
 from mrfswarm.errors import ConfigError, ScenarioError
-from mrfswarm.maps import LOADERS, OccupancyGrid, load_map, read_movingai, read_ros, save_movingai, save_ros
+from mrfswarm.maps import OccupancyGrid, load_map, read_movingai, read_ros, save_movingai, save_ros
 
 DATA = Path(__file__).parent / "data" / "maps"
 
