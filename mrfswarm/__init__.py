@@ -18,7 +18,7 @@ from mrfswarm.maps import OccupancyGrid, load_map
 from mrfswarm.pipeline import Result, plan
 from mrfswarm.potentials import Morse, static_field
 from mrfswarm.pruning import prune_paths
-from mrfswarm.receding_horizon import RecedingHorizon
+from mrfswarm.continuous import RecedingHorizon
 from mrfswarm.safety import discrete_violations
 from mrfswarm.scenario import Scenario, build_scenario
 

@@ -19,13 +19,22 @@ from mrfswarm.maps import LOADERS
 
 SEAM_MODES = ("rest", "continuous")
 
+#: Keys of earlier versions, and what replaced them.
+REMOVED_KEYS = {
+    "smoothing.corridor": "trajectories now fly in safe regions around the discrete moves "
+                          "(smoothing.region_growth sets their size)",
+    "smoothing.safety_distance": "the safety distance is twice scenario.robot_radius (metres)",
+}
+
 
 @dataclass(frozen=True)
 class ScenarioConfig:
     """The map, the start swarm, the goal (metres, map frame) and the flight altitude.
 
     ``map`` and ``start`` are tables checked by :func:`mrfswarm.maps.load_map` and
-    :func:`mrfswarm.start.start_cells`; ``goal_radius`` defines "reached the goal":
+    :func:`mrfswarm.start.start_cells`; ``robot_radius`` (metres, below half a cell) is
+    each robot's size: trajectories keep it from obstacles and twice it (the safety
+    distance) from each other; ``goal_radius`` defines "reached the goal":
     the swarm's centroid within this many metres of the goal. Without a goal there is no
     goal potential (the paper's free-space formation experiments, rho_S = 0 there).
     """
@@ -35,6 +44,7 @@ class ScenarioConfig:
     goal: tuple[float, float] | None = None
     goal_radius: float = 3.0
     altitude: float = 1.0
+    robot_radius: float = 0.25
 
 
 @dataclass(frozen=True)
@@ -91,30 +101,35 @@ class MrfConfig:
 
 @dataclass(frozen=True)
 class SmoothingConfig:
-    """The continuous stage (min-snap smoothing in a receding horizon).
+    """The continuous stage (min-snap smoothing on safe regions in a receding horizon).
 
-    ``corridor`` is the half-width (cells) of the box around each robot's reference motion
-    at each sample time; ``safety_distance`` (cells) the separation every output must keep;
-    ``speed`` (m/s) sets the step durations of the common time grid; ``v_max``/``a_max``/
-    ``j_max`` (m/s, m/s^2, m/s^3) are the limits the trajectories must meet. The jerk
-    limit bounds how far a tracking controller lags the trajectory (see
-    :mod:`mrfswarm.simulation`).
+    ``speed`` (m/s) sets the nominal step durations of the common time grid;
+    ``region_growth`` (cells) how far each robot's obstacle-free box may grow around its
+    discrete move; ``horizon`` steps are planned per window and ``execution`` of them
+    flown; ``seam`` is ``continuous`` (continuous up to jerk across windows) or ``rest``
+    (the paper's: every executed part from rest to rest). ``v_max``/``a_max``/``j_max``
+    (m/s, m/s^2, m/s^3) are limits every trajectory meets, proven on control points; the
+    jerk limit bounds how far a tracking controller lags (see :mod:`mrfswarm.simulation`).
+    ``time_refinement`` re-optimizes each window's step durations (Ipopt) for snap +
+    ``time_weight`` x flight time (snap units per second, per robot). ``check_rate_hz`` > 0
+    adds an independent sampled check of the whole flight at that rate.
     """
 
     enabled: bool = True
-    backend: str = "osqp"
+    backend: str = "piqp"
     degree: int = 7
     derivative: int = 4
-    speed: float = 1.0
-    corridor: float = 0.17
-    time_refinement: bool = False
-    horizon: int = 4
+    speed: float = 1.25
+    region_growth: float = 1.0
+    horizon: int = 8
     execution: float = 0.5
-    seam: str = "rest"
-    safety_distance: float = 0.5
+    seam: str = "continuous"
+    time_refinement: bool = False
+    time_weight: float = 10.0
     v_max: float = 2.0
     a_max: float = 4.0
     j_max: float = 4.0
+    check_rate_hz: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -206,6 +221,8 @@ def _build_section(name: str, cls: type, table: Any) -> Any:
     hints = get_type_hints(cls)
     known = {f.name for f in fields(cls)}
     for key in table:
+        if f"{name}.{key}" in REMOVED_KEYS:
+            raise ConfigError(f"config key {name}.{key} was removed: {REMOVED_KEYS[f'{name}.{key}']}")
         if key not in known:
             raise ConfigError(f"unknown config key {name}.{key}; allowed: {', '.join(sorted(known))}")
     values = {k: _coerce(f"{name}.{k}", v, hints[k]) for k, v in table.items()}
@@ -224,6 +241,7 @@ def _validate(cfg: Config) -> None:
     need(kind in LOADERS, "scenario.map.kind", kind, f"must be one of {', '.join(LOADERS)}")
     need(s.goal_radius > 0, "scenario.goal_radius", s.goal_radius, "must be > 0")
     need(s.altitude > 0, "scenario.altitude", s.altitude, "must be > 0")
+    need(s.robot_radius > 0, "scenario.robot_radius", s.robot_radius, "must be > 0 (metres)")
     i = cfg.interaction
     need(i.k >= 1, "interaction.k", i.k, "must be >= 1")
     g = cfg.goal_potential
@@ -238,21 +256,18 @@ def _validate(cfg: Config) -> None:
     need(m.tol >= 0, "mrf.tol", m.tol, "must be >= 0")
     need(m.patience >= 1, "mrf.patience", m.patience, "must be >= 1")
     sm = cfg.smoothing
+    need(sm.degree >= 3, "smoothing.degree", sm.degree, "must be >= 3 (jerk is bounded on control points)")
     need(sm.degree >= 2 * sm.derivative - 1, "smoothing.degree", sm.degree,
          f"must be >= 2 * smoothing.derivative - 1 = {2 * sm.derivative - 1}")
     need(1 <= sm.derivative <= 6, "smoothing.derivative", sm.derivative, "must be in 1..6")
     need(sm.speed > 0, "smoothing.speed", sm.speed, "must be > 0")
-    need(0 < sm.corridor <= 0.5, "smoothing.corridor", sm.corridor, "must be in (0, 0.5] cell")
+    need(sm.region_growth >= 0, "smoothing.region_growth", sm.region_growth, "must be >= 0")
     need(sm.horizon >= 1, "smoothing.horizon", sm.horizon, "must be >= 1")
     need(0 < sm.execution <= 1, "smoothing.execution", sm.execution, "must be in (0, 1]")
     need(sm.seam in SEAM_MODES, "smoothing.seam", sm.seam, f"must be one of {', '.join(SEAM_MODES)}")
-    need(0 < sm.safety_distance < 1, "smoothing.safety_distance", sm.safety_distance, "must be in (0, 1) cell")
-    # The corridor is a box of half-width `corridor` (cells) around each robot's reference, so a
-    # robot may be sqrt(2) * corridor away from it; two robots one cell apart stay
-    # 1 - 2 sqrt(2) corridor apart.
-    need(2 * math.sqrt(2) * sm.corridor + sm.safety_distance <= 1 + 1e-12, "smoothing.corridor", sm.corridor,
-         f"two robots 1 cell apart, each up to sqrt(2) * {sm.corridor} off its discrete motion, could come closer "
-         f"than smoothing.safety_distance = {sm.safety_distance}; need 2 * sqrt(2) * corridor + safety_distance <= 1")
+    need(sm.time_weight > 0, "smoothing.time_weight", sm.time_weight, "must be > 0")
+    need(sm.check_rate_hz == 0 or sm.check_rate_hz >= 100, "smoothing.check_rate_hz", sm.check_rate_hz,
+         "must be 0 (off) or >= 100")
     need(sm.v_max > 0, "smoothing.v_max", sm.v_max, "must be > 0")
     need(sm.a_max > 0, "smoothing.a_max", sm.a_max, "must be > 0")
     need(sm.j_max > 0, "smoothing.j_max", sm.j_max, "must be > 0")

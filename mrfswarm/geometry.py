@@ -97,3 +97,39 @@ def segment_clear(free: np.ndarray, p: np.ndarray, q: np.ndarray, clearance: flo
     if not inb.all():
         return False
     return bool(free[cells[:, 0], cells[:, 1]].all())
+
+
+def polygon_box_distance(polygon: np.ndarray, center: np.ndarray, half: float = 0.5) -> np.ndarray:
+    """Distance between convex polygons and closed axis-aligned squares (zero when they meet).
+
+    Parameters
+    ----------
+    polygon
+        (..., V, 2) vertices of convex polygons, in order around each polygon.
+    center
+        (..., 2) square centres (broadcast against ``polygon[..., 0, :]``).
+    half
+        Half side of the squares.
+
+    Notes
+    -----
+    They meet unless a separating axis exists among the coordinate axes and the polygon's
+    edge normals (the separating axis theorem); apart, the distance between two convex
+    polygons is attained at a vertex of one and an edge of the other.
+    """
+    poly = np.asarray(polygon, dtype=float)
+    center = np.asarray(center, dtype=float)
+    edges = np.roll(poly, -1, axis=-2) - poly  # (..., V, 2)
+    normals = np.stack([-edges[..., 1], edges[..., 0]], axis=-1)
+    axes = np.concatenate([np.broadcast_to(np.eye(2), poly.shape[:-2] + (2, 2)), normals], axis=-2)  # (..., A, 2)
+    proj = np.einsum("...ak,...vk->...av", axes, poly)  # (..., A, V)
+    c = (axes * center[..., None, :]).sum(axis=-1)
+    r = half * np.abs(axes).sum(axis=-1)
+    separated = (proj.max(axis=-1) < c - r) | (proj.min(axis=-1) > c + r)
+    meet = ~separated.any(axis=-1)
+    best = point_box_distance(poly, center[..., None, :], half).min(axis=-1)
+    for sx in (-half, half):
+        for sy in (-half, half):
+            corner = (center + np.array([sx, sy]))[..., None, :]
+            best = np.minimum(best, point_segment_distance(corner, poly, poly + edges).min(axis=-1))
+    return np.where(meet, 0.0, best)

@@ -96,7 +96,7 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
     from mrfswarm.continuous_check import separation_series
 
     dmin, dmean = separation_series(t, pos)
-    safety = cfg.smoothing.safety_distance * grid.resolution
+    safety = 2 * cfg.scenario.robot_radius
     written.append(atomic_write(figs / "distances.png", lambda p: plots.plot_distances(p, t, dmin, dmean, safety)))
     written.append(atomic_write(figs / "robot_xy.png", lambda p: plots.plot_xy(p, t, pos)))
     f = result.flight

@@ -37,10 +37,13 @@ class Result:
     metrics
         Metrics of the discrete paths.
     pruned
-        Per robot, step indices kept by waypoint pruning: per planning horizon (the
-        paper's) for a discrete-only run; per execution block, made safe, when smoothing.
+        Per robot, step indices kept by the paper's waypoint pruning (per planning
+        horizon; for figures and comparison: the continuous stage flies in safe regions
+        around every discrete move instead of through pruned waypoints).
     continuous
-        The smooth, checked trajectories (None when smoothing is disabled or failed).
+        The smooth, certified trajectories (a
+        :class:`~mrfswarm.continuous.ContinuousPlan`; None when smoothing is disabled or
+        failed).
     flight
         The simulated quadrotors (None when the simulation is disabled or failed).
     timings_s
@@ -88,8 +91,8 @@ class Result:
             "final_goal_distance": m.final_goal_distance,
             "swarm_energy": [float(e) for e in self.discrete.energy],
             "min_separation_discrete": _num(m.min_separation),
-            "min_separation_continuous": None if c is None else _num(c.check.min_separation),
-            "min_obstacle_clearance": _num(m.min_obstacle_clearance if c is None else c.check.min_clearance),
+            "min_separation_continuous": None if c is None else _num(c.min_separation),
+            "min_obstacle_clearance": _num(m.min_obstacle_clearance if c is None else c.min_clearance),
             "min_obstacle_clearance_discrete": _num(m.min_obstacle_clearance),
             "mean_inter_robot_distance_final": _num(m.mean_distance[-1]),
             "path_lengths": [float(v) for v in m.path_lengths],
@@ -105,16 +108,28 @@ class Result:
             "failure": self.failure,
         }
         if c is not None:
+            cert = c.certificate
             out.update({
                 "seam": sm.seam,
-                "safety_distance_m": sm.safety_distance * self.scenario.grid.resolution,
+                "robot_radius_m": self.config.scenario.robot_radius,
+                "safety_distance_m": 2 * self.config.scenario.robot_radius,
                 "limits": {"v_max": sm.v_max, "a_max": sm.a_max, "j_max": sm.j_max},
                 "achieved": {"v_max": c.v_max, "a_max": c.a_max, "j_max": c.j_max},
+                "certificate": {
+                    "ok": cert.ok,
+                    "separation_lower_bound_m": _num(cert.separation_bound),
+                    "limit_upper_bounds": {"v": cert.limit_bounds[0], "a": cert.limit_bounds[1],
+                                           "j": cert.limit_bounds[2]},
+                    "near_pairs_checked": cert.near_pairs,
+                    "clearance_lower_bound_m": self.config.scenario.robot_radius,
+                },
                 "windows": len(c.windows),
-                "repairs": [{"steps": [w.a, w.c], "did": w.repairs} for w in c.windows if w.repairs],
-                "unpruned_robot_blocks": int(c.unpruned),
-                "fallbacks": int(sum(w.fallback for w in c.windows)),
-                "slowest_window_factor": float(max((w.alpha for w in c.windows), default=1.0)),
+                "window_attempts": {name: sum(w.attempt == name for w in c.windows)
+                                    for name in sorted({w.attempt for w in c.windows})},
+                "refined_windows": int(sum(w.refined for w in c.windows)),
+                "sampled_check": None if c.sampled is None else {
+                    "rate_hz": sm.check_rate_hz, "min_separation_m": c.sampled.min_separation,
+                    "min_clearance_m": _num(c.sampled.min_clearance), "in_obstacle": c.sampled.in_obstacle},
             })
         f = self.flight
         out["simulation"] = None if f is None else {
@@ -126,6 +141,11 @@ class Result:
             "min_separation_m": _num(f.min_separation),
             "min_obstacle_clearance_m": _num(f.min_clearance),
             "entered_obstacle": f.in_obstacle,
+            # what the bound guarantees of the flown swarm: the planned margins minus the lag
+            "guaranteed_clearance_m": None if f.tracking_bound is None
+            else self.config.scenario.robot_radius - f.tracking_bound,
+            "guaranteed_separation_m": None if f.tracking_bound is None
+            else 2 * self.config.scenario.robot_radius - 2 * f.tracking_bound,
         }
         out["config"] = self.config.to_dict()
         return out
@@ -222,12 +242,11 @@ def _paper_pruning(result: Result) -> None:
 def _continuous(result: Result, show: bool) -> None:
     from tqdm import tqdm
 
-    from mrfswarm.receding_horizon import RecedingHorizon
+    from mrfswarm.continuous import RecedingHorizon
 
     cfg = result.config
-    rh = RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.smoothing.backend)
-    # pruned per execution block and made safe (the receding horizon's reference)
-    result.pruned = rh.kept
+    rh = RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
+                         cfg.smoothing.backend)
     with tqdm(total=len(rh.windows()), desc="smoothing", unit="window", disable=not show, leave=False) as bar:
         result.continuous = rh.run(on_window=lambda w: bar.update(1))
     result.timings_s.update(result.continuous.timings)
@@ -240,5 +259,6 @@ def _simulate(result: Result, show: bool) -> None:
     t0 = time.perf_counter()
     result.flight = fly_swarm(result.continuous.trajectories, cfg.scenario.altitude, result.scenario.grid,
                               cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=result.continuous.j_max,
+                              speed=result.continuous.v_max,
                               progress=show)
     result.timings_s["simulation"] = time.perf_counter() - t0

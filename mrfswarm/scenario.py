@@ -8,7 +8,7 @@ import numpy as np
 
 from mrfswarm.config import Config
 from mrfswarm.discrete import DiscreteProblem
-from mrfswarm.errors import ScenarioError
+from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.interaction_graph import check_k
 from mrfswarm.maps import OccupancyGrid, load_map
 from mrfswarm.potentials import Morse, static_field
@@ -77,6 +77,11 @@ def build_scenario(cfg: Config, seed: int | None = None) -> Scenario:
     """
     morse = Morse.from_config(cfg.interaction)
     grid = load_map(cfg.scenario.map, cfg.base_dir)
+    if cfg.smoothing.enabled and not cfg.scenario.robot_radius < 0.5 * grid.resolution:
+        # the discrete stage keeps robots one cell apart and half a cell off walls: a robot as
+        # wide as a cell leaves the continuous stage no room
+        raise ConfigError(f"scenario.robot_radius = {cfg.scenario.robot_radius:g} m must be below half a cell "
+                          f"({0.5 * grid.resolution:g} m on this map)")
     start = start_cells(cfg.scenario.start, grid, seed)
     check_k(cfg.interaction.k, len(start))
     goal = None

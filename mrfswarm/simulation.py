@@ -11,18 +11,29 @@ control updates. Robots do not interact physically, so they are flown independen
 Tracking bound. Linearized about hover, the SE(3) controller's horizontal loop is a PD
 on position with acceleration feedforward (gains k_p, k_d), commanding a tilt that a PD
 attitude loop (k_R, k_w, angular acceleration commanded directly) achieves through
-rotors with a first-order lag tau_m. With e = x_ref - x this gives, per axis,
+rotors with a first-order lag tau_m. A disturbance acceleration d acts on the vehicle:
+RotorPy's rotor drag, the "H force" of each spinning rotor, -omega_i k_d v per rotor, so
+d = -c v with c = n_rotors omega_hover k_d / m (0.24 1/s for the Crazyflie; its
+parasitic drag coefficients are zero, and a quadratic term is added if not). With
+e = x_ref - x this gives, per axis,
 
-    e(s) / jerk_ref(s) = (D(s) - k_R) / (s (s^2 D(s) + k_R (k_d s + k_p))),
-    D(s) = tau_m s^3 + s^2 + k_w s + k_R,
+    e(s) = H_j(s) jerk_ref(s) - H_d(s) d(s),
+    H_j(s) = (D(s) - k_R) / (s P(s)),  H_d(s) = D(s) / P(s),
+    D(s) = tau_m s^3 + s^2 + k_w s + k_R,  P(s) = s^2 D(s) + k_R (k_d s + k_p),
 
-a stable transfer function whose impulse response h has a finite L1 norm, so
-|e(t)| <= ||h||_1 max |jerk_ref| for all t (a BIBO bound, from rest). For the Crazyflie
-and RotorPy's gains ||h||_1 = 0.033 s^3: with the planner's default jerk limit of
-4 m/s^3 the flown robot stays within about 13 cm of its trajectory, and two flown robots
-keep their planned separation minus twice that. :func:`tracking_gain` computes ||h||_1
-from the parameters actually used; :class:`SwarmFlight` reports the bound next to the
-measured error.
+stable transfer functions whose impulse responses have finite L1 norms, so
+
+    |e(t)| <= ||h_j||_1 max |jerk_ref| + ||h_d||_1 max |d|
+
+for all t (a BIBO bound, from rest; d is evaluated at the reference's speed, which the
+flown speed follows to within the bound's derivative). For the Crazyflie and RotorPy's
+gains ||h_j||_1 = 0.033 s^3 and ||h_d||_1 = 0.19 s^2: at the planner's limits (jerk
+4 m/s^3, speed 2 m/s) a flown robot stays within 23 cm of its trajectory (12 cm on the
+corridor's trajectories, which reach 1 m/s^3 and 1.9 m/s), and two flown robots keep
+their planned separation minus twice the bound.
+:func:`tracking_gains` computes both norms from the parameters actually used;
+:class:`SwarmFlight` reports the bound next to the measured error, and the clearance and
+separation the bound guarantees (robot radius and safety distance minus the bound).
 
 RotorPy is imported only here (``pip install "mrfswarm[rotorpy]"``).
 """
@@ -83,7 +94,7 @@ class SwarmFlight:
     in_obstacle
         True if some flown position lies in an occupied cell.
     tracking_bound
-        The linear-model bound ||h||_1 * (max jerk of the trajectories), metres.
+        The linear-model bound on tracking error (module docstring), metres.
     """
 
     flights: list[Flight]
@@ -96,34 +107,62 @@ class SwarmFlight:
 
 
 def _vehicle_params(vehicle: str) -> dict:
-    import importlib
 
     mod, attr = VEHICLES[vehicle]
     return getattr(importlib.import_module(mod), attr)
 
 
-def tracking_gain(vehicle: str = "crazyflie") -> float:
-    """||h||_1 (s^3) of the linearized jerk-to-position-error response (module docstring).
-
-    Uses the vehicle's rotor time constant and the horizontal gains of RotorPy's
-    ``SE3Control`` for that vehicle.
-    """
+def _loop(vehicle: str):
+    """(D, P, params) of the linearized horizontal loop (module docstring)."""
     from rotorpy.controllers.quadrotor_control import SE3Control
-    from scipy import signal
 
     params = _vehicle_params(vehicle)
     ctrl = SE3Control(params)
     kp, kd = float(ctrl.kp_pos[0]), float(ctrl.kd_pos[0])
     kR, kw, tau = float(np.atleast_1d(ctrl.kp_att)[0]), float(np.atleast_1d(ctrl.kd_att)[0]), float(params["tau_m"])
     D = np.array([tau, 1.0, kw, kR])
-    num = np.polysub(D, [kR])[:-1]  # (D - k_R) / s: its constant term is zero
-    den = np.polyadd(np.polymul([1.0, 0.0, 0.0], D), kR * np.array([kd, kp]))
-    if np.any(np.roots(den).real >= 0):
+    P = np.polyadd(np.polymul([1.0, 0.0, 0.0], D), kR * np.array([kd, kp]))
+    if np.any(np.roots(P).real >= 0):
         raise ValueError(f"the linearized loop of {vehicle!r} is not stable")
+    return D, P, params
+
+
+def _l1_norm(num: np.ndarray, den: np.ndarray) -> float:
+    from scipy import signal
+
     slowest = float(-np.max(np.roots(den).real))
     t = np.linspace(0.0, 40.0 / slowest, 400001)
     _, h = signal.impulse(signal.lti(num, den), T=t)
     return float(np.trapezoid(np.abs(h), t))
+
+
+def tracking_gains(vehicle: str = "crazyflie") -> tuple[float, float]:
+    """``(||h_j||_1, ||h_d||_1)``: L1 norms (s^3, s^2) from jerk and from a disturbance acceleration to the error."""
+    D, P, _ = _loop(vehicle)
+    num_j = np.polysub(D, [D[-1]])[:-1]  # (D - k_R) / s: its constant term is zero
+    return _l1_norm(num_j, P), _l1_norm(D, P)
+
+
+def tracking_gain(vehicle: str = "crazyflie") -> float:
+    """||h_j||_1 (s^3): the jerk-to-error gain alone (see :func:`tracking_gains`)."""
+    return tracking_gains(vehicle)[0]
+
+
+def drag(vehicle: str = "crazyflie") -> tuple[float, float]:
+    """``(c1, c2)``: the largest horizontal drag acceleration at speed v is ``c1 v + c2 v^2`` (hovering rotors)."""
+    params = _vehicle_params(vehicle)
+    m = float(params["mass"])
+    hover = np.sqrt(m * 9.81 / (params["num_rotors"] * params["k_eta"]))
+    c1 = params["num_rotors"] * hover * float(params.get("k_d", 0.0)) / m
+    c2 = max(float(params.get("c_Dx", 0.0)), float(params.get("c_Dy", 0.0))) / m
+    return float(c1), c2
+
+
+def tracking_bound(jerk: float, speed: float, vehicle: str = "crazyflie") -> float:
+    """The bound (metres) on a flown robot's distance from a trajectory of max ``jerk`` and ``speed``."""
+    gj, gd = tracking_gains(vehicle)
+    c1, c2 = drag(vehicle)
+    return gj * jerk + gd * (c1 * speed + c2 * speed**2)
 
 
 def check_available(vehicle: str) -> None:
@@ -175,10 +214,11 @@ def _fly_job(args):
 
 def fly_swarm(trajectories: list[PiecewisePolynomial], altitude: float, grid: OccupancyGrid, rate_hz: float = 100.0,
               vehicle: str = "crazyflie", workers: int | None = None, jerk: float | None = None,
-              progress: bool | None = None) -> SwarmFlight:
+              speed: float | None = None, progress: bool | None = None) -> SwarmFlight:
     """Fly every robot and measure tracking, separation and clearance on the common time grid.
 
-    ``jerk``: the trajectories' maximum jerk, for the tracking bound (None: no bound).
+    ``jerk``, ``speed``: the trajectories' maximum jerk and speed, for the tracking bound
+    (None: no bound).
     ``progress``: a progress bar on stderr (default: when it is a terminal).
     """
     check_available(vehicle)
@@ -220,5 +260,5 @@ def fly_swarm(trajectories: list[PiecewisePolynomial], altitude: float, grid: Oc
         min_separation=float(d3),
         min_clearance=None if clr is None else clr * grid.resolution,
         in_obstacle=bool(np.any(~grid.is_free(cells))),
-        tracking_bound=None if jerk is None else tracking_gain(vehicle) * jerk,
+        tracking_bound=None if jerk is None or speed is None else tracking_bound(jerk, speed, vehicle),
     )

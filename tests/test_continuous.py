@@ -1,111 +1,92 @@
-"""The continuous stage end to end: certified trajectories, seams, limits, exports, failures."""
+"""The continuous stage end to end: certified flights, seams, limits, exports, failures."""
 
 import json
-from functools import lru_cache
+import re
+from functools import cache
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import mrfswarm
-import solvers
 from mrfswarm.cli import main
+from mrfswarm.config import SmoothingConfig
+from mrfswarm.continuous import RecedingHorizon
 from mrfswarm.pipeline import plan
-from mrfswarm.safety import discrete_violations
-from mrfswarm.receding_horizon import RecedingHorizon, TIME_LAW, chord_positions, safe_pruning
-from mrfswarm.trajectory import CLOSED_FORM, PolylineReference, read_uav_csv, seam_jumps
+from mrfswarm.trajectory import read_uav_csv, seam_jumps
+from mrfswarm.trajectory.bernstein import control_points
 
 EXP = Path(__file__).resolve().parents[1] / "experiments"
 NO_SIM = ["simulation.enabled=false"]
-QP_BACKENDS = [b for b in solvers.qp.available() if b != CLOSED_FORM][:2]  # osqp and one other
 
 
-@lru_cache(maxsize=None)
+@cache
 def run(name: str, *overrides: str):
     return plan(mrfswarm.load_config(EXP / f"{name}.toml", NO_SIM + list(overrides)))
 
 
-def independent_check(result, rate_hz=250.0):
-    """Sample every robot at rate_hz: (min pairwise distance, any sample in an occupied cell)."""
-    c = result.continuous
+def full_stops(c, rate_hz=100.0, below=0.05):
+    """Per robot: how many times its speed drops below ``below`` m/s and picks up again within the flight."""
     t = np.linspace(0.0, c.makespan_s, int(c.makespan_s * rate_hz) + 1)
-    pts = c.positions(t)
-    iu, ju = np.triu_indices(pts.shape[1], 1)
-    dmin = np.hypot(*(pts[:, iu] - pts[:, ju]).transpose(2, 0, 1)).min()
-    grid = result.scenario.grid
-    inside = ~grid.is_free(grid.world_to_cell(pts))
-    return dmin, bool(inside.any())
+    out = []
+    for tr in c.trajectories:
+        slow = np.linalg.norm(tr.evaluate(t, 1), axis=-1) < below
+        edges = np.diff(slow.astype(int))
+        starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+        out.append(int(sum(1 for s in starts if (ends > s).any())))
+    return out
 
 
-@pytest.mark.parametrize("backend", QP_BACKENDS)
+@pytest.mark.parametrize("backend", ["piqp", "proxsuite"])
 @pytest.mark.parametrize("name", ["corridor", "blocks", "free5"])
-def test_end_to_end_is_certified(name, backend):
+def test_end_to_end_is_certified_and_checks_out_densely(name, backend, dense_check):
     r = run(name, f'smoothing.backend="{backend}"')
     c = r.continuous
-    assert r.qp == backend
+    assert r.qp == backend and c.certificate.ok
     if r.scenario.goal is not None:
         assert r.metrics.reached_goal
         end = c.positions(np.array([c.makespan_s]))[0]
         assert np.hypot(*(end.mean(axis=0) - r.scenario.goal_world)) <= r.config.scenario.goal_radius
-    safety = r.config.smoothing.safety_distance * r.scenario.grid.resolution
-    dmin, inside = independent_check(r)
-    assert dmin >= safety - 1e-6 and not inside
-    assert c.check.min_separation == pytest.approx(dmin, abs=0.02)
+    radius = r.config.scenario.robot_radius
+    dense = dense_check(c.trajectories, r.scenario.grid, 500.0)
+    assert dense["separation"] >= 2 * radius and dense["clearance"] >= radius and not dense["off_map"]
+    assert c.min_separation == pytest.approx(dense["separation"], abs=2e-3)  # exact vs 500 Hz
+    assert c.certificate.separation_bound <= c.min_separation + 1e-12  # a lower bound
     sm = r.config.smoothing
-    assert c.v_max <= sm.v_max * (1 + 1e-6) and c.a_max <= sm.a_max * (1 + 1e-6) and c.j_max <= sm.j_max * (1 + 1e-6)
-    # every robot at rest at both ends, and on its start cell at t = 0
-    for i, tr in enumerate(c.trajectories):
+    assert c.v_max <= sm.v_max and c.a_max <= sm.a_max and c.j_max <= sm.j_max
+    assert c.certificate.limit_bounds[0] >= c.v_max - 1e-9  # control points bound the exact maxima
+    for i, tr in enumerate(c.trajectories):  # at rest at both ends, on the start cell at t = 0
         for k in (1, 2, 3):
             assert np.abs(tr.evaluate(0.0, derivative=k)).max() < 1e-5
             assert np.abs(tr.evaluate(tr.duration, derivative=k)).max() < 1e-5
         np.testing.assert_allclose(tr.evaluate(0.0), r.discrete_paths_world()[0, i], atol=1e-6)
+        np.testing.assert_allclose(tr.knots, c.knot_times, atol=1e-9)  # one common time grid
 
 
-def test_references_keep_the_discrete_guarantee():
-    """The pruned chords traversed with the common time law stay >= 1 cell apart (sampled)."""
-    r = run("corridor10", "smoothing.enabled=false")
-    paths = r.discrete.paths
-    kept, _ = safe_pruning(paths, r.scenario.grid.free, 2)
-    T = len(paths) - 1
-    times = np.arange(T + 1, dtype=float)
-    refs = [PolylineReference(chord_positions(paths[:, i], kept[i]), times, law=TIME_LAW) for i in range(paths.shape[1])]
-    t = np.linspace(0, T, 40 * T + 1)
-    pts = np.stack([f(t) for f in refs], axis=1)
-    iu, ju = np.triu_indices(pts.shape[1], 1)
-    assert np.hypot(*(pts[:, iu] - pts[:, ju]).transpose(2, 0, 1)).min() >= 1 - 1e-9
-    assert any(len(k) < T + 1 for k in kept)  # something was pruned
+def test_corridor_flies_without_stopping():
+    """The default (continuous seams, safe regions) flies the paper's corridor without a stop."""
+    c = run("corridor").continuous
+    assert full_stops(c) == [0] * 5
+    assert full_stops(run("corridor", 'smoothing.seam="rest"', "smoothing.horizon=4").continuous)[0] > 5
+    assert c.makespan_s < 35.0
+    for tr in c.trajectories:  # continuous up to jerk at every knot, window seams included
+        assert np.abs(seam_jumps(tr, 3)).max() < 1e-6
 
 
-def test_unsafe_chords_are_unpruned():
-    """Robot 0's valid path (0,0)->(1,1)->(2,1)->(3,1) prunes to the chord (0,0)->(3,1), which
-    passes 2/3 cell from robot 1 standing at (2,0) (though it crosses no trajectory): unsafe."""
-    free = np.ones((8, 8), bool)
-    r0 = [(0, 0), (1, 1), (2, 1), (3, 1)]
-    paths = np.array([[a, (2, 0)] for a in r0])
-    assert discrete_violations(paths, free) == []
-    kept, unpruned = safe_pruning(paths, free, 3)
-    assert unpruned == 1 and kept[0].tolist() == [0, 1, 2, 3]
-    far = np.array([[a, (6, 6)] for a in r0])
-    kept, unpruned = safe_pruning(far, free, 3)
-    assert unpruned == 0 and kept[0].tolist() == [0, 3]
-
-
-@pytest.mark.parametrize("seam", ["rest", "continuous"])
-def test_seam_modes(seam):
-    r = run("corridor", f'smoothing.seam="{seam}"')
-    c = r.continuous
-    execution_points = [c.knot_times[w.c] for w in c.windows if w.c < len(c.knot_times) - 1]
-    assert len(execution_points) > 5
+def test_rest_seams_stop_at_every_execution_point():
+    c = run("corridor", 'smoothing.seam="rest"', "smoothing.horizon=4").continuous
+    points = [c.knot_times[w.c] for w in c.windows if w.c < len(c.knot_times) - 1]
+    assert len(points) > 5
     for tr in c.trajectories:
-        jumps = seam_jumps(tr, 3)  # (pieces - 1, 4): |jump| of derivatives 0..3 at each interior knot
-        assert np.abs(jumps).max() < 1e-4
-        speed = np.hypot(*tr.evaluate(np.array(execution_points), derivative=1).T)
-        if seam == "rest":
-            assert speed.max() < 1e-5  # the paper's stop-start at every execution point
-    if seam == "continuous":
-        allv = np.concatenate([np.hypot(*tr.evaluate(np.array(execution_points), derivative=1).T)
-                               for tr in c.trajectories])
-        assert allv.max() > 0.1  # the swarm does not stop at every execution point
+        assert np.hypot(*tr.evaluate(np.array(points), derivative=1).T).max() < 1e-5
+        assert np.abs(seam_jumps(tr, 3)).max() < 1e-6
+
+
+def test_time_refinement_flies_faster():
+    base = run("corridor").continuous
+    fast = run("corridor", "smoothing.time_refinement=true").continuous
+    assert fast.certificate.ok and any(w.refined for w in fast.windows)
+    assert fast.makespan_s < 0.9 * base.makespan_s
 
 
 def test_uav_csv_exports_evaluate_back(tmp_path):
@@ -124,7 +105,9 @@ def test_uav_csv_exports_evaluate_back(tmp_path):
     assert header.startswith("duration,x^0,") and header.endswith("yaw^7")
     for f in ("trajectories.png", "distances.png", "robot_xy.png"):
         assert (out / "figures" / f).stat().st_size > 5000
-    assert res["min_separation_continuous"] >= 0.5 and res["achieved"]["v_max"] <= res["limits"]["v_max"]
+    assert res["certificate"]["ok"] and res["safety_distance_m"] == 0.5
+    assert res["min_separation_continuous"] >= res["certificate"]["separation_lower_bound_m"] >= 0.5
+    assert res["achieved"]["v_max"] <= res["limits"]["v_max"]
 
 
 def test_progress_is_quiet_off_a_terminal(tmp_path, capsys):
@@ -138,14 +121,18 @@ def test_progress_is_quiet_off_a_terminal(tmp_path, capsys):
     ("smoothing.execution=0", r"smoothing.execution = 0(\.0)?: must be in \(0, 1\]"),
     ("smoothing.execution=1.5", r"smoothing.execution = 1.5: must be in \(0, 1\]"),
     ('smoothing.seam="smooth"', r"smoothing.seam = 'smooth': must be one of rest, continuous"),
-    ("smoothing.corridor=0.3", r"smoothing.corridor = 0.3"),
+    ("smoothing.corridor=0.3", r"config key smoothing.corridor was removed: .*smoothing.region_growth"),
+    ("smoothing.safety_distance=0.5", r"smoothing.safety_distance was removed: .*scenario.robot_radius"),
+    ("smoothing.region_growth=-1", r"smoothing.region_growth = -1(\.0)?: must be >= 0"),
+    ("smoothing.check_rate_hz=50", r"smoothing.check_rate_hz = 50(\.0)?: must be 0 \(off\) or >= 100"),
+    ("scenario.robot_radius=0.5", r"scenario.robot_radius = 0.5 m must be below half a cell \(0.5 m on this map\)"),
+    ("scenario.robot_radius=0", r"scenario.robot_radius = 0(\.0)?: must be > 0"),
     ('smoothing.backend="nope"', r"unknown QP backend 'nope'"),
 ])
 def test_bad_smoothing_settings(override, pattern, tmp_path, capsys):
     rc = main(["run", str(EXP / "free5.toml"), "--out", str(tmp_path / "o"), "--set", override])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1
-    import re
     assert re.search(pattern, err[0]), err[0]
 
 
@@ -174,17 +161,36 @@ def test_a_swarm_that_cannot_move(tmp_path, capsys):
 def test_receding_horizon_windows_cover_the_steps():
     r = run("corridor", "smoothing.enabled=false")
     for seam, H, E in [("rest", 4, 0.5), ("continuous", 4, 0.5), ("continuous", 6, 0.34), ("rest", 3, 1.0)]:
-        cfg = r.config.smoothing.__class__(**{**r.config.smoothing.__dict__, "seam": seam, "horizon": H,
-                                              "execution": E})
-        rh = RecedingHorizon(r.discrete.paths, r.scenario.grid, cfg)
-        wins = rh.windows()
+        cfg = SmoothingConfig(seam=seam, horizon=H, execution=E)
+        wins = RecedingHorizon(r.discrete.paths, r.scenario.grid, cfg, 0.25).windows()
         assert wins[0][0] == 0 and wins[-1][1] == r.discrete.n_steps
         for (a, c, b), (a2, _, _) in zip(wins, wins[1:]):
             assert a < c <= b and c == a2 and (b == c if seam == "rest" else b <= a + H)
 
 
+def test_a_solver_that_returns_garbage_is_caught_and_the_flight_stays_safe(monkeypatch):
+    """Guard: every window is certified, not trusted. A QP backend returning a perturbed solution
+    makes the windows fall back (down to the rest-to-rest witness), and the flight is still certified."""
+    import solvers.qp
+
+    real = solvers.qp.solve
+
+    def noisy(problem, backend, options=None, **kw):
+        sol = real(problem, backend, options, **kw)
+        x = sol.x + np.random.default_rng(len(sol.x)).normal(scale=2.0, size=sol.x.shape)
+        return type(sol)(**{**sol.__dict__, "x": x})
+
+    monkeypatch.setattr(solvers.qp, "solve", noisy)
+    r = plan(mrfswarm.load_config(EXP / "free5.toml", NO_SIM))
+    c = r.continuous
+    assert "witness" in {w.attempt for w in c.windows}
+    failed = [f for w in c.windows for f in w.failed]
+    assert any("not proven apart" in f or "leaves its region" in f or "control points reach" in f for f in failed)
+    assert c.certificate.ok and c.min_separation >= 0.5
+
+
 def test_plans_in_threads_agree():
-    """Compiled formulations are shared per shape; threads planning at once must not interfere."""
+    """Formulations and compiled pieces are shared; threads planning at once must not interfere."""
     import concurrent.futures as cf
 
     cfg = mrfswarm.load_config(EXP / "corridor.toml", NO_SIM)
@@ -195,3 +201,22 @@ def test_plans_in_threads_agree():
     for c in outs:
         assert c.makespan_s == pytest.approx(ref.makespan_s)
         np.testing.assert_allclose(c.positions(t), ref.positions(t), atol=1e-6)
+
+
+def test_control_points_stay_in_their_regions():
+    r = run("blocks")
+    c = r.continuous
+    cps = np.stack([control_points(tr) for tr in c.trajectories], axis=1)  # (T, N, D+1, 2)
+    assert c.regions.violation(cps).max() == 0.0
+
+
+def test_a_discrete_move_that_cuts_a_corner_is_refused():
+    """Guard: regions are checked against the map, so a discrete move closer than the radius to a wall stops the run."""
+    from mrfswarm.errors import UnsafeTrajectoryError
+    from mrfswarm.maps import OccupancyGrid
+
+    occ = np.zeros((5, 4), bool)
+    occ[1, 0] = True
+    paths = np.array([[[0, 0]], [[2, 1]], [[3, 1]]])  # (0,0) -> (2,1) passes 0.22 cell from cell (1, 0)
+    with pytest.raises(UnsafeTrajectoryError, match=r"robot 0's safe region in step 0 comes 0.\d+ m from an obstacle"):
+        RecedingHorizon(paths, OccupancyGrid.from_occupied(occ), SmoothingConfig(), 0.25)

@@ -76,6 +76,9 @@ FIGURES: tuple[Figure, ...] = (
            ("fig5_mrf_steps.png",), "snapshots"),
     Figure("fig6", "Fig. 6a-h: final discrete, smoothed and receding-horizon trajectories of the four scenarios",
            ("fig6_trajectories.png",), "trajectories"),
+    Figure("fig6_seams", "Extra to Fig. 6g: the corridor smoothed with the paper's rest-to-rest seams, ours, and "
+           "ours with refined step durations (paths, speeds, makespan, stops, snap)",
+           ("fig6_seams.png",), "trajectories"),
     Figure("fig7", "Fig. 7a-c: robot positions over time, swarm size against k_a and k_r, corridor distances",
            ("fig7_robots_size_distances.png",), "studies"),
     Figure("fig8", "Fig. 8a/b: swarm-energy convergence, time per MRF step against N and n",

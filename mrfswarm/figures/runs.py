@@ -25,12 +25,16 @@ SCENARIOS = ("free5", "free10", "corridor", "blocks")
 
 #: How the continuous stage is run:
 #: ``discrete``: no smoothing; ``single``: one min-snap window over the whole discrete
-#: path (Fig. 6e, f: "optimized trajectories"); ``rhp``: the paper's receding horizon
-#: (4 steps planned, 50 % executed, rest at the seams; Fig. 6g, h).
+#: path (Fig. 6e, f: "optimized trajectories"); ``paper``: the paper's receding horizon
+#: (4 steps planned, 50 % executed, rest at the seams); ``default``: ours (safe regions,
+#: 8 steps planned, 50 % executed, continuous up to jerk at the seams; Fig. 6g, h);
+#: ``refined``: ours with the step durations refined by the NLP.
 SMOOTHING: dict[str, tuple[str, ...]] = {
     "discrete": ("smoothing.enabled=false",),
     "single": ("smoothing.horizon=100000", "smoothing.execution=1.0"),
-    "rhp": (),
+    "paper": ('smoothing.seam="rest"', "smoothing.horizon=4", "smoothing.execution=0.5"),
+    "default": (),
+    "refined": ("smoothing.time_refinement=true",),
 }
 
 
@@ -49,7 +53,7 @@ def experiment_config(name: str, overrides: tuple[str, ...] = ()) -> Config:
 
 
 @lru_cache(maxsize=None)
-def scenario_run(name: str, smoothing: str = "rhp", overrides: tuple[str, ...] = (), seed: int | None = None) -> Result:
+def scenario_run(name: str, smoothing: str = "default", overrides: tuple[str, ...] = (), seed: int | None = None) -> Result:
     """Plan ``experiments/<name>.toml`` (cached).
 
     Parameters

@@ -2,8 +2,10 @@
 
 - Fig. 6 (a)-(d): final discrete trajectories of free5, free10, corridor and blocks;
   (e)(f): free5 and free10 smoothed in one min-snap window ("optimized trajectories");
-  (g)(h): corridor and blocks smoothed in the paper's receding horizon (4 MRF steps
-  planned, 50 % executed, at rest at the seams: the "stop-start" sharp edges).
+  (g)(h): corridor and blocks smoothed in the receding horizon (ours: safe regions,
+  continuous seams). ``fig6_seams``: the corridor flown three ways, the paper's
+  receding horizon (4 steps planned, 50 % executed, at rest at the seams: its
+  "stop-start" sharp edges), ours, and ours with refined step durations.
 - Fig. 1: the blocks flight in 3-D (the paper's is a Gazebo render; ours draws the
   smoothed trajectories at the flight altitude among the blocks).
 - Fig. 7a/7c numbers: robot positions and the minimum and average inter-robot
@@ -14,7 +16,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +29,9 @@ from mrfswarm.figures.runs import SCENARIOS, discrete_run, scenario_run
 from mrfswarm.pipeline import Result
 
 #: How each scenario is smoothed in Fig. 6 (e)-(h) (a key of ``runs.SMOOTHING``).
-SMOOTHED = {"free5": "single", "free10": "single", "corridor": "rhp", "blocks": "rhp"}
+SMOOTHED = {"free5": "single", "free10": "single", "corridor": "default", "blocks": "default"}
+#: The corridor's continuous-stage variants of ``fig6_seams``.
+VARIANTS = ("paper", "default", "refined")
 #: Samples per second of flight for the time series.
 RATE_HZ = 20.0
 #: Speed (m/s) under which a robot counts as stopped.
@@ -102,15 +106,15 @@ class TimeSeries:
         return out
 
 
-def time_series(name: str, rate_hz: float = RATE_HZ) -> TimeSeries:
-    """The smoothed flight of a scenario sampled at ``rate_hz``."""
-    r = smoothed_run(name)
+def time_series(name: str, rate_hz: float = RATE_HZ, smoothing: str | None = None) -> TimeSeries:
+    """The smoothed flight of a scenario sampled at ``rate_hz`` (Fig. 6's smoothing unless given)."""
+    r = scenario_run(name, smoothing or SMOOTHED[name])
     c = r.continuous
     t = np.linspace(0.0, c.makespan_s, int(c.makespan_s * rate_hz) + 1)
     pos = c.positions(t)
     dmin, dmean = separation_series(t, pos)
-    safety = r.config.smoothing.safety_distance * r.scenario.grid.resolution
-    return TimeSeries(t=t, positions=pos, min_distance=dmin, mean_distance=dmean, safety=safety)
+    return TimeSeries(t=t, positions=pos, min_distance=dmin, mean_distance=dmean,
+                      safety=2 * r.config.scenario.robot_radius)
 
 
 def corridor_series() -> TimeSeries:
@@ -134,7 +138,7 @@ def nearest_distances(points: np.ndarray) -> np.ndarray:
     return D.min(axis=1)
 
 
-@lru_cache(maxsize=None)
+@cache
 def formation_census(seeds: int = CENSUS_SEEDS) -> dict:
     """The shapes free5's swarm converges to over start seeds 0..seeds-1, and its steps."""
     shapes, steps = [], []
@@ -167,8 +171,8 @@ def scenario_numbers(name: str) -> dict:
         "smoothing": SMOOTHED[name],
         "makespan_s": c.makespan_s,
         "windows": len(c.windows),
-        "min_separation_continuous_m": float(c.check.min_separation),
-        "min_obstacle_clearance_continuous_m": None if c.check.min_clearance is None else float(c.check.min_clearance),
+        "min_separation_continuous_m": float(c.min_separation),
+        "min_obstacle_clearance_continuous_m": None if c.min_clearance is None else float(c.min_clearance),
         "v_max": c.v_max,
         "stops_per_robot": ts.stops().tolist(),
     }
@@ -230,13 +234,82 @@ def make_fig6(out: Path, quick: bool = False) -> list[Path]:
                 what += ", at goal" if r.metrics.reached_goal else ", goal NOT reached"
             plots.panel_title(axes[0, j], "abcd"[j], f"{name}: {what}")
             _smooth_panel(axes[1, j], r)
-            how = "smoothed, one window" if SMOOTHED[name] == "single" else "smoothed, receding horizon"
+            how = "smoothed, one window" if SMOOTHED[name] == "single" else "receding horizon"
             plots.panel_title(axes[1, j], "efgh"[j], f"{name} {how}: {r.continuous.makespan_s:.1f} s flight")
             axes[0, j].legend(loc="upper left", fontsize=7.5, framealpha=0.9)
         fig.suptitle("Fig. 6: final discrete trajectories (a-d; n = 2, ICM), min-snap smoothed (e, f) and smoothed "
-                     "with receding-horizon planning (g, h; H = 4 steps, 50 % executed, at rest at the seams)\n"
+                     "with receding-horizon planning (g, h; ours: safe regions, H = 8 steps, 50 % executed, "
+                     "continuous seams;\nthe paper's rest-to-rest seams are compared in fig6_seams.png)   "
                      "green: start, blue: end, grey: obstacles, dotted: discrete paths")
         return [plots.save_figure(fig, Path(out) / "fig6_trajectories.png", dpi=90)]
+
+
+def variant_numbers(name: str = "corridor") -> dict:
+    """Per continuous-stage variant of ``name``: makespan, stops, snap, separation, clearance, planning time."""
+    from mrfswarm.trajectory import integral_squared_derivative
+
+    out = {}
+    for v in VARIANTS:
+        r = scenario_run(name, v)
+        c = r.continuous
+        ts = time_series(name, 100.0, v)
+        lengths = np.linalg.norm(np.diff(ts.positions, axis=0), axis=-1).sum(axis=0)
+        bound = float(lengths.max()) / r.config.smoothing.v_max
+        out[v] = {
+            "makespan_s": round(c.makespan_s, 2),
+            "makespan_over_lower_bound": round(c.makespan_s / bound, 2),
+            "stops_per_robot": ts.stops().tolist(),
+            "snap_integral": round(float(sum(integral_squared_derivative(tr, 4) for tr in c.trajectories)), 1),
+            "min_separation_m": round(c.min_separation, 3),
+            "min_obstacle_clearance_m": None if c.min_clearance is None else round(c.min_clearance, 3),
+            "v_a_j_max": [round(c.v_max, 2), round(c.a_max, 2), round(c.j_max, 2)],
+            "planning_s": round(c.timings["smoothing"] + c.timings["checking"] + c.timings["regions"], 2),
+            "certified": c.certificate.ok,
+        }
+    return out
+
+
+def make_fig6_seams(out: Path, quick: bool = False) -> list[Path]:
+    """Write ``fig6_seams.png``: the corridor smoothed by the paper's receding horizon, ours, and ours refined."""
+    nums = variant_numbers("corridor")
+    titles = {"paper": "paper: rest at every seam (H = 4, 50 %)", "default": "ours: safe regions, continuous seams",
+              "refined": "ours + step durations refined (NLP)"}
+    plt = plots._plt()
+    with plots.paper_style():
+        fig = plt.figure(figsize=(17, 9.5), layout="constrained")
+        gs = fig.add_gridspec(2, 3, height_ratios=[1.35, 1])
+        speed_ax = fig.add_subplot(gs[1, :])
+        for j, v in enumerate(VARIANTS):
+            r = scenario_run("corridor", v)
+            ax = fig.add_subplot(gs[0, j])
+            _smooth_panel(ax, r)
+            ax.set_xlim(0, 40)
+            ax.set_ylim(8, 32)
+            n = nums[v]
+            plots.panel_title(ax, "abc"[j], f"{titles[v]}\n{n['makespan_s']:.1f} s, stops per robot "
+                              f"{max(n['stops_per_robot'])}, snap {n['snap_integral']:.0f}, "
+                              f"min separation {n['min_separation_m']:.2f} m")
+            ts = time_series("corridor", 50.0, v)
+            sp = ts.speeds()
+            color = ("tab:red", "tab:blue", "tab:green")[j]
+            speed_ax.plot(ts.t[1:], sp, color=color, lw=0.9, alpha=0.8)
+            speed_ax.plot([], [], color=color, lw=2, label=f"{titles[v]}: {n['makespan_s']:.1f} s")
+        speed_ax.axhline(scenario_run("corridor", "default").config.smoothing.v_max, color="0.3", ls=":",
+                         label="v_max")
+        speed_ax.set_xlabel("time [s]")
+        speed_ax.set_ylabel("speed of each robot [m/s]")
+        speed_ax.grid(alpha=0.3)
+        speed_ax.legend(fontsize=9, loc="upper right")
+        plots.panel_title(speed_ax, "d", "speed over time: the paper's seams stop the swarm every 2 steps; "
+                          "ours do not")
+        fig.suptitle("Corridor (5 robots): the continuous stage three ways (goes beyond the paper). All three are "
+                     "certified: control points in safe regions, separation >= 0.5 m, v, a, j within limits")
+        return [plots.save_figure(fig, Path(out) / "fig6_seams.png", dpi=90)]
+
+
+def numbers_fig6_seams(quick: bool = False) -> dict:
+    """The numbers behind ``fig6_seams``, for ``measured.json``."""
+    return variant_numbers("corridor")
 
 
 def flight_3d(quick: bool = False) -> tuple[np.ndarray, str, Result]:
@@ -270,14 +343,14 @@ def make_authors(out: Path, quick: bool = False) -> list[Path]:
     with plots.paper_style():
         fig, axes = plt.subplots(2, 2, figsize=(11, 11), layout="constrained")
         for j, name in enumerate(AUTHORS):
-            r = scenario_run(name, "rhp")
+            r = scenario_run(name, "default")
             _discrete_panel(axes[0, j], r)
             goal = "at goal" if r.metrics.reached_goal else "goal NOT reached"
             plots.panel_title(axes[0, j], "ab"[j], f"{name}: N = {r.scenario.n_robots}, k = {r.config.interaction.k}, "
                               f"{r.discrete.n_steps} steps ({r.discrete.stop_reason}), {goal}")
             axes[0, j].legend(loc="upper left", fontsize=7.5, framealpha=0.9)
             _smooth_panel(axes[1, j], r)
-            sep = r.continuous.check.min_separation
+            sep = r.continuous.min_separation
             plots.panel_title(axes[1, j], "cd"[j], f"{name} smoothed, receding horizon: "
                               f"{r.continuous.makespan_s:.0f} s, min separation {sep:.2f} m")
         fig.suptitle("Extra (not a paper figure): the authors' own swarm sizes, 10 drones in the corridor and 12 among "
@@ -289,14 +362,14 @@ def numbers_authors(quick: bool = False) -> dict:
     """The numbers behind the authors' swarm sizes, for ``measured.json``."""
     out = {}
     for name in AUTHORS:
-        r = scenario_run(name, "rhp")
+        r = scenario_run(name, "default")
         final = r.discrete.paths[-1]
         out[name] = {
             "n_robots": r.scenario.n_robots, "k": r.config.interaction.k, "mrf_steps": r.discrete.n_steps,
             "stop_reason": r.discrete.stop_reason, "reached_goal": r.metrics.reached_goal,
             "final_goal_distance_m": r.metrics.final_goal_distance,
             "min_separation_discrete_m": r.metrics.min_separation,
-            "min_separation_continuous_m": float(r.continuous.check.min_separation),
+            "min_separation_continuous_m": float(r.continuous.min_separation),
             "final_cells_distinct": len({tuple(c) for c in final.tolist()}) == len(final),
             "makespan_s": r.continuous.makespan_s,
         }

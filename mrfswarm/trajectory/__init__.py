@@ -11,6 +11,7 @@ Usable on its own, like the uav_trajectories tool:
 
 Modules, one job each:
 
+- :mod:`~mrfswarm.trajectory.bernstein`: Bernstein control points of pieces and derivatives;
 - :mod:`~mrfswarm.trajectory.polynomial`: :class:`PiecewisePolynomial` (evaluation,
   sampling, concatenation, time scaling) and the polynomial algebra;
 - :mod:`~mrfswarm.trajectory.problem`: :class:`MinSnapProblem` (validated data, shape);

@@ -45,20 +45,21 @@ from functools import lru_cache
 
 import numpy as np
 
+from mrfswarm.trajectory.bernstein import tau_control_points
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial
 from solvers.errors import InvalidProblem, SolverError
 
 log = logging.getLogger(__name__)
 
 
-def _piece_maxima(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Exact max over tau in [0, 1] of ||p(tau)|| for a stack of vector polynomials.
+def piece_extrema(c: np.ndarray, minimum: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Exact max (or min) over tau in [0, 1] of ||p(tau)|| for a stack of vector polynomials.
 
     ``c`` is (P, n, dim) coefficients in increasing power of tau. With s = sum_d p_d^2,
-    the maximum is at tau = 0, 1 or a real root of s' in (0, 1); the roots of all pieces
+    the extremum is at tau = 0, 1 or a real root of s' in (0, 1); the roots of all pieces
     are the eigenvalues of their companion matrices, computed in one stacked call. A
     fixed grid of 33 points is added to the candidates (guarding degenerate leading
-    coefficients). Returns the maxima (P,) and the tau where each occurs.
+    coefficients). Returns the extrema (P,) and the tau where each occurs.
     """
     P, n, _ = c.shape
     s = np.zeros((P, 2 * n - 1))
@@ -82,22 +83,40 @@ def _piece_maxima(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         tau = grid
     V = tau[:, :, None] ** np.arange(n)[None, None, :]  # (P, C, n)
     vals = np.linalg.norm(np.einsum("pck,pkd->pcd", V, c), axis=-1)
-    j = np.argmax(vals, axis=1)
+    j = np.argmin(vals, axis=1) if minimum else np.argmax(vals, axis=1)
     return vals[np.arange(P), j], tau[np.arange(P), j]
 
 
 def max_derivative_norms(trajectories: list[PiecewisePolynomial], order: int) -> np.ndarray:
-    """Exact maxima over time of :math:`\|\sigma^{(r)}(t)\|`, one per trajectory (vectorized)."""
+    r"""Exact maxima over time of :math:`\|\sigma^{(r)}(t)\|`, one per trajectory (vectorized)."""
     cs = [tr.derivative(order).tau_coefficients() for tr in trajectories]  # values in tau equal values in t
     n = max(c.shape[1] for c in cs)
     stack = np.concatenate([np.pad(c, ((0, 0), (0, n - c.shape[1]), (0, 0))) for c in cs])
-    vals, _ = _piece_maxima(stack)
+    vals, _ = piece_extrema(stack)
     ends = np.cumsum([c.shape[0] for c in cs])
     return np.array([v.max() for v in np.split(vals, ends[:-1])])
 
 
+def max_derivative_norm_all(trajectories: list[PiecewisePolynomial], order: int) -> float:
+    r"""Exact maximum over all ``trajectories`` and times of :math:`\|\sigma^{(r)}(t)\|`.
+
+    Only pieces whose control-point bound (the largest control-point norm, an upper bound
+    on the piece's maximum) exceeds the largest sampled value (a lower bound on the
+    answer) are solved exactly, so the cost is a few evaluations per piece.
+    """
+    c = np.concatenate([tr.derivative(order).tau_coefficients() for tr in trajectories])  # (P, n, dim)
+    tau = np.linspace(0.0, 1.0, 9)
+    sampled = np.linalg.norm(np.einsum("sk,pkd->psd", tau[:, None] ** np.arange(c.shape[1]), c), axis=-1).max()
+    bound = np.linalg.norm(tau_control_points(c), axis=-1).max(axis=1)
+    keep = bound >= sampled
+    if not keep.any():
+        return float(sampled)
+    vals, _ = piece_extrema(c[keep])
+    return float(max(sampled, vals.max()))
+
+
 def max_derivative_norm(trajectory: PiecewisePolynomial, order: int) -> tuple[float, float]:
-    """The exact maximum over time of :math:`\|\sigma^{(r)}(t)\|` and a time where it occurs.
+    r"""The exact maximum over time of :math:`\|\sigma^{(r)}(t)\|` and a time where it occurs.
 
     Parameters
     ----------
@@ -111,7 +130,7 @@ def max_derivative_norm(trajectory: PiecewisePolynomial, order: int) -> tuple[fl
     value : float
     time : float
     """
-    vals, tau = _piece_maxima(trajectory.derivative(order).tau_coefficients())
+    vals, tau = piece_extrema(trajectory.derivative(order).tau_coefficients())
     i = int(np.argmax(vals))
     return float(vals[i]), float(trajectory.knots[i] + tau[i] * trajectory.durations[i])
 

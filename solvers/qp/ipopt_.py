@@ -137,9 +137,13 @@ class IpoptNLP:
     quadratic
         Declare ``f`` quadratic and ``g`` linear in ``x`` (constant Hessian and Jacobian,
         evaluated once per solve). Only set it when true: Ipopt trusts it.
+    expand
+        Expand ``MX`` expressions into ``SX`` before solving (faster evaluations of
+        expressions built from many small operations; costs memory for large graphs).
     """
 
-    def __init__(self, x, f, g=None, p=None, options: Options | None = None, *, quadratic: bool = False) -> None:
+    def __init__(self, x, f, g=None, p=None, options: Options | None = None, *, quadratic: bool = False,
+                 expand: bool = False) -> None:
         import casadi as ca
 
         self.options = options or Options()
@@ -151,7 +155,10 @@ class IpoptNLP:
         self.n = int(x.numel())
         self.ng = 0 if g is None else int(g.numel())
         self.np = 0 if p is None else int(p.numel())
-        self._solver = ca.nlpsol("mrfswarm_nlp", "ipopt", nlp, _settings(self.options, quadratic))
+        settings = _settings(self.options, quadratic)
+        if expand:
+            settings["expand"] = True
+        self._solver = ca.nlpsol("mrfswarm_nlp", "ipopt", nlp, settings)
 
     def solve(
         self,

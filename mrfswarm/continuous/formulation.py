@@ -1,0 +1,474 @@
+"""The window problem of the continuous stage, formulated once with CasADi symbols.
+
+Variables. Robot g's trajectory over the window's M steps is one polynomial piece of
+degree D per step, written in the Hermite basis of
+:mod:`mrfswarm.trajectory.formulation`: the variables are the derivatives
+:math:`0..q-1` of the trajectory at every knot (shared by the two pieces that meet there,
+so continuity up to order q - 1, jerk for min-snap, holds by construction) plus, for
+D > 2q - 1, "bubble" coefficients per piece. Units: metres relative to the robot's
+discrete position at the window start, and a time unit :math:`T_s` (the window's
+geometric-mean step duration), so that every variable has the size of a position.
+
+The symbolic piece (:class:`PieceMaps`, compiled once per degree and derivative). For a
+piece of normalized duration :math:`\\tilde T` with local variables z, CasADi expresses
+
+- the Bernstein control points of position, velocity, acceleration and jerk,
+  :math:`K_r(\\tilde T)\\, z` (:mod:`mrfswarm.trajectory.bernstein`), linear in z;
+- the snap cost :math:`\\tilde T^{1-2q} c^\\top H c = \\tfrac12 z^\\top H_c(\\tilde T) z`.
+
+Their coefficients, as functions of :math:`\\tilde T` only, are the single source of the
+window problem. The window (:class:`WindowFormulation`) is assembled from them by fixed
+sparse maps: every nonzero of the cost matrix P and constraint matrix A is a linear
+combination of those coefficients, ``P.data = S_P k(T)``, ``A.data = S_A k(T)``, with
+``k(T)`` the stacked piece coefficients of the window's steps. The rows are
+
+- the region of every robot and step: ``lower <= axes @ P_m <= upper`` for every
+  control point (:mod:`mrfswarm.continuous.regions`);
+- every relative safe corridor: ``n . (P_m^g - P_m^h) >= d_safe``;
+- the limits: every velocity, acceleration and jerk control point inside a regular
+  octagon inscribed in the disc of radius ``v_max`` (``a_max``, ``j_max``), so the
+  derivative's norm stays below the limit for all t;
+- the window's ends: the start state (position and derivatives 1..q-1) and rest at the
+  end position.
+
+All region, corridor and limit rows are tightened by ``margin`` (metres, or a relative
+``margin`` on limits) so that a solution within a solver's tolerance still satisfies the
+untightened constraints that the certificate checks.
+
+With the step durations fixed, ``k(T)`` is a number and the problem a QP for any backend
+of :mod:`solvers.qp` (:meth:`WindowFormulation.qp`). With the durations as variables,
+the same maps applied to CasADi symbols give an NLP (:meth:`WindowFormulation.refine_time`):
+snap plus a weight times the window's duration, solved by Ipopt. Durations are shared by
+all robots (one time grid) and every constraint is indexed by step, not by time, so the
+constraints stay valid whatever durations the NLP picks.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+
+from mrfswarm.continuous.regions import Regions
+from mrfswarm.trajectory.bernstein import difference_matrix, monomial_to_bernstein
+from mrfswarm.trajectory.formulation import hermite_basis
+from mrfswarm.trajectory.polynomial import PiecewisePolynomial, cost_hessian, tau_to_time
+from solvers.qp import QPProblem
+
+log = logging.getLogger(__name__)
+
+#: Derivative orders whose control points are bounded: velocity, acceleration, jerk.
+LIMIT_ORDERS = (1, 2, 3)
+#: Directions of the octagon's faces; its inner radius is cos(pi/8) of the disc's.
+OCTAGON = np.array([[1.0, 0.0], [0.0, 1.0], [math.sqrt(0.5), math.sqrt(0.5)], [math.sqrt(0.5), -math.sqrt(0.5)]])
+OCTAGON_INNER = math.cos(math.pi / 8)
+
+
+class PieceMaps:
+    """The symbolic piece: control points and cost coefficients as functions of its duration.
+
+    Parameters
+    ----------
+    degree, derivative
+        Polynomial degree D and minimized derivative q (D >= 2q - 1, D >= 3).
+
+    Attributes
+    ----------
+    nz
+        Local variables per piece and dimension: 2q knot derivatives and D + 1 - 2q bubbles.
+    offset
+        (nz,) position of each local variable relative to the piece's first variable (the
+        layout of :mod:`mrfswarm.trajectory.formulation`: y_j, b_j, y_{j+1}).
+    rpow
+        (nz,) derivative order of each local variable (0 for bubbles).
+    size
+        Length of one piece's coefficient vector ``k``.
+    """
+
+    def __init__(self, degree: int, derivative: int) -> None:
+        import casadi as ca
+
+        D, q = degree, derivative
+        if D < max(3, 2 * q - 1):
+            raise ValueError(f"degree {D} must be >= max(3, 2q - 1) = {max(3, 2 * q - 1)}")
+        herm, bub = hermite_basis(D, q)
+        self.degree, self.derivative = D, q
+        self.E = np.hstack([herm, bub])
+        self.nz = self.E.shape[1]
+        nb = self.nz - 2 * q
+        self.stride = q + nb
+        self.offset = np.concatenate([np.arange(q), self.stride + np.arange(q), q + np.arange(nb)])
+        self.rpow = np.concatenate([np.arange(q), np.arange(q), np.zeros(nb, dtype=int)])
+        T = ca.SX.sym("T")
+        z = ca.SX.sym("z", self.nz)
+        scale = ca.vertcat(*[T ** int(p) for p in self.rpow])
+        c = ca.mtimes(ca.DM(self.E), scale * z)
+        P = ca.mtimes(ca.DM(monomial_to_bernstein(D)), c)
+        blocks, self.rows, self.k_offset = [], [], []
+        start = 0
+        for r in range(4):
+            Kr = ca.densify(ca.jacobian(ca.mtimes(ca.DM(difference_matrix(D, r)), P) / T**r, z))
+            blocks.append(ca.vec(Kr))
+            self.rows.append(D + 1 - r)
+            self.k_offset.append(start)
+            start += (D + 1 - r) * self.nz
+        cost = T ** (1 - 2 * q) * ca.mtimes([c.T, ca.DM(cost_hessian(D, q)), c])
+        Hc = ca.densify(ca.hessian(cost, z)[0])
+        blocks.append(ca.vec(Hc))
+        self.h_offset = start
+        self.size = start + self.nz * self.nz
+        self.function = ca.Function("bernstein_piece", [T], [ca.vertcat(*blocks)])
+        self._maps: dict[int, object] = {}
+        self._lock = threading.Lock()
+        # structural nonzeros: exact zeros at two unrelated durations are zeros for all
+        k = np.asarray(self.function(0.73)).ravel() != 0
+        k |= np.asarray(self.function(1.61)).ravel() != 0
+        self.masks = [k[o:o + rows * self.nz].reshape(self.nz, rows).T for o, rows in zip(self.k_offset, self.rows)]
+        self.h_mask = k[self.h_offset:].reshape(self.nz, self.nz)
+
+    def mapped(self, M: int):
+        """``function`` mapped over M pieces (cached)."""
+        with self._lock:
+            if M not in self._maps:
+                self._maps[M] = self.function.map(M)
+            return self._maps[M]
+
+    def evaluate(self, durations: np.ndarray) -> np.ndarray:
+        """The window's stacked coefficients ``k`` for normalized ``durations`` (M,), plus a final 1."""
+        d = np.asarray(durations, dtype=float).reshape(1, -1)
+        out = np.asarray(self.mapped(d.shape[1])(d))  # (size, M)
+        return np.concatenate([out.ravel(order="F"), [1.0]])
+
+    def symbolic(self, durations):
+        """The same as :meth:`evaluate` for a CasADi column of durations."""
+        import casadi as ca
+
+        M = durations.numel()
+        out = self.mapped(M)(durations.T)
+        return ca.vertcat(ca.reshape(out, self.size * M, 1), 1)
+
+    def k_index(self, piece, order: int, m, a):
+        """Index into ``k`` of control point m's coefficient of local variable a (order r)."""
+        return piece * self.size + self.k_offset[order] + a * self.rows[order] + m
+
+    def h_index(self, piece, a, b):
+        """Index into ``k`` of the cost coefficient (a, b) (symmetric: the lower pair is used)."""
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        return piece * self.size + self.h_offset + hi * self.nz + lo
+
+    def tau_coefficients(self, z: np.ndarray, durations: np.ndarray) -> np.ndarray:
+        """(M, D+1, dim) tau-coefficients from local variables ``z`` (M, nz, dim) and durations (M,)."""
+        scale = durations[:, None] ** self.rpow[None, :]
+        return np.einsum("ka,ma,mad->mkd", self.E, scale, z)
+
+
+@lru_cache(maxsize=8)
+def piece_maps(degree: int, derivative: int) -> PieceMaps:
+    """The compiled :class:`PieceMaps` of a degree and derivative (built on first use)."""
+    return PieceMaps(degree, derivative)
+
+
+@dataclass(frozen=True)
+class WindowSpec:
+    """Everything one window problem depends on, in plain arrays (picklable).
+
+    Attributes
+    ----------
+    degree, derivative
+        Polynomial degree and minimized derivative.
+    regions
+        The robots' regions over the window's M steps (shape (M, G, ...)).
+    pair_step, pair_first, pair_second, pair_normal
+        Relative safe corridors: step within the window, local robot indices, unit normal.
+    distance
+        Safety distance (metres).
+    start
+        (G, q, 2) physical derivatives 0..q-1 at the window's start (positions absolute).
+    end
+        (G, 2) where each robot comes to rest at the window's end.
+    origin
+        (G, 2) the robots' discrete positions at the window's start (the local frame).
+    limits
+        (v_max, a_max, j_max).
+    time_scale
+        The time unit T_s (seconds).
+    margin
+        Tightening of region and corridor rows (metres); limits are tightened by the
+        same relative amount.
+    limit_mask
+        (M, G, 3) bool: which (step, robot, derivative order) get limit rows (None: all).
+        The window loop adds them lazily, where a solution without them exceeds a limit.
+    """
+
+    degree: int
+    derivative: int
+    regions: Regions
+    pair_step: np.ndarray
+    pair_first: np.ndarray
+    pair_second: np.ndarray
+    pair_normal: np.ndarray
+    distance: float
+    start: np.ndarray
+    end: np.ndarray
+    origin: np.ndarray
+    limits: tuple[float, float, float]
+    time_scale: float
+    margin: float = 1e-6
+    limit_mask: np.ndarray | None = None
+
+    @property
+    def steps(self) -> int:
+        return self.regions.steps
+
+    @property
+    def robots(self) -> int:
+        return self.regions.robots
+
+
+def _sparse_map(rows: np.ndarray, cols: np.ndarray, kidx: np.ndarray, coef: np.ndarray, shape: tuple[int, int],
+                n_k: int) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
+    """CSC pattern of a matrix whose entry (rows[e], cols[e]) sums coef[e] * k[kidx[e]], and the map k -> data."""
+    key = cols.astype(np.int64) * shape[0] + rows.astype(np.int64)
+    uniq, inv = np.unique(key, return_inverse=True)
+    indices = (uniq % shape[0]).astype(np.int32)
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(uniq // shape[0], minlength=shape[1]))]).astype(np.int32)
+    S = sp.csr_matrix((coef, (inv, kidx)), shape=(len(uniq), n_k))
+    return indices, indptr, S
+
+
+class WindowFormulation:
+    """The window problem of one group of robots, assembled once per window.
+
+    Parameters
+    ----------
+    spec
+        The window's data.
+    """
+
+    def __init__(self, spec: WindowSpec) -> None:
+        self.spec = spec
+        pm = self.maps = piece_maps(spec.degree, spec.derivative)
+        M, G, D, q, nz = spec.steps, spec.robots, spec.degree, spec.derivative, pm.nz
+        self.per_dim = (M + 1) * pm.stride - (pm.stride - q)  # y_0, b_0, ..., y_M
+        self.n = 2 * G * self.per_dim
+        n_k = M * pm.size + 1
+        const = M * pm.size
+        Ts = spec.time_scale
+        reg = spec.regions
+        origin = np.asarray(spec.origin, dtype=float)
+        rows, cols, kidx, coef, lo, hi = [], [], [], [], [], []
+        n_rows = 0
+
+        def col(g, d, j, a):
+            return (g * 2 + d) * self.per_dim + j * pm.stride + pm.offset[a]
+
+        def add(shape_rows: tuple, r_idx, c_idx, k_idx, cf, keep, lower, upper):
+            nonlocal n_rows
+            full = np.broadcast_shapes(*(np.shape(v) for v in (r_idx, c_idx, k_idx, cf, keep)))
+            keep = np.broadcast_to(keep, full)
+            for lst, v in ((rows, r_idx), (cols, c_idx), (kidx, k_idx), (coef, cf)):
+                lst.append(np.broadcast_to(v, keep.shape)[keep])
+            rows[-1] = rows[-1] + n_rows
+            lo.append(np.broadcast_to(lower, shape_rows).ravel())
+            hi.append(np.broadcast_to(upper, shape_rows).ravel())
+            n_rows += int(np.prod(shape_rows))
+
+        # regions: rows (j, g, m, k); entries over (d, a)
+        J, Gi, Mm, Kk, Dd, Aa = np.ix_(np.arange(M), np.arange(G), np.arange(D + 1), np.arange(2), np.arange(2),
+                                       np.arange(nz))
+        shape_r = (M, G, D + 1, 2)
+        ridx = ((J * G + Gi) * (D + 1) + Mm) * 2 + Kk
+        cf = reg.axes[J, Gi, Kk, Dd]
+        shift = np.einsum("mgka,ga->mgk", reg.axes, origin)[:, :, None, :]
+        add(shape_r, ridx, col(Gi, Dd, J, Aa), pm.k_index(J, 0, Mm, Aa), cf, pm.masks[0][Mm, Aa] & (cf != 0),
+            reg.lower[:, :, None, :] - shift + spec.margin, reg.upper[:, :, None, :] - shift - spec.margin)
+        # limits: rows (j, g, m, direction) per order
+        for r, lim in zip(LIMIT_ORDERS, spec.limits):
+            R = D + 1 - r
+            J, Gi, Mm, Kk, Dd, Aa = np.ix_(np.arange(M), np.arange(G), np.arange(R), np.arange(4), np.arange(2),
+                                           np.arange(nz))
+            bound = lim * Ts**r * OCTAGON_INNER * (1 - spec.margin)
+            cf = OCTAGON[Kk, Dd]
+            on = np.ones((M, G), dtype=bool) if spec.limit_mask is None else spec.limit_mask[:, :, r - 1]
+            J, Gi = (v[on] for v in np.meshgrid(np.arange(M), np.arange(G), indexing="ij"))
+            J, Gi = J[:, None, None, None, None], Gi[:, None, None, None, None]
+            ridx = (np.arange(len(J))[:, None, None, None, None] * R + Mm[0]) * 4 + Kk[0]
+            add((len(J), R, 4), ridx, col(Gi, Dd[0], J, Aa[0]), pm.k_index(J, r, Mm[0], Aa[0]), cf[0],
+                pm.masks[r][Mm[0], Aa[0]] & (cf[0] != 0), -bound, bound)
+        # relative safe corridors: rows (pair, m)
+        P = len(spec.pair_step)
+        if P:
+            pj, pf, ps, nrm = spec.pair_step, spec.pair_first, spec.pair_second, spec.pair_normal
+            Pi, Mm, Dd, Aa = np.ix_(np.arange(P), np.arange(D + 1), np.arange(2), np.arange(nz))
+            ridx = Pi * (D + 1) + Mm
+            keep = pm.masks[0][Mm, Aa] & (nrm[Pi, Dd] != 0)
+            offs = ((origin[pf] - origin[ps]) * nrm).sum(-1)[:, None]
+            first_rows = n_rows
+            add((P, D + 1), ridx, col(pf[Pi], Dd, pj[Pi], Aa), pm.k_index(pj[Pi], 0, Mm, Aa), nrm[Pi, Dd], keep,
+                spec.distance + spec.margin - offs, np.inf)
+            n_rows = first_rows  # the second robot's entries share the same rows
+            add((0,), ridx, col(ps[Pi], Dd, pj[Pi], Aa), pm.k_index(pj[Pi], 0, Mm, Aa), -nrm[Pi, Dd], keep, 0.0, 0.0)
+            n_rows = first_rows + P * (D + 1)
+        # ends: the start state and rest at the end
+        start = np.asarray(spec.start, dtype=float).copy()  # (G, q, 2)
+        start[:, 0] -= origin
+        start *= (Ts ** np.arange(q))[None, :, None]
+        end = np.zeros_like(start)
+        end[:, 0] = np.asarray(spec.end, dtype=float) - origin
+        for knot, val in ((0, start), (M, end)):
+            Gi, Rr, Dd = np.ix_(np.arange(G), np.arange(q), np.arange(2))
+            c_idx = (Gi * 2 + Dd) * self.per_dim + knot * pm.stride + Rr
+            add((G, q, 2), ((Gi * q + Rr) * 2 + Dd), c_idx, const, 1.0, True, val, val)
+        self._fixed = np.concatenate([
+            ((np.arange(G)[:, None, None] * 2 + np.arange(2)[None, None, :]) * self.per_dim + knot * pm.stride
+             + np.arange(q)[None, :, None]).ravel() for knot in (0, M)])
+        self._fixed_values = np.concatenate([start.ravel(), end.ravel()])
+        self.m = n_rows
+        rows_a, cols_a = np.concatenate(rows), np.concatenate(cols)
+        self._A = _sparse_map(rows_a, cols_a, np.concatenate(kidx), np.concatenate(coef), (self.m, self.n), n_k)
+        self.l, self.u = np.concatenate(lo), np.concatenate(hi)
+        # cost: blocks (g, d, j) of the symmetric piece Hessian
+        Gi, Dd, J, Aa, Bb = np.ix_(np.arange(G), np.arange(2), np.arange(M), np.arange(nz), np.arange(nz))
+        keep = np.broadcast_to(pm.h_mask[Aa, Bb], (G, 2, M, nz, nz))
+        self._P = _sparse_map(np.broadcast_to(col(Gi, Dd, J, Aa), keep.shape)[keep],
+                              np.broadcast_to(col(Gi, Dd, J, Bb), keep.shape)[keep],
+                              np.broadcast_to(pm.h_index(J, Aa, Bb), keep.shape)[keep],
+                              np.ones(int(keep.sum())), (self.n, self.n), n_k)
+
+    # ------------------------------------------------------------------ QP
+    def normalized(self, durations: np.ndarray) -> np.ndarray:
+        """Durations (seconds) in the window's time unit."""
+        return np.asarray(durations, dtype=float) / self.spec.time_scale
+
+    def qp(self, durations: np.ndarray) -> QPProblem:
+        """The QP for step ``durations`` (seconds, (M,))."""
+        k = self.maps.evaluate(self.normalized(durations))
+        (ai, ap, SA), (pi, pp, SP) = self._A, self._P
+        A = sp.csc_matrix((SA @ k, ai, ap), shape=(self.m, self.n))
+        P = sp.csc_matrix((SP @ k, pi, pp), shape=(self.n, self.n))
+        return QPProblem(P=P, q=np.zeros(self.n), A=A, l=self.l, u=self.u)
+
+    def objective(self, x: np.ndarray, durations: np.ndarray) -> float:
+        """The snap integral (physical units) of solution ``x`` at ``durations``."""
+        k = self.maps.evaluate(self.normalized(durations))
+        pi, pp, SP = self._P
+        P = sp.csc_matrix((SP @ k, pi, pp), shape=(self.n, self.n))
+        return float(0.5 * x @ (P @ x)) * self.spec.time_scale ** (1 - 2 * self.spec.derivative)
+
+    def robot_objectives(self, x: np.ndarray, durations: np.ndarray) -> np.ndarray:
+        """(G,) each robot's snap integral (physical units) in solution ``x``."""
+        k = self.maps.evaluate(self.normalized(durations))
+        pi, pp, SP = self._P
+        P = sp.csc_matrix((SP @ k, pi, pp), shape=(self.n, self.n))
+        per_var = 0.5 * x * (P @ x)  # P is block diagonal per robot
+        scale = self.spec.time_scale ** (1 - 2 * self.spec.derivative)
+        return per_var.reshape(self.spec.robots, -1).sum(axis=1) * scale
+
+    def exact_ends(self, x: np.ndarray) -> np.ndarray:
+        """``x`` with its start state and end rest set exactly (a solver meets them only to tolerance)."""
+        x = np.array(x, dtype=float)
+        x[self._fixed] = self._fixed_values
+        return x
+
+    # ------------------------------------------------------------------ variables
+    def unpack(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Physical knot derivatives (G, M+1, q, 2) (positions absolute) and bubbles (G, M, nb, 2)."""
+        spec, pm = self.spec, self.maps
+        M, G, q = spec.steps, spec.robots, spec.derivative
+        X = np.asarray(x, dtype=float).reshape(G, 2, self.per_dim)
+        full = np.concatenate([X, np.zeros((G, 2, pm.stride - q))], axis=2).reshape(G, 2, M + 1, pm.stride)
+        Y = full[..., :q].transpose(0, 2, 3, 1) / (spec.time_scale ** np.arange(q))[None, None, :, None]
+        Y[:, :, 0] += np.asarray(spec.origin)[:, None, :]
+        B = full[:, :, :M, q:].transpose(0, 2, 3, 1)
+        return Y, B
+
+    def pack(self, Y: np.ndarray, B: np.ndarray) -> np.ndarray:
+        """The inverse of :meth:`unpack`."""
+        spec, pm = self.spec, self.maps
+        M, G, q = spec.steps, spec.robots, spec.derivative
+        Yn = np.array(Y, dtype=float)
+        Yn[:, :, 0] -= np.asarray(spec.origin)[:, None, :]
+        Yn *= (spec.time_scale ** np.arange(q))[None, None, :, None]
+        full = np.zeros((G, 2, M + 1, pm.stride))
+        full[..., :q] = Yn.transpose(0, 3, 1, 2)
+        full[:, :, :M, q:] = np.asarray(B, dtype=float).transpose(0, 3, 1, 2)
+        return full.reshape(G, 2, -1)[:, :, :self.per_dim].reshape(-1)
+
+    # ------------------------------------------------------------------ NLP
+    def refine_time(self, x0: np.ndarray, durations: np.ndarray, free: np.ndarray, weight: float,
+                    bounds: tuple[np.ndarray, np.ndarray], options=None):
+        """Durations as variables: minimize snap + ``weight`` * (sum of the free durations) with Ipopt.
+
+        Parameters
+        ----------
+        x0
+            A feasible point at ``durations`` (the QP's solution), the warm start.
+        durations
+            (M,) seconds; those not ``free`` stay fixed.
+        free
+            (M,) bool.
+        weight
+            Cost per second of flight, per robot of the window (physical units of snap
+            per second).
+        bounds
+            (lower, upper) seconds for the free durations.
+
+        options
+            Ipopt's tolerances and iteration cap.
+
+        Returns
+        -------
+        tuple
+            ``(x, durations, result)`` with the NLP's last point and durations and the
+            :class:`~solvers.qp.ipopt_.NLPResult`. The problem is not convex (durations
+            multiply the coefficients), so Ipopt may stop at its iteration cap; its last
+            durations are still a candidate (the caller re-solves the QP there and keeps
+            what is cheaper).
+        """
+        import casadi as ca
+
+        from solvers.qp.ipopt_ import IpoptNLP
+
+        spec = self.spec
+        Ts, q = spec.time_scale, spec.derivative
+        M = spec.steps
+        free = np.asarray(free, dtype=bool)
+        nf = int(free.sum())
+        z = ca.MX.sym("z", self.n)
+        tf = ca.MX.sym("T", nf)
+        fixed = np.where(free, 0.0, self.normalized(durations))
+        sel = np.zeros((M, nf))
+        sel[np.flatnonzero(free), np.arange(nf)] = 1.0
+        t_all = ca.DM(fixed) + ca.mtimes(ca.DM(sel), tf)
+        k = self.maps.symbolic(t_all)
+        (ai, ap, SA), (pi, pp, SP) = self._A, self._P
+        sA = ca.Sparsity(self.m, self.n, ap.tolist(), ai.tolist())
+        sP = ca.Sparsity(self.n, self.n, pp.tolist(), pi.tolist())
+        A = ca.MX(sA, ca.mtimes(ca.DM(SA), k))
+        P = ca.MX(sP, ca.mtimes(ca.DM(SP), k))
+        # snap in the window's units is Ts^(1-2q) times smaller than in physical ones
+        w = weight * spec.robots * Ts ** (2 * q)
+        f = 0.5 * ca.bilin(P, z, z) + w * ca.sum1(tf)
+        nlp = IpoptNLP(ca.vertcat(z, tf), f, ca.mtimes(A, z), options=options, expand=True)
+        lo_t, hi_t = (self.normalized(b)[free] for b in bounds)
+        xinit = np.concatenate([x0, self.normalized(durations)[free]])
+        res = nlp.solve(xinit, lbx=np.concatenate([np.full(self.n, -np.inf), lo_t]),
+                        ubx=np.concatenate([np.full(self.n, np.inf), hi_t]), lbg=self.l, ubg=self.u)
+        out = np.array(durations, dtype=float)
+        out[free] = res.x[self.n:] * Ts
+        return res.x[:self.n], out, res
+
+
+def hermite_trajectory(Y: np.ndarray, B: np.ndarray, durations: np.ndarray, degree: int,
+                       derivative: int) -> PiecewisePolynomial:
+    """The piecewise polynomial with knot derivatives ``Y`` (M+1, q, dim) and bubbles ``B`` (M, nb, dim)."""
+    pm = piece_maps(degree, derivative)
+    T = np.asarray(durations, dtype=float)
+    z = np.concatenate([Y[:-1], Y[1:], B], axis=1)  # (M, nz, dim), local order of PieceMaps
+    c = pm.tau_coefficients(z, T)
+    return PiecewisePolynomial(T, tau_to_time(c, T))

@@ -1,0 +1,547 @@
+"""The window loop: receding-horizon smoothing on safe regions, every window certified.
+
+Windows. With horizon H and execution fraction e, E = round(e H) steps are executed per
+window. ``seam = "continuous"`` (default): window [a, a + H] starts in the state
+(position and derivatives up to q - 1, jerk for min-snap) the previous window's
+trajectory has at step a and ends at rest on the discrete position of step a + H; its
+first E steps are flown and the next window starts at a + E, so the flight is
+continuous up to jerk with no stop inside it. ``seam = "rest"`` (the paper's variant):
+window [a, a + E] from rest to rest on the discrete positions.
+
+Each window is the problem of :mod:`mrfswarm.continuous.formulation` over its steps:
+regions, relative safe corridors and limit octagons on Bernstein control points. Robots
+linked by no corridor in the window are independent problems (one QP per interaction
+group). Step durations are chosen per window (nominal: longest move over ``speed``) and
+fixed once a step is flown.
+
+Recursive feasibility. Let the previous window have planned up to step b' (ending at rest
+on the discrete position there). Its trajectory over [a, b'], followed by every robot's
+own discrete move flown rest to rest on the new steps, satisfies every constraint of the
+new window once the new steps last at least the witness durations
+(:func:`~mrfswarm.continuous.time_grid.witness_durations`). So a window is tried at
+nominal durations; then with the previous window's durations on the overlap; then with
+the new steps slowed (x1.5 at a time) up to the witness durations; and if the solver
+still fails, the witness itself is flown. A window therefore never fails for lack of a
+feasible point; only a certificate that rejects the witness (a bug) stops a run, loudly.
+
+Certification. Every accepted window, and the assembled flight, is certified by
+:func:`~mrfswarm.continuous.certificate.certify_pieces` (regions, relative hulls,
+limits: exact, on control points); the regions' clearance from obstacles is checked once.
+Dense sampling (``smoothing.check_rate_hz``) is an optional independent check.
+
+Time refinement (``smoothing.time_refinement``): after a window is accepted, the same
+formulation with the window's step durations as variables (snap + ``time_weight`` x
+duration, Ipopt) is warm-started from the QP's solution; the QP at the refined durations
+is accepted if it certifies and lowers that cost.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import solvers.qp
+from mrfswarm.config import SmoothingConfig
+from mrfswarm.continuous.certificate import Certificate, certify, certify_pieces
+from mrfswarm.continuous.formulation import (
+    OCTAGON,
+    OCTAGON_INNER,
+    WindowFormulation,
+    WindowSpec,
+    hermite_trajectory,
+    piece_maps,
+)
+from mrfswarm.continuous.regions import (
+    Regions,
+    Separations,
+    build_regions,
+    interaction_groups,
+    region_clearance,
+    separations,
+)
+from mrfswarm.continuous.time_grid import nominal_durations, witness_durations
+from mrfswarm.continuous_check import SampledCheck, check_positions, sample_times
+from mrfswarm.errors import UnsafeTrajectoryError
+from mrfswarm.maps import OccupancyGrid
+from mrfswarm.maps.obstacles import ObstacleIndex
+from mrfswarm.trajectory import PiecewisePolynomial
+from mrfswarm.trajectory.bernstein import tau_control_points
+from mrfswarm.trajectory.retiming import max_derivative_norm_all
+from solvers.errors import SolverError
+from solvers.qp import Options as QPOptions
+
+log = logging.getLogger(__name__)
+
+#: Tightening of the QP's region and corridor rows (metres) and, relatively, of its limits.
+MARGIN = 1e-6
+#: The nominal time grid speeds up and slows down at this fraction of a_max.
+NOMINAL_ACCELERATION = 0.25
+#: Ipopt's settings for time refinement (a local improvement: its last iterate is a candidate).
+NLP_OPTIONS = QPOptions(eps_abs=1e-6, eps_rel=1e-6, max_iter=150)
+#: Rounds of lazy constraint generation before every row is switched on.
+MAX_ROUNDS = 12
+#: Limits that need steps this many times slower than nominal are refused as unreachable.
+MAX_SLOWDOWN = 1e3
+#: Factor by which new steps are slowed per attempt after the nominal ones fail.
+SLOWDOWN = 1.5
+
+
+@dataclass
+class WindowRecord:
+    """One planning window: steps a..b planned, a..c flown.
+
+    Attributes
+    ----------
+    attempt
+        What was flown: ``"nominal"``, ``"previous"`` (the previous window's durations on
+        the overlap), ``"slower xF"`` or ``"witness"``.
+    failed
+        Why the attempts before it were rejected.
+    rounds
+        QP solves of the lazy constraint generation (over all attempts).
+    active_pairs
+        Relative safe corridors switched on in the accepted solution.
+    refined
+        The time refinement was accepted.
+    cost
+        Snap integral of the window's accepted solution (all robots).
+    durations
+        The accepted step durations of the whole window (seconds).
+    """
+
+    a: int
+    c: int
+    b: int
+    attempt: str = ""
+    failed: list[str] = field(default_factory=list)
+    rounds: int = 0
+    active_pairs: int = 0
+    refined: bool = False
+    cost: float = 0.0
+    solve_s: float = 0.0
+    durations: np.ndarray | None = None
+
+
+@dataclass
+class ContinuousPlan:
+    """The smooth trajectories of every robot and what the continuous stage proved and measured.
+
+    Attributes
+    ----------
+    trajectories
+        One 2-D :class:`PiecewisePolynomial` per robot, one piece per discrete step, all on
+        the time grid ``knot_times``.
+    knot_times
+        (T + 1,) the time each discrete step is reached.
+    regions, separations
+        The safe regions and relative safe corridors the trajectories were planned in.
+    windows
+        One record per planning window.
+    certificate
+        The certificate of the whole flight.
+    v_max, a_max, j_max
+        Exact maxima over all robots of speed, acceleration and jerk.
+    min_separation
+        Exact smallest distance between two robots over the flight (metres).
+    min_clearance
+        Smallest distance from a robot's centre to an occupied cell, sampled (metres; None
+        without obstacles nearby).
+    sampled
+        The optional dense sampled check (None unless ``smoothing.check_rate_hz`` > 0).
+    timings
+        Seconds per part: regions, smoothing, checking.
+    """
+
+    trajectories: list[PiecewisePolynomial]
+    knot_times: np.ndarray
+    regions: Regions
+    separations: Separations
+    windows: list[WindowRecord]
+    certificate: Certificate
+    v_max: float
+    a_max: float
+    j_max: float
+    min_separation: float
+    min_clearance: float | None
+    sampled: SampledCheck | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def makespan_s(self) -> float:
+        return float(self.knot_times[-1])
+
+    def positions(self, times: np.ndarray) -> np.ndarray:
+        """(S, N, 2) every robot's position at ``times``."""
+        return np.stack([tr.evaluate(times) for tr in self.trajectories], axis=1)
+
+
+@dataclass
+class _Solution:
+    """A window's trajectories: knot derivatives (N, M+1, q, 2), bubbles (N, M, nb, 2), durations (M,)."""
+
+    Y: np.ndarray
+    B: np.ndarray
+    durations: np.ndarray
+    cost: float = 0.0
+
+
+class RecedingHorizon:
+    """Smooths discrete paths window by window on one common time grid.
+
+    Parameters
+    ----------
+    paths
+        (T + 1, N, 2) discrete paths in cells.
+    grid
+        The occupancy grid.
+    cfg
+        The smoothing settings.
+    radius
+        Robot radius (metres); the safety distance is twice it.
+    backend
+        QP backend name for every solve (default ``cfg.backend``).
+    qp_options
+        Options of every QP solve.
+
+    Raises
+    ------
+    SolverNotFound
+        An unknown or missing QP backend.
+    UnsafeTrajectoryError
+        A region closer than the robot radius to an obstacle (the discrete plan breaks its
+        motion rule).
+    """
+
+    def __init__(self, paths: np.ndarray, grid: OccupancyGrid, cfg: SmoothingConfig, radius: float,
+                 backend: str | None = None, qp_options: QPOptions | None = None) -> None:
+        t0 = time.perf_counter()
+        self.paths = np.asarray(paths, dtype=np.int64)
+        self.grid, self.cfg = grid, cfg
+        self.backend = backend or cfg.backend
+        solvers.qp.BACKENDS.get(self.backend)  # an unknown or missing backend fails now
+        self.qp_options = qp_options or QPOptions(eps_abs=1e-7, eps_rel=1e-7, max_iter=50000)
+        self.T, self.N = len(self.paths) - 1, self.paths.shape[1]
+        self.E = max(1, round(cfg.execution * cfg.horizon))
+        self.radius = float(radius)
+        self.distance = 2 * self.radius
+        self.limits = (cfg.v_max, cfg.a_max, cfg.j_max)
+        self.X = grid.cell_to_world(self.paths)
+        self.index = ObstacleIndex(grid)
+        self.regions = build_regions(self.paths, grid, self.radius, cfg.region_growth, self.index)
+        clearance = region_clearance(self.regions, grid, 2 * self.radius)
+        if self.T and clearance.min() < self.radius:
+            j, i = np.unravel_index(int(np.argmin(clearance)), clearance.shape)
+            raise UnsafeTrajectoryError(f"robot {i}'s safe region in step {j} comes {clearance[j, i]:.3f} m from "
+                                        f"an obstacle (radius {self.radius:g} m): the discrete move is unsafe")
+        self.seps = separations(self.X, self.regions, self.distance)
+        self.nominal = nominal_durations(self.paths, grid.resolution, cfg.speed, NOMINAL_ACCELERATION * cfg.a_max)
+        self.witness = np.maximum(self.nominal, witness_durations(
+            self.paths, grid.resolution, self.limits, cfg.degree, cfg.derivative, MARGIN))
+        slow = self.witness / np.maximum(self.nominal, 1e-12)
+        if self.T and slow.max() > MAX_SLOWDOWN:
+            raise UnsafeTrajectoryError(
+                f"no timing meets v_max = {cfg.v_max:g} m/s, a_max = {cfg.a_max:g} m/s^2 and j_max = {cfg.j_max:g} m/s^3 "
+                f"within {MAX_SLOWDOWN:g} times the nominal step durations (step {int(np.argmax(slow))} would need "
+                f"{self.witness.max():.3g} s)")
+        # rows switched on by lazy constraint generation (grow over the run)
+        self.active = np.zeros(len(self.seps), dtype=bool)
+        self.limit_rows = np.zeros((self.T, self.N, 3), dtype=bool)
+        self.regions_s = time.perf_counter() - t0
+        self._check_s = 0.0
+
+    # ------------------------------------------------------------------ windows
+    def windows(self) -> list[tuple[int, int, int]]:
+        """(a, c, b) of every window: steps a..b planned, a..c flown."""
+        out, a = [], 0
+        while a < self.T:
+            c = min(a + self.E, self.T)
+            b = c if self.cfg.seam == "rest" else min(a + self.cfg.horizon, self.T)
+            out.append((a, c, b))
+            a = c
+        return out
+
+    def _spec(self, a: int, b: int, robots: np.ndarray, start: np.ndarray, pairs: np.ndarray) -> WindowSpec:
+        """The problem data of ``robots`` over steps a..b with the corridors ``pairs`` (indices into the plan's)."""
+        cfg = self.cfg
+        local = np.full(self.N, -1)
+        local[robots] = np.arange(len(robots))
+        seps = self.seps.select(pairs)
+        return WindowSpec(
+            degree=cfg.degree, derivative=cfg.derivative, regions=self.regions.window(a, b, robots),
+            pair_step=seps.step - a, pair_first=local[seps.first], pair_second=local[seps.second],
+            pair_normal=seps.normal, distance=self.distance, start=start[robots], end=self.X[b, robots],
+            origin=self.X[a, robots], limits=self.limits, time_scale=float(np.exp(np.log(self.nominal[a:b]).mean())),
+            margin=MARGIN, limit_mask=self.limit_rows[a:b, robots])
+
+    def _solve(self, a: int, b: int, start: np.ndarray, durations: np.ndarray,
+               rec: WindowRecord) -> tuple[_Solution | None, str]:
+        """The window's QP at ``durations``, its corridor and limit rows added lazily.
+
+        A round solves the robots whose constraint set changed (robots linked by the
+        active corridors are solved together, so independent groups decouple); the
+        corridors and limit octagons that the solution violates are then switched on, and
+        the next round re-solves the groups they touch. When nothing is violated the
+        solution is optimal for the whole window problem (it solves a relaxation and is
+        feasible). Sets grow monotonically over the run, so later windows start with the
+        rows found active before.
+        """
+        q, pm, M = self.cfg.derivative, piece_maps(self.cfg.degree, self.cfg.derivative), b - a
+        Y = np.zeros((self.N, M + 1, q, 2))
+        B = np.zeros((self.N, M, pm.nz - 2 * q, 2))
+        cost = np.zeros(self.N)
+        cand = np.flatnonzero((self.seps.step >= a) & (self.seps.step < b))
+        seps = self.seps.select(cand)
+        todo = np.ones(self.N, dtype=bool)
+        for rnd in range(MAX_ROUNDS + 1):
+            if rnd == MAX_ROUNDS:  # never happens in practice; every row on ends the loop
+                self.active[cand] = True
+                self.limit_rows[a:b] = True
+                todo[:] = True
+            on = cand[self.active[cand] & todo[seps.first] & todo[seps.second]]
+            robots = np.flatnonzero(todo)
+            form = WindowFormulation(self._spec(a, b, robots, start, on))
+            try:
+                sol = solvers.qp.solve(form.qp(durations), self.backend, self.qp_options)
+            except SolverError as e:
+                return None, f"{len(robots)} robots: {e}"
+            rec.rounds += 1
+            x = form.exact_ends(sol.x)
+            Y[robots], B[robots] = form.unpack(x)
+            cost[robots] = form.robot_objectives(x, durations)
+            cps = self._control_points(Y, B, durations)
+            # corridors: n . (P_i - P_k) >= d (+ half the margin: what the solver must reach)
+            gap = np.einsum("pmk,pk->pm", cps[0][seps.first, seps.step - a] - cps[0][seps.second, seps.step - a],
+                            seps.normal).min(axis=1)
+            new_pairs = (gap < self.distance + MARGIN / 2) & ~self.active[cand]
+            new_limits = np.zeros((M, self.N, 3), dtype=bool)
+            for r, lim in zip((1, 2, 3), self.limits):
+                proj = np.abs(cps[r] @ OCTAGON.T).max(axis=(2, 3))  # (N, M)
+                new_limits[:, :, r - 1] = (proj.T > lim * OCTAGON_INNER * (1 - MARGIN / 2)) & ~self.limit_rows[a:b, :, r - 1]
+            if not new_pairs.any() and not new_limits.any():
+                rec.active_pairs = int(self.active[cand].sum())
+                return _Solution(Y, B, durations, float(cost.sum())), ""
+            self.active[cand[new_pairs]] = True
+            self.limit_rows[a:b] |= new_limits
+            touched = np.zeros(self.N, dtype=bool)
+            touched[seps.first[new_pairs]] = touched[seps.second[new_pairs]] = True
+            touched |= new_limits.any(axis=(0, 2))
+            groups = interaction_groups(self.N, seps.select(self.active[cand]))
+            todo = np.zeros(self.N, dtype=bool)
+            for g in groups:
+                if touched[g].any():
+                    todo[g] = True
+        return None, "constraint generation did not settle"  # unreachable: the last round has every row
+
+    def _control_points(self, Y: np.ndarray, B: np.ndarray, durations: np.ndarray) -> list[np.ndarray]:
+        """[P, V, A, J] control points (N, M, K_r, 2) of knot derivatives ``Y`` and bubbles ``B``."""
+        pm = piece_maps(self.cfg.degree, self.cfg.derivative)
+        z = np.concatenate([Y[:, :-1], Y[:, 1:], B], axis=2)  # (N, M, nz, 2)
+        scale = durations[:, None] ** pm.rpow[None, :]
+        c = np.einsum("ka,ma,nmad->nmkd", pm.E, scale, z)
+        T = durations[None, :, None, None]
+        return [tau_control_points(c, r) / T**r for r in range(4)]
+
+    def _certify(self, sol: _Solution, a: int) -> Certificate:
+        tic = time.perf_counter()
+        cps = self._control_points(sol.Y, sol.B, sol.durations)
+        out = certify_pieces(cps, self.regions.window(a, a + len(sol.durations)), self.distance, self.limits)
+        self._check_s += time.perf_counter() - tic
+        return out
+
+    def _witness(self, a: int, b: int, durations: np.ndarray, prev: tuple | None) -> _Solution:
+        """Every robot's discrete move rest to rest, after the previous window's plan where it reaches."""
+        q, pm = self.cfg.derivative, piece_maps(self.cfg.degree, self.cfg.derivative)
+        M = b - a
+        Y = np.zeros((self.N, M + 1, q, 2))
+        Y[:, :, 0] = self.X[a:b + 1].transpose(1, 0, 2)
+        B = np.zeros((self.N, M, pm.nz - 2 * q, 2))
+        if prev is not None:
+            pa, pb, psol = prev
+            Y[:, :pb - a + 1] = psol.Y[:, a - pa:]
+            B[:, :pb - a] = psol.B[:, a - pa:]
+        return _Solution(Y, B, durations)
+
+    def _plan_window(self, a: int, c: int, b: int, start: np.ndarray, prev: tuple | None) -> tuple[_Solution, WindowRecord]:
+        rec = WindowRecord(a=a, c=c, b=b)
+        tic = time.perf_counter()
+        nominal, slow = self.nominal[a:b], self.witness[a:b]
+        attempts = [("nominal", nominal)]
+        overlap, base = 0, nominal
+        if prev is not None:
+            pa, pb, psol = prev
+            overlap = pb - a
+            base = np.concatenate([psol.durations[a - pa:], nominal[overlap:]])
+            attempts.append(("previous", base))
+        # slow the new steps down until every one lasts its witness duration
+        target = np.maximum(slow[overlap:], nominal[overlap:])
+        factor = 1.0
+        while np.any(base[overlap:] * factor < target):
+            factor *= SLOWDOWN
+            attempts.append((f"slower x{factor:.3g}",
+                             np.concatenate([base[:overlap], np.minimum(base[overlap:] * factor, target)])))
+        chosen = None
+        for name, durations in attempts:
+            sol, why = self._solve(a, b, start, durations, rec)
+            if sol is not None:
+                cert = self._certify(sol, a)
+                if cert.ok:
+                    chosen, rec.attempt = sol, name
+                    break
+                why = "; ".join(cert.problems[:2])
+            rec.failed.append(f"{name}: {why}")
+            log.info("window %d..%d, %s durations rejected: %s", a, b, name, why)
+        if chosen is None:
+            durations = np.concatenate([base[:overlap], target])
+            chosen = self._witness(a, b, durations, prev)
+            cert = self._certify(chosen, a)
+            if not cert.ok:
+                raise UnsafeTrajectoryError(f"steps {a}..{b}: even the rest-to-rest witness is not certified "
+                                            f"({'; '.join(cert.problems[:2])}); attempts: {'; '.join(rec.failed)}")
+            rec.attempt = "witness"
+        if self.cfg.time_refinement and rec.attempt != "witness":
+            chosen = self._refine(chosen, a, start, rec)
+        rec.cost, rec.durations = chosen.cost, chosen.durations
+        rec.solve_s = time.perf_counter() - tic
+        return chosen, rec
+
+    def _refine(self, sol: _Solution, a: int, start: np.ndarray, rec: WindowRecord) -> _Solution:
+        """Durations as variables (Ipopt, all robots: one time grid), warm-started at ``sol``.
+
+        The NLP carries the corridor and limit rows found active. Its last iterate is kept
+        if it certifies (the certificate checks every corridor and limit, active or not)
+        and lowers snap + ``time_weight`` x duration (per robot); failing that, the QP at
+        its durations is tried the same way.
+        """
+        M = len(sol.durations)
+        b = a + M
+        weight = self.cfg.time_weight
+        on = np.flatnonzero(self.active & (self.seps.step >= a) & (self.seps.step < b))
+        form = WindowFormulation(self._spec(a, b, np.arange(self.N), start, on))
+        bounds = (np.maximum(0.2 * self.nominal[a:b], 1e-3), 2 * np.maximum(self.witness[a:b], self.nominal[a:b]))
+        x, durations, res = form.refine_time(form.pack(sol.Y, sol.B), sol.durations, np.ones(M, dtype=bool), weight,
+                                             bounds, NLP_OPTIONS)
+        if not np.all(np.isfinite(durations) & (durations > 0)):
+            log.info("window %d..%d: time refinement failed (%s)", a, b, res.raw_status)
+            return sol
+        # Ipopt's last iterate (interior point: feasible in practice), else the QP at its durations
+        x = form.exact_ends(x)
+        Y, B = form.unpack(x)
+        new = _Solution(Y, B, durations, float(form.robot_objectives(x, durations).sum()))
+        if not self._certify(new, a).ok:
+            new, why = self._solve(a, b, start, durations, rec)
+            if new is None or not self._certify(new, a).ok:
+                log.info("window %d..%d: refined durations not certified (%s)", a, b, why or "certificate")
+                return sol
+        if new.cost + weight * self.N * durations.sum() < sol.cost + weight * self.N * sol.durations.sum():
+            rec.refined = True
+            return new
+        return sol
+
+    # ------------------------------------------------------------------ run
+    def run(self, on_window: Callable[[WindowRecord], None] | None = None) -> ContinuousPlan:
+        """Plan every window; returns the assembled, certified trajectories."""
+        cfg, N, T = self.cfg, self.N, self.T
+        q, pm = cfg.derivative, piece_maps(cfg.degree, cfg.derivative)
+        tic = time.perf_counter()
+        if T == 0:  # nobody moved: hover in place for a moment
+            hover = [PiecewisePolynomial([1.0], np.concatenate(
+                [self.X[0, i][None, None, :], np.zeros((1, cfg.degree, 2))], axis=1)) for i in range(N)]
+            return self._finish(hover, np.array([0.0, 1.0]), [], tic)
+        Y = np.zeros((T + 1, N, q, 2))
+        Y[0, :, 0] = self.X[0]
+        B = np.zeros((T, N, pm.nz - 2 * q, 2))
+        durations = np.zeros(T)
+        records, prev = [], None
+        for a, c, b in self.windows():
+            sol, rec = self._plan_window(a, c, b, Y[a], prev)
+            Y[a:c + 1] = sol.Y[:, :c - a + 1].transpose(1, 0, 2, 3)
+            B[a:c] = sol.B[:, :c - a].transpose(1, 0, 2, 3)
+            durations[a:c] = sol.durations[:c - a]
+            prev = (a, b, sol) if c < b else None
+            records.append(rec)
+            if on_window is not None:
+                on_window(rec)
+        trajectories = [hermite_trajectory(Y[:, i], B[:, i], durations, cfg.degree, q) for i in range(N)]
+        knots = np.concatenate([[0.0], np.cumsum(durations)])
+        return self._finish(trajectories, knots, records, tic)
+
+    def _finish(self, trajectories: list[PiecewisePolynomial], knots: np.ndarray, records: list[WindowRecord],
+                tic: float) -> ContinuousPlan:
+        smoothing_s = time.perf_counter() - tic - self._check_s
+        t0 = time.perf_counter()
+        regions = self.regions if self.T else _hover_regions(self.X[0], self.radius)
+        cert = certify(trajectories, knots, regions, self.distance, self.limits)
+        if not cert.ok:  # each window was certified; the whole must be too (a bug otherwise, never a silent output)
+            raise UnsafeTrajectoryError(f"assembled trajectories not certified: {cert.problems[0]}")
+        v, acc, jerk = (max_derivative_norm_all(trajectories, k) for k in (1, 2, 3))
+        min_sep = exact_min_separation(trajectories, 2 * self.grid.resolution)
+        clearance = sampled_clearance(trajectories, self.grid)
+        sampled = None
+        if self.cfg.check_rate_hz > 0:
+            times = sample_times(0.0, float(knots[-1]), self.cfg.check_rate_hz)
+            pts = np.stack([tr.evaluate(times) for tr in trajectories], axis=1)
+            sampled = check_positions(times, pts, self.grid)
+        check_s = time.perf_counter() - t0 + self._check_s
+        return ContinuousPlan(trajectories, knots, regions, self.seps, records, cert, v, acc, jerk, min_sep, clearance,
+                              sampled, {"regions": self.regions_s, "smoothing": smoothing_s, "checking": check_s})
+
+
+def _hover_regions(X: np.ndarray, radius: float) -> Regions:
+    """A point region per robot (the hover of a plan without steps)."""
+    N = len(X)
+    return Regions(np.broadcast_to(np.eye(2), (1, N, 2, 2)).copy(), X[None].copy(), X[None].copy(),
+                   np.zeros((1, N), dtype=bool), radius)
+
+
+def exact_min_separation(trajectories: list[PiecewisePolynomial], reach: float) -> float:
+    """The exact smallest distance between two robots over trajectories on one time grid.
+
+    Pairs whose control-point boxes in a step stay ``reach`` apart are skipped (``reach``
+    grows until the minimum is below it); for the others the minimum of :math:`|p_i(t) - p_k(t)|` over each piece is found at the
+    piece's ends or at a real root of the derivative of its square.
+    """
+    from mrfswarm.continuous.certificate import control_point_stack, hull_distance_from_origin
+    from mrfswarm.continuous.regions import near_pairs
+    from mrfswarm.trajectory.retiming import piece_extrema
+
+    if len(trajectories) < 2:
+        return float("inf")
+    P = control_point_stack(trajectories)[0]
+    C = np.stack([tr.tau_coefficients() for tr in trajectories])  # (N, M, D+1, 2)
+    lo, hi = P.min(axis=2), P.max(axis=2)
+    span = float(np.ptp(P.reshape(-1, 2), axis=0).max()) + reach
+    tau = np.linspace(0.0, 1.0, 9)
+    V = tau[:, None] ** np.arange(C.shape[2])[None, :]  # (9, D+1)
+    while True:  # pairs left out are >= reach apart, so the minimum is exact once it is <= reach
+        rel_c, rel_p = [], []
+        for j in range(P.shape[1]):
+            pairs = near_pairs(lo[:, j], hi[:, j], reach)
+            rel_c.append(C[pairs[:, 0], j] - C[pairs[:, 1], j])
+            rel_p.append(P[pairs[:, 0], j] - P[pairs[:, 1], j])
+        rc, rp = np.concatenate(rel_c), np.concatenate(rel_p)
+        best = np.inf
+        if len(rc):
+            upper = np.linalg.norm(np.einsum("sk,pkd->psd", V, rc), axis=-1).min()  # sampled: an upper bound
+            lower = hull_distance_from_origin(rp)  # control points: a lower bound per pair and step
+            keep = lower <= upper
+            vals, _ = piece_extrema(rc[keep], minimum=True)
+            best = min(float(upper), float(vals.min()))
+        if best <= reach or reach > span:
+            return best
+        reach *= 4
+def sampled_clearance(trajectories: list[PiecewisePolynomial], grid: OccupancyGrid, per_piece: int = 16) -> float | None:
+    """Smallest distance from a robot's centre to an occupied cell, at ``per_piece`` samples per piece."""
+    from mrfswarm.metrics import obstacle_clearance
+
+    if not grid.occupied.any():
+        return None
+    knots = trajectories[0].knots
+    tau = np.linspace(0.0, 1.0, per_piece)
+    times = (knots[:-1, None] + tau[None, :] * np.diff(knots)[:, None]).ravel()
+    pts = np.stack([tr.evaluate(times) for tr in trajectories], axis=1).reshape(-1, 2)
+    clr = obstacle_clearance(grid.occupied, (pts - np.asarray(grid.origin)) / grid.resolution)
+    return None if clr is None else clr * grid.resolution

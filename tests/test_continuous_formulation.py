@@ -1,0 +1,124 @@
+"""The window problem: one symbolic formulation, every QP backend, the NLP, and the corridors it needs."""
+
+import numpy as np
+import pytest
+
+import solvers.qp
+from mrfswarm.config import SmoothingConfig
+from mrfswarm.continuous import RecedingHorizon, WindowFormulation
+from mrfswarm.continuous.formulation import hermite_trajectory, piece_maps
+from mrfswarm.continuous.receding_horizon import WindowRecord, exact_min_separation
+from mrfswarm.maps import OccupancyGrid
+from mrfswarm.safety import discrete_violations
+from mrfswarm.trajectory import integral_squared_derivative
+from mrfswarm.trajectory.bernstein import control_points
+from solvers.qp import Options
+
+# Robot 0 flies east along y = 2 and then turns south; robot 1 flies west along y = 3 and
+# then turns north. They pass one cell apart; each one's smoothest path swings out before
+# its turn, that is towards the other: only their relative corridor keeps them apart.
+PASSING = np.array([[a, b] for a, b in zip([(x, 2) for x in range(7)] + [(6, 1), (6, 0), (7, 0)],
+                                            [(x, 3) for x in range(6, -1, -1)] + [(0, 4), (0, 5), (0, 6)])])
+GRID = OccupancyGrid.from_occupied(np.zeros((8, 7), bool))
+
+
+def first_window(rh: RecedingHorizon, corridors: np.ndarray | None = None) -> tuple[WindowFormulation, np.ndarray]:
+    a, _, b = rh.windows()[0]
+    start = np.zeros((rh.N, 4, 2))
+    start[:, 0] = rh.X[0]
+    pairs = np.flatnonzero(rh.seps.step < b) if corridors is None else corridors
+    return WindowFormulation(rh._spec(a, b, np.arange(rh.N), start, pairs)), rh.nominal[a:b]
+
+
+def test_the_scenario_is_a_legal_discrete_plan():
+    assert discrete_violations(PASSING, GRID.free) == []
+
+
+@pytest.mark.parametrize("degree, derivative", [(7, 4), (9, 4), (5, 3)])
+def test_piece_maps_give_control_points_and_snap(degree, derivative):
+    """The symbolic piece's coefficients reproduce Bernstein control points and the cost integral."""
+    pm = piece_maps(degree, derivative)
+    rng = np.random.default_rng(degree)
+    T = np.array([0.6, 1.7])
+    Y = rng.normal(size=(3, derivative, 2))
+    B = rng.normal(size=(2, pm.nz - 2 * derivative, 2))
+    traj = hermite_trajectory(Y, B, T, degree, derivative)
+    k = pm.evaluate(T)
+    for j in range(2):
+        z = np.concatenate([Y[j], Y[j + 1], B[j]])  # (nz, 2), physical units (time scale 1)
+        for r in range(4):
+            rows = pm.rows[r]
+            K = k[j * pm.size + pm.k_offset[r]: j * pm.size + pm.k_offset[r] + rows * pm.nz].reshape(pm.nz, rows).T
+            np.testing.assert_allclose(K @ z, control_points(traj, r)[j], rtol=1e-9, atol=1e-9)
+        H = k[j * pm.size + pm.h_offset:(j + 1) * pm.size].reshape(pm.nz, pm.nz)
+        piece = hermite_trajectory(Y[j:j + 2], B[j:j + 1], T[j:j + 1], degree, derivative)
+        cost = 0.5 * sum(z[:, d] @ H @ z[:, d] for d in range(2))
+        assert cost == pytest.approx(integral_squared_derivative(piece, derivative), rel=1e-9)
+
+
+def test_pack_and_unpack_are_inverse():
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(), 0.25)
+    form, _ = first_window(rh)
+    x = np.random.default_rng(0).normal(size=form.n)
+    np.testing.assert_allclose(form.pack(*form.unpack(x)), x, atol=1e-12)
+
+
+REFERENCE = "cvxpy"
+BACKENDS = [b for b in solvers.qp.available() if b not in ("closed_form", REFERENCE)]
+
+
+@pytest.fixture(scope="module")
+def window_qp():
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(), 0.25)
+    form, durations = first_window(rh)
+    qp = form.qp(durations)
+    ref = solvers.qp.solve(qp, REFERENCE, Options(eps_abs=1e-9, eps_rel=1e-9)) if REFERENCE in solvers.qp.available() \
+        else pytest.skip("cvxpy (the reference) is not installed")
+    return qp, ref
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_every_backend_solves_the_window_qp_to_the_reference(window_qp, backend):
+    qp, ref = window_qp
+    sol = solvers.qp.solve(qp, backend, Options(eps_abs=1e-9, eps_rel=1e-9, max_iter=100_000))
+    assert sol.objective == pytest.approx(ref.objective, rel=1e-5)
+    assert qp.max_violation(sol.x) < 1e-5
+    np.testing.assert_allclose(sol.x, ref.x, atol=1e-3 * np.abs(ref.x).max())
+
+
+def test_time_refinement_never_costs_more_than_the_qp():
+    """The NLP (durations free, Ipopt) from the QP's solution: snap + weight x time is no higher."""
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(), 0.25)
+    form, durations = first_window(rh)
+    sol = solvers.qp.solve(form.qp(durations), "piqp")
+    weight = 10.0
+    before = form.objective(sol.x, durations) + weight * rh.N * durations.sum()
+    x, refined, res = form.refine_time(sol.x, durations, np.ones(len(durations), bool), weight,
+                                       (0.2 * durations, 4 * durations), Options(eps_abs=1e-6, eps_rel=1e-6,
+                                                                                 max_iter=300))
+    assert np.all(refined > 0) and not np.allclose(refined, durations)
+    assert form.qp(refined).max_violation(x) < 1e-6  # the NLP's point is feasible at its durations
+    after = form.objective(x, refined) + weight * rh.N * refined.sum()
+    assert after <= before * (1 + 1e-9)
+    assert refined.sum() < durations.sum()  # a heavy weight on time makes the window shorter
+
+
+def test_the_relative_corridor_is_what_keeps_them_apart():
+    """Mutation: without the pair's corridors the window's optimum brings the robots within 0.44 m."""
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(), 0.25)
+    plan = rh.run()
+    assert [w.attempt for w in plan.windows] == ["nominal"] * len(plan.windows)
+    assert plan.certificate.ok and plan.min_separation >= 0.5 and rh.active.any()
+
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(), 0.25)
+    rh.seps = rh.seps.select(np.zeros(len(rh.seps), bool))  # drop the pair's corridors
+    rh.active = np.zeros(0, bool)
+    a, c, b = rh.windows()[0]
+    start = np.zeros((2, 4, 2))
+    start[:, 0] = rh.X[0]
+    sol, _ = rh._solve(a, b, start, rh.nominal[a:b], WindowRecord(a, c, b))
+    flights = [hermite_trajectory(sol.Y[i], sol.B[i], sol.durations, 7, 4) for i in range(2)]
+    assert exact_min_separation(flights, 1.0) < 0.45
+    assert not rh._certify(sol, a).ok  # and the certificate sees it
+    plan = rh.run()  # the run stays safe: the window falls back until it is certified
+    assert plan.windows[0].attempt != "nominal" and plan.certificate.ok and plan.min_separation >= 0.5
