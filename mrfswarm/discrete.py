@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mrfswarm.interaction_graph import CliqueWeights, clique_weights, knn_edges, maximal_cliques
+from mrfswarm.interaction_graph import CliqueWeights, clique_weights_of_graph, knn_edges
 from mrfswarm.label_sets import label_sets
 from mrfswarm.potentials import Morse
 from mrfswarm.safety import discrete_violations
@@ -124,8 +124,7 @@ def graph_weights(positions: np.ndarray, k: int, timings: dict[str, float] | Non
     t0 = time.perf_counter()
     edges = knn_edges(positions.astype(float), k)
     t1 = time.perf_counter()
-    cliques = maximal_cliques(len(positions), edges)
-    w = clique_weights(len(positions), edges, cliques)
+    w = clique_weights_of_graph(len(positions), edges)
     t2 = time.perf_counter()
     if timings is not None:
         timings["graph"] = t1 - t0
