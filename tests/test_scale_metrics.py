@@ -79,3 +79,13 @@ def test_path_clearance_equals_every_densified_point(seed):
     assert path_clearance(paths, occ) == obstacle_clearance(occ, densify(paths))
     assert path_clearance(paths, np.zeros_like(occ)) is None
     assert ObstacleIndex(occ).clearance(paths) == obstacle_clearance(occ, paths)
+
+
+def test_path_clearance_finds_a_corner_passed_mid_move():
+    """Robot 1's long move starts and ends far from the obstacle but touches its corner mid-way;
+    robot 0 stays 1.5 cells away, so the positions alone would say 1.5."""
+    occ = np.zeros((10, 10), bool)
+    occ[5, 5] = True
+    paths = np.array([[[5, 7], [1, 8]], [[5, 7], [8, 1]]])
+    assert ObstacleIndex(occ).clearance(paths) == 1.5
+    assert path_clearance(paths, occ) == obstacle_clearance(occ, densify(paths)) == 0.0
