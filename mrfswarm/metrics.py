@@ -31,7 +31,11 @@ _CHUNK = 64
 
 @dataclass(frozen=True)
 class DiscreteMetrics:
-    """Summary of the discrete paths (metres)."""
+    """Summary of the discrete paths (metres).
+
+    ``mean_distance`` is over all pairs, or over ``mean_distance_pairs`` random pairs
+    when that is not None (large swarms, :func:`distance_series`).
+    """
 
     min_separation: float
     mean_distance: np.ndarray
@@ -41,6 +45,7 @@ class DiscreteMetrics:
     steps: int
     reached_goal: bool | None
     final_goal_distance: float | None
+    mean_distance_pairs: int | None = None
 
 
 def min_separation(paths: np.ndarray) -> float:
@@ -59,7 +64,9 @@ def min_pair_distances(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     its position at the chunk's first sample, a pair more than d_nn + 4 D apart there
     (d_nn: the smallest distance there) stays more than d_nn + 2 D apart, farther than
     the first sample's nearest pair ever gets, so only the pairs a k-d tree returns for
-    that radius are measured. Ties go to the first pair in lexicographic order.
+    that radius are measured. A chunk ends before D exceeds d_nn / 2 (so the radius
+    stays within 3 d_nn and the pairs few) or at ``_CHUNK`` samples. Ties go to the first
+    pair in lexicographic order.
     """
     points = np.asarray(points, dtype=float)
     S, N, _ = points.shape
@@ -67,18 +74,23 @@ def min_pair_distances(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return np.full(S, np.inf), np.zeros((S, 2), dtype=np.intp)
     dmin = np.empty(S)
     pairs = np.empty((S, 2), dtype=np.intp)
-    for a in range(0, S, _CHUNK):
-        chunk = points[a:a + _CHUNK]
-        drift = float(np.max(np.hypot(*(chunk - chunk[:1]).transpose(2, 0, 1))))
-        tree = cKDTree(chunk[0])
-        d0 = float(tree.query(chunk[0], 2)[0][:, 1].min())
+    a = 0
+    while a < S:
+        tree = cKDTree(points[a])
+        d0 = float(tree.query(points[a], 2)[0][:, 1].min())
+        ahead = points[a:a + _CHUNK]
+        reach = np.maximum.accumulate(np.max(np.hypot(*(ahead - ahead[:1]).transpose(2, 0, 1)), axis=1))
+        m = max(1, int(np.searchsorted(reach, 0.5 * d0, side="right")))
+        chunk = ahead[:m]
+        drift = float(reach[m - 1])
         cand = tree.query_pairs(d0 + 4 * drift + 1e-9, output_type="ndarray")
         cand = np.sort(cand, axis=1)
         cand = cand[np.lexsort((cand[:, 1], cand[:, 0]))]
         d = np.hypot(*(chunk[:, cand[:, 0]] - chunk[:, cand[:, 1]]).transpose(2, 0, 1))  # (chunk, pairs)
         k = np.argmin(d, axis=1)
-        dmin[a:a + len(chunk)] = d[np.arange(len(chunk)), k]
-        pairs[a:a + len(chunk)] = cand[k]
+        dmin[a:a + m] = d[np.arange(m), k]
+        pairs[a:a + m] = cand[k]
+        a += m
     return dmin, pairs
 
 
@@ -240,7 +252,9 @@ def discrete_metrics(paths: np.ndarray, occupied: np.ndarray, resolution: float 
     ``reached_goal``: the swarm's centroid at the end within ``goal_radius`` metres of the
     goal (None without a goal).
     """
-    mean_d, min_d = pairwise_distance_stats(paths)
+    ds = distance_series(paths) if paths.shape[1] > 1 else None
+    mean_d = ds.mean if ds is not None else np.full(len(paths), np.nan)
+    min_d = ds.min if ds is not None else np.full(len(paths), np.nan)
     clearance = path_clearance(paths, occupied)
     steps = np.diff(paths.astype(float), axis=0)
     lengths = np.hypot(steps[..., 0], steps[..., 1]).sum(axis=0) * resolution if len(steps) else np.zeros(paths.shape[1])
@@ -257,4 +271,5 @@ def discrete_metrics(paths: np.ndarray, occupied: np.ndarray, resolution: float 
         steps=len(paths) - 1,
         reached_goal=reached,
         final_goal_distance=dist,
+        mean_distance_pairs=None if ds is None or ds.exact else ds.n_pairs,
     )
