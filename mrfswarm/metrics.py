@@ -58,7 +58,7 @@ def min_separation(paths: np.ndarray) -> float:
 
 
 def min_pair_distances(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per sample of ``points`` (S, N, 2): the smallest pairwise distance and its pair (S, 2), exactly.
+    """Per sample of ``points`` (S, N, D): the smallest pairwise distance and its pair (S, 2), exactly.
 
     Never all pairs: within a chunk of samples in which no robot moves more than D from
     its position at the chunk's first sample, a pair more than d_nn + 4 D apart there
@@ -74,19 +74,23 @@ def min_pair_distances(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return np.full(S, np.inf), np.zeros((S, 2), dtype=np.intp)
     dmin = np.empty(S)
     pairs = np.empty((S, 2), dtype=np.intp)
+
+    def norm(v: np.ndarray) -> np.ndarray:
+        return np.sqrt(np.einsum("...k,...k->...", v, v))
+
     a = 0
     while a < S:
         tree = cKDTree(points[a])
         d0 = float(tree.query(points[a], 2)[0][:, 1].min())
         ahead = points[a:a + _CHUNK]
-        reach = np.maximum.accumulate(np.max(np.hypot(*(ahead - ahead[:1]).transpose(2, 0, 1)), axis=1))
+        reach = np.maximum.accumulate(np.max(norm(ahead - ahead[:1]), axis=1))
         m = max(1, int(np.searchsorted(reach, 0.5 * d0, side="right")))
         chunk = ahead[:m]
         drift = float(reach[m - 1])
         cand = tree.query_pairs(d0 + 4 * drift + 1e-9, output_type="ndarray")
         cand = np.sort(cand, axis=1)
         cand = cand[np.lexsort((cand[:, 1], cand[:, 0]))]
-        d = np.hypot(*(chunk[:, cand[:, 0]] - chunk[:, cand[:, 1]]).transpose(2, 0, 1))  # (chunk, pairs)
+        d = norm(chunk[:, cand[:, 0]] - chunk[:, cand[:, 1]])  # (chunk, pairs)
         k = np.argmin(d, axis=1)
         dmin[a:a + m] = d[np.arange(m), k]
         pairs[a:a + m] = cand[k]

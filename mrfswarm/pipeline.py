@@ -156,7 +156,7 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
         if cfg.simulation.enabled:
             from mrfswarm.simulation import check_available
 
-            check_available(cfg.simulation.vehicle)
+            check_available(cfg.simulation.vehicle, cfg.simulation.backend)
     return cfg
 
 
@@ -240,5 +240,5 @@ def _simulate(result: Result, show: bool) -> None:
     t0 = time.perf_counter()
     result.flight = fly_swarm(result.continuous.trajectories, cfg.scenario.altitude, result.scenario.grid,
                               cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=result.continuous.j_max,
-                              progress=show)
+                              progress=show, backend=cfg.simulation.backend)
     result.timings_s["simulation"] = time.perf_counter() - t0
