@@ -264,7 +264,7 @@ def fly_batched(trajectories: list[PiecewisePolynomial], altitude: float, rate_h
         des = np.empty((n, N, 3))
         zeros = torch.zeros(N)
         every = torch.arange(N)  # as a tensor: RotorPy's default, a list, is converted at every use
-        with torch.no_grad():
+        with torch.inference_mode():
             for a in range(0, n, _BLOCK):
                 tb = times[a:a + _BLOCK]
                 flat = np.zeros((5, len(tb), N, 3))  # derivative, time, robot, xyz
