@@ -151,7 +151,7 @@ def pairwise_tables(labels: LabelSets, edges: np.ndarray, weights: np.ndarray, m
     ``_OFFSET_RADIUS`` gather their table from :func:`_morse_box`; longer edges (a
     stretched graph) compute their squared distances directly.
     """
-    N, L = labels.index.shape
+    L = labels.index.shape[1]
     if not len(edges):
         return np.zeros((0, L, L))
     S = len(stencil(labels.order))
@@ -183,7 +183,7 @@ def step_mrf(labels: LabelSets, weights: CliqueWeights, static: np.ndarray, mors
     """The pairwise MRF of one step, with ``initial`` = everybody stays (label 0)."""
     cells = labels.cells
     valid = labels.valid
-    N, L = valid.shape
+    N = valid.shape[0]
     unary = weights.node[:, None] * static[cells[..., 0], cells[..., 1]]
     unary = np.where(valid, unary, np.inf)
     e = weights.edges

@@ -7,7 +7,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mrfswarm.interaction_graph import (
-    _bron_kerbosch, _cliques_by_level, clique_weights, clique_weights_of_graph, knn_edges, maximal_clique_groups,
+    _bron_kerbosch,
+    _cliques_by_level,
+    clique_weights,
+    clique_weights_of_graph,
+    knn_edges,
+    maximal_clique_groups,
     maximal_cliques,
 )
 from mrfswarm.label_sets import label_sets

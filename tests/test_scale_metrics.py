@@ -5,7 +5,13 @@ import pytest
 from scipy.spatial.distance import pdist
 
 from mrfswarm.metrics import (
-    ObstacleIndex, densify, distance_series, mean_pairs, min_pair_distances, obstacle_clearance, path_clearance,
+    ObstacleIndex,
+    densify,
+    distance_series,
+    mean_pairs,
+    min_pair_distances,
+    obstacle_clearance,
+    path_clearance,
 )
 
 

@@ -59,7 +59,7 @@ def test_step_min_separation_finds_a_pair_exactly_at_its_radius():
     """The closest approach can belong to a pair that starts exactly d_nn + 2 s apart (a tie)."""
     p0 = np.array([[0.0, 0.0], [1.0, 0.0], [10.0, 0.0], [13.0, 0.0]])
     p1 = p0 + [[0, 0], [0, 0], [1, 0], [-1, 0]]
-    d, pair = step_min_separation(p0, p1)
+    d, _ = step_min_separation(p0, p1)
     iu, ju = np.triu_indices(4, 1)
     brute = min_distance_during_move(p0[iu] - p0[ju], (p1[iu] - p0[iu]) - (p1[ju] - p0[ju]))
     assert d == pytest.approx(brute.min()) == 1.0

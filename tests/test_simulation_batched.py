@@ -10,7 +10,7 @@ from mrfswarm.errors import ConfigError, SolverNotFound
 
 pytest.importorskip("rotorpy")
 
-from mrfswarm import simulation  # noqa: E402
+from mrfswarm import simulation
 
 EXP = Path(__file__).resolve().parents[1] / "experiments"
 

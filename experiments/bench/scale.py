@@ -15,7 +15,8 @@ optimizer, and the final safety check), milliseconds per MRF step, peak RSS. Wit
 ``main``; extracted to a temporary folder and put first on the child's path) for
 N <= ``--baseline-max``, in the same session, so the table compares old and new on the
 same machine and load. The fitted exponent of each stage is the least-squares slope of
-log(time) against log(N) over the new runs.
+log(time) against log(N) over the new runs (written to ``*_exponents.csv``), with the
+milliseconds per MRF step and its parts.
 
     python experiments/bench/scale.py [--sizes 100,300,1000,3000] [--baseline main] [--baseline-max 300]
         [--out experiments/bench/results/scale.csv]
@@ -27,17 +28,16 @@ import argparse
 import csv
 import json
 import math
-import os
-import subprocess
 import sys
-import tarfile
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(Path(__file__).parent))
+from baseline_code import extract, run_child, use
+
 RESULTS = Path(__file__).parent / "results"
 #: Stages of a whole run, in seconds.
 STAGES = ("scenario", "discrete", "pruning", "check", "outputs")
@@ -60,8 +60,7 @@ def overrides(n: int) -> list[str]:
 
 def child(n: int, code: str | None) -> None:
     """Plan the crossing, write the outputs, print one JSON line (runs in its own process)."""
-    if code:
-        sys.path.insert(0, code)
+    use(code)
     import resource
 
     import mrfswarm
@@ -69,7 +68,6 @@ def child(n: int, code: str | None) -> None:
     from mrfswarm.pipeline import plan
     from mrfswarm.safety import discrete_violations
 
-    assert code is None or mrfswarm.__file__.startswith(code), mrfswarm.__file__
     cfg = mrfswarm.load_config(None, overrides(n))
     t0 = time.perf_counter()
     r = plan(cfg, progress=False)
@@ -92,23 +90,8 @@ def child(n: int, code: str | None) -> None:
     }))
 
 
-def extract(ref: str, into: Path) -> Path:
-    """The packages ``mrfswarm`` and ``solvers`` at git revision ``ref``, extracted under ``into``."""
-    archive = into / "code.tar"
-    subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", "-o", str(archive), ref, "mrfswarm", "solvers"],
-                   check=True)
-    with tarfile.open(archive) as tar:
-        tar.extractall(into / "code", filter="data")
-    return into / "code"
-
-
 def run(n: int, code: Path | None) -> dict:
-    cmd = [sys.executable, __file__, "--child", str(n)] + (["--code", str(code)] if code else [])
-    env = {**os.environ, "PYTHONHASHSEED": "0"}
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=ROOT)
-    if proc.returncode != 0:
-        raise SystemExit(f"run N={n} ({'baseline' if code else 'new'}) failed:\n{proc.stderr[-3000:]}")
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+    return run_child(Path(__file__), ["--child", str(n)], code)
 
 
 def exponent(ns: list[int], ts: list[float]) -> float:
@@ -186,9 +169,13 @@ def main() -> None:
         w.writeheader()
         for r in rows:
             w.writerow({**r, "baseline_ref": args.baseline if r["code"] == "baseline" else ""})
+    exps = args.out.with_name(args.out.stem + "_exponents.csv")
+    with open(exps, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["stage", "exponent", "sizes"])
         for s, v in slopes.items():
-            w.writerow({"code": f"exponent:{s}", "N": "", "steps": round(v, 3)})
-    print(f"wrote {args.out}")
+            w.writerow([s, round(v, 3), args.sizes])
+    print(f"wrote {args.out} and {exps}")
     figure(rows, slopes, args.out.with_suffix(".png"))
 
 
