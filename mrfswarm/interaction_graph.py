@@ -23,7 +23,7 @@ contain i and pairwise weight w_ij = number that contain both i and j.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -110,25 +110,31 @@ class _EdgeSet:
         return self.keys[pos] == q
 
 
-def _cliques_by_level(n_nodes: int, edges: np.ndarray, budget: int) -> dict[int, np.ndarray] | None:
+def _cliques_by_level(n_nodes: int, edges: np.ndarray, budget: int, seeds: int | None = None
+                      ) -> dict[int, np.ndarray] | None:
     """Maximal cliques by size, enumerated level by level (module docstring); None past ``budget``.
+
+    With ``seeds``, only the cliques whose smallest vertex is below ``seeds``.
 
     Returns {size: (M, size) int array}, each row sorted ascending, rows in lexicographic
     order.
     """
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     n = n_nodes
+    m = n if seeds is None else seeds
     adjacent = _EdgeSet(n, edges)
     src = np.concatenate([edges[:, 0], edges[:, 1]])
     dst = np.concatenate([edges[:, 1], edges[:, 0]])
+    keep = src < m
+    src, dst = src[keep], dst[keep]
     order = np.argsort(src * n + dst, kind="stable")
     # C({v}) = N(v), as flat (owner, vertex) pairs sorted by owner, then vertex
     c_owner, c_vert = src[order], dst[order]
-    c_count = np.bincount(c_owner, minlength=n)
+    c_count = np.bincount(c_owner, minlength=m)
     groups: dict[int, np.ndarray] = {}
     if np.any(c_count == 0):
         groups[1] = np.flatnonzero(c_count == 0).astype(np.int64)[:, None]
-    members = np.arange(n, dtype=np.int64)[:, None]
+    members = np.arange(m, dtype=np.int64)[:, None]
     work = 0
     while len(c_owner):
         # children Q + c: c in C(Q) beyond Q's last member
@@ -269,12 +275,16 @@ class CliqueWeights:
         (E,) w_ij = number of maximal cliques containing both ends of the edge.
     cliques
         The maximal cliques themselves.
+    groups
+        The same cliques by size, {size: (M, size) array} (what
+        :func:`update_clique_weights` starts from), or None.
     """
 
     edges: np.ndarray
     node: np.ndarray
     edge: np.ndarray
     cliques: list[np.ndarray]
+    groups: dict[int, np.ndarray] | None = field(default=None, compare=False, repr=False)
 
 
 def clique_weights(n_nodes: int, edges: np.ndarray, cliques: list[np.ndarray]) -> CliqueWeights:
@@ -308,12 +318,57 @@ def _weights_from_groups(n_nodes: int, edges: np.ndarray, groups: dict[int, np.n
         edge = np.zeros(len(edges), dtype=np.int64)
     if np.any(edge == 0):  # every edge lies in some maximal clique; anything else is a bug
         raise AssertionError("an edge lies in no maximal clique")
-    return CliqueWeights(edges=edges, node=node, edge=edge, cliques=cliques)
+    return CliqueWeights(edges=edges, node=node, edge=edge, cliques=cliques, groups=groups)
 
 
 def clique_weights_of_graph(n_nodes: int, edges: np.ndarray) -> CliqueWeights:
     """The maximal cliques of a graph and their pairwise reduction, in one pass."""
     groups = maximal_clique_groups(n_nodes, edges)
+    return _weights_from_groups(n_nodes, edges, groups, _sorted_clique_list(groups))
+
+
+def update_clique_weights(previous: CliqueWeights, n_nodes: int, edges: np.ndarray) -> CliqueWeights:
+    """:func:`clique_weights_of_graph` of a graph that differs from ``previous``'s in a few places.
+
+    A vertex is *changed* when its neighbours differ between the two graphs. A maximal
+    clique without a changed vertex keeps its edges and its (empty) set of common
+    neighbours, so it is maximal in both graphs, and conversely. The new cliques are
+    therefore the previous ones without a changed vertex and the new graph's cliques
+    that contain one; the latter are enumerated alone, by numbering the changed vertices
+    first and seeding the enumeration with them only. The result equals the full
+    computation (tested); along a crossing only a few percent of the robots change
+    neighbours in a step.
+    """
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if previous.groups is None or len(previous.node) != n_nodes:
+        return clique_weights_of_graph(n_nodes, edges)
+    n = np.int64(n_nodes)
+    old_keys = previous.edges[:, 0].astype(np.int64) * n + previous.edges[:, 1]
+    new_keys = edges[:, 0] * n + edges[:, 1]
+    diff = np.setxor1d(old_keys, new_keys, assume_unique=True)
+    changed = np.zeros(n_nodes, dtype=bool)
+    changed[diff // n] = True
+    changed[diff % n] = True
+    m = int(changed.sum())
+    if m == 0:
+        return _weights_from_groups(n_nodes, edges, previous.groups, previous.cliques)
+    order = np.concatenate([np.flatnonzero(changed), np.flatnonzero(~changed)])  # new number -> vertex
+    rank = np.empty(n_nodes, dtype=np.int64)
+    rank[order] = np.arange(n_nodes)
+    relabelled = np.sort(rank[edges], axis=1)
+    fresh = _cliques_by_level(n_nodes, relabelled, LEVEL_BUDGET * (n_nodes + len(edges)), seeds=m)
+    if fresh is None:
+        return clique_weights_of_graph(n_nodes, edges)
+    merged: dict[int, list[np.ndarray]] = {}
+    for size, g in previous.groups.items():
+        merged.setdefault(size, []).append(g[~changed[g].any(axis=1)])
+    for size, g in fresh.items():
+        merged.setdefault(size, []).append(np.sort(order[g], axis=1))
+    groups = {}
+    for size in sorted(merged):
+        g = np.concatenate(merged[size])
+        if len(g):
+            groups[size] = g[np.lexsort(g.T[::-1])]
     return _weights_from_groups(n_nodes, edges, groups, _sorted_clique_list(groups))
 
 

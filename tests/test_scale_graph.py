@@ -14,6 +14,7 @@ from mrfswarm.interaction_graph import (
     knn_edges,
     maximal_clique_groups,
     maximal_cliques,
+    update_clique_weights,
 )
 from mrfswarm.label_sets import label_sets
 from mrfswarm.potentials import Morse
@@ -120,3 +121,36 @@ def test_mrf_rejects_repeated_pairs(pairs):
                     conflicts=np.zeros((0, 2)), conflict_mask=np.zeros((0, L, L), bool), initial=np.zeros(N, int))
     PairwiseMRF(unary=np.zeros((N, L)), edges=np.array([[0, 1], [1, 2]]), pairwise=np.zeros((2, L, L)),
                 conflicts=np.zeros((0, 2)), conflict_mask=np.zeros((0, L, L), bool), initial=np.zeros(N, int))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_incremental_cliques_equal_full_computation_along_a_plan(seed):
+    """Cliques updated from the previous step's graph equal the full enumeration at every step."""
+    from mrfswarm.discrete import DiscreteProblem, plan_discrete
+
+    rng = np.random.default_rng(seed)
+    W, H = 50, 30
+    free = rng.random((W, H)) > 0.05
+    cells = gaussian_swarm(rng, 40, 3) + [10, 15]
+    cells = cells[free[cells[:, 0], cells[:, 1]]]
+    goal = np.array([42, 15])
+    static = np.hypot(*(np.indices((W, H)) - goal[:, None, None]))
+    plan = plan_discrete(DiscreteProblem(free=free, static=static, start=cells, goal=goal, morse=Morse(),
+                                         k=int(rng.integers(3, 8)), order=2), max_steps=25)
+    k = int(rng.integers(3, 8))
+    prev = None
+    changed_some = unchanged_some = False
+    for p in plan.paths:
+        edges = knn_edges(p.astype(float), k)
+        full = clique_weights_of_graph(len(p), edges)
+        got = full if prev is None else update_clique_weights(prev, len(p), edges)
+        assert [c.tolist() for c in got.cliques] == [c.tolist() for c in full.cliques]
+        assert got.node.tolist() == full.node.tolist() and got.edge.tolist() == full.edge.tolist()
+        assert {s: g.tolist() for s, g in got.groups.items()} == {s: g.tolist() for s, g in full.groups.items()}
+        if prev is not None:
+            same = np.array_equal(prev.edges, edges)
+            changed_some |= not same
+            unchanged_some |= len(np.intersect1d(prev.edges[:, 0] * 1000 + prev.edges[:, 1],
+                                                 edges[:, 0] * 1000 + edges[:, 1])) > 0 and not same
+        prev = got
+    assert changed_some and unchanged_some  # the partial update was exercised
