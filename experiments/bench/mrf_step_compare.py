@@ -4,7 +4,10 @@ For N robots (the swarm of ``mrf_step.py``: Gaussian, free map, goal to the righ
 k = 7, order n = 2), a child process imports ``mrfswarm`` either from the working tree
 or from the code of git revision ``--ref`` (default ``main``), makes ``--warmup`` steps,
 then times ``--steps`` steps (graph, cliques, labels, energy tables, optimizer, and the
-whole step) and prints the positions after every step. Children of the two codes
+whole step) and hashes the positions after every step. As in ``plan_discrete``, each
+step's graph (k-NN edges and cliques) is built after the step before, from that step's
+graph when the code can (the new code updates the cliques of the robots whose neighbours
+changed); its time counts in the step. Children of the two codes
 alternate for ``--rounds`` rounds (the machine is shared; alternating spreads the load
 over both). The table gives the median and the minimum per stage over all timed steps,
 and the script fails unless both codes moved every robot to the same cell at every step.
@@ -35,24 +38,37 @@ PARTS = ("graph", "cliques", "labels", "energy", "optimizer", "step")
 
 def child(n: int, k: int, order: int, warmup: int, steps: int, code: str | None) -> None:
     use(code)
+    import inspect
+
     from mrf_step import swarm
 
-    from mrfswarm.discrete import DiscreteProblem, mrf_step
+    from mrfswarm.discrete import DiscreteProblem, graph_weights, mrf_step
 
     base = swarm(n)
     problem = DiscreteProblem(**{**base.__dict__, "order": order, "k": min(k, n - 1)})
+    # as plan_discrete does: the graph of the new positions is built after each step, from
+    # the previous graph where the code knows how
+    incremental = "previous" in inspect.signature(graph_weights).parameters
+
+    def graph(pos, previous, gt):
+        return graph_weights(pos, problem.k, gt, previous=previous) if incremental else graph_weights(pos, problem.k, gt)
+
     pos = problem.start
-    for _ in range(warmup):
-        pos = mrf_step(problem, pos).positions
+    gt: dict[str, float] = {}
+    weights = graph(pos, None, gt)
     times: dict[str, list[float]] = {p: [] for p in PARTS}
     digest = hashlib.sha256()
-    for _ in range(steps):
+    for t in range(warmup + steps):
         t0 = time.perf_counter()
-        out = mrf_step(problem, pos)
+        out = mrf_step(problem, pos, weights=weights, graph_timings=gt)
+        pos = out.positions
+        gt = {}
+        weights = graph(pos, weights, gt)
+        if t < warmup:
+            continue
         times["step"].append(time.perf_counter() - t0)
         for p in PARTS[:-1]:
-            times[p].append(out.timings[p])
-        pos = out.positions
+            times[p].append((gt if p in ("graph", "cliques") else out.timings)[p])
         digest.update(np.ascontiguousarray(pos, dtype=np.int64).tobytes())
         digest.update(np.float64(out.energy_after).tobytes())
     print(json.dumps({"times": times, "digest": digest.hexdigest()}))
