@@ -88,8 +88,8 @@ def min_pair_distances(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         chunk = ahead[:m]
         drift = float(reach[m - 1])
         cand = tree.query_pairs(d0 + 4 * drift + 1e-9, output_type="ndarray")
-        cand = np.sort(cand, axis=1)
-        cand = cand[np.lexsort((cand[:, 1], cand[:, 0]))]
+        keys = np.sort(np.minimum(cand[:, 0], cand[:, 1]).astype(np.int64) * N + np.maximum(cand[:, 0], cand[:, 1]))
+        cand = np.stack([keys // N, keys % N], axis=1)
         d = norm(chunk[:, cand[:, 0]] - chunk[:, cand[:, 1]])  # (chunk, pairs)
         k = np.argmin(d, axis=1)
         dmin[a:a + m] = d[np.arange(m), k]

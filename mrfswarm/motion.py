@@ -167,8 +167,9 @@ def nearby_pairs(points: np.ndarray, radius: float) -> np.ndarray:
     pairs = cKDTree(points).query_pairs(radius, output_type="ndarray")
     if len(pairs) == 0:
         return np.zeros((0, 2), dtype=np.intp)
-    pairs = np.sort(pairs, axis=1)
-    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))].astype(np.intp)
+    n = np.int64(len(points))
+    keys = np.sort(np.minimum(pairs[:, 0], pairs[:, 1]).astype(np.int64) * n + np.maximum(pairs[:, 0], pairs[:, 1]))
+    return np.stack([keys // n, keys % n], axis=1).astype(np.intp)
 
 
 def interaction_radius(order: int) -> float:

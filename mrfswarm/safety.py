@@ -18,10 +18,9 @@ clearance of the moves is evaluated per distinct move offset
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from mrfswarm.geometry import segment_clear
-from mrfswarm.motion import MIN_SEPARATION, WALL_CLEARANCE, min_distance_during_move, segments_clear
+from mrfswarm.motion import MIN_SEPARATION, WALL_CLEARANCE, min_distance_during_move, nearby_pairs, segments_clear
 
 _TOL = 1e-9
 
@@ -93,10 +92,7 @@ def discrete_violations(paths: np.ndarray, free: np.ndarray, limit: int = 10) ->
             if len(p) > 1:
                 q0, q1 = prev.astype(float), p.astype(float)
                 step = float(np.max(np.hypot(*(q1 - q0).T), initial=0.0))
-                pairs = cKDTree(q0).query_pairs(MIN_SEPARATION + 2 * step + _TOL, output_type="ndarray")
-                pairs = np.sort(pairs, axis=1)
-                pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
-                closest = _closest_during_step(q0, q1, pairs)
+                closest = _closest_during_step(q0, q1, nearby_pairs(q0, MIN_SEPARATION + 2 * step + _TOL))
         out += _step_messages(t, p, inb, occ, shared, cut, prev, closest)
         if len(out) >= limit:
             break

@@ -47,6 +47,22 @@ def collision_table(order: int) -> tuple[np.ndarray, int]:
     return table, R
 
 
+@lru_cache(maxsize=16)
+def _collision_rows(order: int) -> np.ndarray:
+    """(G, S) uint64: bit b of row (g, a) is ``collision_table(order)[0][g, a, b]`` (S <= 64)."""
+    table, _ = collision_table(order)
+    weights = np.uint64(1) << np.arange(table.shape[2], dtype=np.uint64)
+    rows = (table.astype(np.uint64) * weights).sum(axis=2, dtype=np.uint64)
+    rows.setflags(write=False)
+    return rows
+
+
+def _move_masks(labels: LabelSets) -> np.ndarray:
+    """(N,) uint64: bit s set when stencil move s is one of the robot's valid labels."""
+    bits = np.uint64(1) << labels.index.astype(np.uint64)
+    return np.where(labels.valid, bits, np.uint64(0)).sum(axis=1, dtype=np.uint64)
+
+
 def conflict_tables(labels: LabelSets) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of robots and the label pairs that would collide within the step.
 
@@ -71,6 +87,19 @@ def conflict_tables(labels: LabelSets) -> tuple[np.ndarray, np.ndarray]:
     g = (d0[:, 0] + R) * (2 * R + 1) + (d0[:, 1] + R)
     possible = table.reshape(len(table), -1).any(axis=1)[g]
     pairs, g = pairs[possible], g[possible]
+    if len(pairs) and table.shape[1] <= 64:
+        # Before the (C, L, L) tables, keep the pairs with a colliding pair of *their* moves:
+        # with each robot's moves as a bitmask over the stencil and each offset's collisions
+        # as one bitmask row per move, S word operations per pair. In a dense swarm most
+        # nearby pairs have none (their label sets are disjoint and short).
+        rows = _collision_rows(labels.order)
+        moves = _move_masks(labels)
+        mi, mj = moves[pairs[:, 0]], moves[pairs[:, 1]]
+        hit = np.zeros(len(pairs), dtype=bool)
+        for a in range(table.shape[1]):
+            has = (mi >> np.uint64(a)) & np.uint64(1) != 0
+            hit |= has & (rows[g, a] & mj != 0)
+        pairs, g = pairs[hit], g[hit]
     if len(pairs) == 0:
         return pairs, np.zeros((0, L, L), dtype=bool)
     ia = labels.index[pairs[:, 0]]  # (C, L)
