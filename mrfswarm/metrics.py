@@ -8,7 +8,9 @@ Distances over time (:func:`distance_series`) stay near-linear in the swarm size
 minimum through k-d trees (exact, :func:`min_pair_distances`), the mean over all pairs
 exactly up to ``MEAN_PAIRS`` pairs and, for larger swarms, over a fixed uniform sample
 of that many pairs (the same pairs at every sample, so the curve is smooth; its
-relative standard error is about (std / mean) / sqrt(MEAN_PAIRS), well under 1 %).
+relative standard error is about (std / mean) / sqrt(MEAN_PAIRS), well under 1 %), at
+every sample while that takes at most ``MEAN_WORK`` distances and otherwise at evenly
+spaced samples, linearly interpolated in between (thousands of samples either way).
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ _CLEARANCE_SAMPLES = 16
 MEAN_PAIRS = 20_000
 #: Samples of a chunk of :func:`min_pair_distances` (one k-d tree per chunk).
 _CHUNK = 64
+#: Pair distances the mean of :func:`distance_series` evaluates at most.
+MEAN_WORK = 20_000_000
 
 
 @dataclass(frozen=True)
@@ -64,9 +68,10 @@ def min_pair_distances(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     its position at the chunk's first sample, a pair more than d_nn + 4 D apart there
     (d_nn: the smallest distance there) stays more than d_nn + 2 D apart, farther than
     the first sample's nearest pair ever gets, so only the pairs a k-d tree returns for
-    that radius are measured. A chunk ends before D exceeds d_nn / 2 (so the radius
-    stays within 3 d_nn and the pairs few) or at ``_CHUNK`` samples. Ties go to the first
-    pair in lexicographic order.
+    that radius are measured. A chunk ends before D exceeds half the larger of d_nn and
+    the median nearest-neighbour distance (so the radius stays within a few typical
+    spacings and the pairs O(N)) or at ``_CHUNK`` samples. Ties go to the first pair in
+    lexicographic order.
     """
     points = np.asarray(points, dtype=float)
     S, N, _ = points.shape
@@ -81,11 +86,16 @@ def min_pair_distances(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     a = 0
     while a < S:
         tree = cKDTree(points[a])
-        d0 = float(tree.query(points[a], 2)[0][:, 1].min())
-        ahead = points[a:a + _CHUNK]
-        reach = np.maximum.accumulate(np.max(norm(ahead - ahead[:1]), axis=1))
-        m = max(1, int(np.searchsorted(reach, 0.5 * d0, side="right")))
-        chunk = ahead[:m]
+        nn = tree.query(points[a], 2)[0][:, 1]
+        d0 = float(nn.min())
+        limit = 0.5 * max(d0, float(np.median(nn)))
+        reach = np.zeros(0)
+        while len(reach) < _CHUNK and (not len(reach) or reach[-1] <= limit) and a + len(reach) < S:
+            more = points[a + len(reach):a + min(_CHUNK, max(8, 2 * len(reach)))]  # look ahead in growing blocks
+            step = np.max(norm(more - points[a]), axis=1)
+            reach = np.maximum.accumulate(np.concatenate([reach, step]))
+        m = max(1, int(np.searchsorted(reach, limit, side="right")))
+        chunk = points[a:a + m]
         drift = float(reach[m - 1])
         cand = tree.query_pairs(d0 + 4 * drift + 1e-9, output_type="ndarray")
         keys = np.sort(np.minimum(cand[:, 0], cand[:, 1]).astype(np.int64) * N + np.maximum(cand[:, 0], cand[:, 1]))
@@ -143,7 +153,7 @@ class DistanceSeries:
     n_pairs: int
 
 
-def distance_series(points: np.ndarray, max_pairs: int = MEAN_PAIRS) -> DistanceSeries:
+def distance_series(points: np.ndarray, max_pairs: int = MEAN_PAIRS, max_work: int = MEAN_WORK) -> DistanceSeries:
     """Minimum and mean inter-robot distance at each sample of ``points`` (S, N, 2); see the module docstring."""
     points = np.asarray(points, dtype=float)
     S, N, _ = points.shape
@@ -151,11 +161,18 @@ def distance_series(points: np.ndarray, max_pairs: int = MEAN_PAIRS) -> Distance
         return DistanceSeries(np.full(S, np.inf), np.full(S, np.nan), True, 0)
     dmin, _ = min_pair_distances(points)
     pairs, exact = mean_pairs(N, max_pairs)
-    mean = np.empty(S)
+    # the mean at every sample while that is at most max_work distances, else at evenly
+    # spaced samples (every one of them exact or over the same pairs), linear in between
+    every = max(1, int(np.ceil(S * len(pairs) / max_work)))
+    at = np.unique(np.append(np.arange(0, S, every), S - 1))
+    mean = np.empty(len(at))
     step = max(1, 2_000_000 // len(pairs))  # bounded memory
-    for a in range(0, S, step):
-        d = points[a:a + step, pairs[:, 0]] - points[a:a + step, pairs[:, 1]]
+    for a in range(0, len(at), step):
+        sel = at[a:a + step]
+        d = points[sel][:, pairs[:, 0]] - points[sel][:, pairs[:, 1]]
         mean[a:a + step] = np.hypot(d[..., 0], d[..., 1]).mean(axis=1)
+    if len(at) < S:
+        mean = np.interp(np.arange(S), at, mean)
     return DistanceSeries(dmin, mean, exact, len(pairs))
 
 

@@ -95,3 +95,17 @@ def test_path_clearance_finds_a_corner_passed_mid_move():
     paths = np.array([[[5, 7], [1, 8]], [[5, 7], [8, 1]]])
     assert ObstacleIndex(occ).clearance(paths) == 1.5
     assert path_clearance(paths, occ) == obstacle_clearance(occ, densify(paths)) == 0.0
+
+
+def test_distance_series_mean_on_a_coarser_grid_when_long():
+    """Past the work limit the mean is exact at evenly spaced samples and interpolated between them."""
+    rng = np.random.default_rng(2)
+    t = np.linspace(0, 1, 101)
+    pts = rng.normal(0, 3, (1, 20, 2)) + t[:, None, None] * rng.normal(0, 3, (1, 20, 2))
+    full = distance_series(pts)
+    coarse = distance_series(pts, max_work=190 * 11)  # 190 pairs: every 10th sample
+    assert coarse.exact and len(coarse.mean) == 101
+    np.testing.assert_allclose(coarse.mean[::10], full.mean[::10], rtol=1e-12)
+    np.testing.assert_allclose(coarse.mean, full.mean, rtol=1e-2)  # smooth motion: close in between
+    assert not np.allclose(coarse.mean, full.mean, rtol=1e-12, atol=0)
+    np.testing.assert_array_equal(coarse.min, full.min)
