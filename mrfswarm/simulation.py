@@ -285,7 +285,7 @@ def fly_batched(trajectories: list[PiecewisePolynomial], altitude: float, rate_h
     finally:
         torch.set_default_dtype(previous)
         torch.set_num_threads(threads)
-    return [Flight(times=times, positions=pos[:, i].copy(), desired=des[:, i].copy()) for i in range(N)]
+    return [Flight(times=times, positions=pos[:, i], desired=des[:, i]) for i in range(N)]  # views: no copy
 
 
 def fly_swarm(trajectories: list[PiecewisePolynomial], altitude: float, grid: OccupancyGrid, rate_hz: float = 100.0,
