@@ -65,11 +65,11 @@ def knn_edges(points: np.ndarray, k: int) -> np.ndarray:
     check_k(k, n)
     tree = cKDTree(pts)
     nb = np.empty((n, k), dtype=np.intp)
-    # Ask for one neighbour more than needed; the rows whose k-th distance ties with the
+    # Ask for a few neighbours more than needed; the rows whose k-th distance ties with the
     # last one returned may have more tied points, and are asked again with more, so that
     # ties at the k-th distance are broken by index, never by the tree's internal order.
     pending = np.arange(n)
-    m = min(n, k + 2)
+    m = min(n, k + 5)
     while len(pending):
         dist, idx = tree.query(pts[pending], m)
         dist, idx = dist.reshape(len(pending), m), idx.reshape(len(pending), m)
