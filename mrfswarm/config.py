@@ -134,11 +134,17 @@ class SmoothingConfig:
 
 @dataclass(frozen=True)
 class SimulationConfig:
-    """Closed-loop quadrotor simulation of every robot (RotorPy)."""
+    """Closed-loop quadrotor simulation of every robot (RotorPy).
+
+    ``backend``: "auto" (batched when torch is installed), "batched" (one vectorized
+    simulation of the swarm) or "processes" (one simulation per robot, in parallel
+    processes); see :mod:`mrfswarm.simulation`.
+    """
 
     enabled: bool = True
     vehicle: str = "crazyflie"
     rate_hz: float = 100.0
+    backend: str = "auto"
 
 
 @dataclass(frozen=True)
@@ -272,6 +278,8 @@ def _validate(cfg: Config) -> None:
     need(sm.a_max > 0, "smoothing.a_max", sm.a_max, "must be > 0")
     need(sm.j_max > 0, "smoothing.j_max", sm.j_max, "must be > 0")
     need(cfg.simulation.rate_hz >= 100, "simulation.rate_hz", cfg.simulation.rate_hz, "must be >= 100")
+    need(cfg.simulation.backend in ("auto", "batched", "processes"), "simulation.backend", cfg.simulation.backend,
+         "must be one of auto, batched, processes")
 
 
 def from_dict(data: dict, base_dir: Path | str = ".") -> Config:

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mrfswarm.interaction_graph import CliqueWeights, clique_weights, knn_edges, maximal_cliques
+from mrfswarm.interaction_graph import CliqueWeights, clique_weights_of_graph, knn_edges, update_clique_weights
 from mrfswarm.label_sets import label_sets
 from mrfswarm.potentials import Morse
 from mrfswarm.safety import discrete_violations
@@ -119,13 +119,20 @@ class DiscretePlan:
         return len(self.paths) - 1
 
 
-def graph_weights(positions: np.ndarray, k: int, timings: dict[str, float] | None = None) -> CliqueWeights:
-    """G(x): k-NN edges, maximal cliques and their counts, timed into ``timings``."""
+def graph_weights(positions: np.ndarray, k: int, timings: dict[str, float] | None = None,
+                  previous: CliqueWeights | None = None) -> CliqueWeights:
+    """G(x): k-NN edges, maximal cliques and their counts, timed into ``timings``.
+
+    ``previous``: the graph of the step before, whose cliques away from the robots that
+    changed neighbours are kept (:func:`~mrfswarm.interaction_graph.update_clique_weights`).
+    """
     t0 = time.perf_counter()
     edges = knn_edges(positions.astype(float), k)
     t1 = time.perf_counter()
-    cliques = maximal_cliques(len(positions), edges)
-    w = clique_weights(len(positions), edges, cliques)
+    if previous is None:
+        w = clique_weights_of_graph(len(positions), edges)
+    else:
+        w = update_clique_weights(previous, len(positions), edges)
     t2 = time.perf_counter()
     if timings is not None:
         timings["graph"] = t1 - t0
@@ -231,7 +238,7 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         pos = out.positions
         paths.append(pos)
         gt = {}
-        weights = graph_weights(pos, problem.k, gt)
+        weights = graph_weights(pos, problem.k, gt, previous=weights)
         energy.append(swarm_energy(problem, pos, weights))
         if out.energy_before - out.energy_after < tol * max(1.0, abs(out.energy_before)):
             converged, reason = True, "converged"

@@ -12,6 +12,7 @@ Label 0 is always "stay", which is always in X_i.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -39,20 +40,25 @@ class LabelSets:
     starts: np.ndarray
     order: int
 
-    @property
+    @cached_property
     def offsets(self) -> np.ndarray:
         """(N, L, 2) int cell offset of each label; padding is (0, 0)."""
-        return stencil(self.order)[self.index]
+        return _read_only(stencil(self.order)[self.index])
 
-    @property
+    @cached_property
     def cells(self) -> np.ndarray:
         """(N, L, 2) the cell each label moves to."""
-        return self.starts[:, None, :] + self.offsets
+        return _read_only(self.starts[:, None, :] + self.offsets)
 
-    @property
+    @cached_property
     def valid(self) -> np.ndarray:
         """(N, L) True for real labels, False for padding."""
-        return np.arange(self.offsets.shape[1])[None, :] < self.count[:, None]
+        return _read_only(np.arange(self.index.shape[1])[None, :] < self.count[:, None])
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
 
 
 def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.ndarray | None = None,

@@ -103,6 +103,56 @@ def moves_clear(free: np.ndarray, starts: np.ndarray, offsets: np.ndarray, order
     return np.all(inb & free[x, y], axis=-1)
 
 
+@lru_cache(maxsize=4096)
+def _swept_by_offset(dx: int, dy: int, clearance: float) -> np.ndarray:
+    """Relative cells closer than ``clearance`` to the segment from (0, 0) to (dx, dy), read-only (K, 2)."""
+    r = int(np.ceil(clearance)) + 1
+    xs, ys = np.meshgrid(np.arange(min(0, dx) - r, max(0, dx) + r + 1), np.arange(min(0, dy) - r, max(0, dy) + r + 1),
+                         indexing="ij")
+    cells = np.stack([xs.ravel(), ys.ravel()], axis=1)
+    d = segment_box_distance(np.zeros(2), np.array([dx, dy], dtype=float), cells.astype(float))
+    out = cells[d < clearance - _EPS]
+    out.setflags(write=False)
+    return out
+
+
+def segments_clear(free: np.ndarray, starts: np.ndarray, ends: np.ndarray, clearance: float = WALL_CLEARANCE) -> np.ndarray:
+    """For straight moves between integer cells, whether every cell closer than ``clearance`` is free.
+
+    The same predicate as :func:`mrfswarm.geometry.segment_clear` for many moves at once:
+    the moves are grouped by their offset, whose swept cells are computed once.
+
+    Parameters
+    ----------
+    free
+        (W, H) bool, True for free cells.
+    starts, ends
+        (M, 2) integer cells.
+
+    Returns
+    -------
+    (M,) bool; cells off the map count as occupied.
+    """
+    starts = np.asarray(starts, dtype=np.intp).reshape(-1, 2)
+    ends = np.asarray(ends, dtype=np.intp).reshape(-1, 2)
+    out = np.ones(len(starts), dtype=bool)
+    if not len(starts):
+        return out
+    W, H = free.shape
+    off = ends - starts
+    span = int(np.abs(off).max()) * 2 + 1
+    key = (off[:, 0] + span // 2) * span + (off[:, 1] + span // 2)
+    order = np.argsort(key, kind="stable")
+    bounds = np.flatnonzero(np.diff(key[order])) + 1
+    for group in np.split(order, bounds):
+        rel = _swept_by_offset(int(off[group[0], 0]), int(off[group[0], 1]), float(clearance))
+        cells = starts[group][:, None, :] + rel[None]
+        inb = (cells[..., 0] >= 0) & (cells[..., 0] < W) & (cells[..., 1] >= 0) & (cells[..., 1] < H)
+        ok = inb & free[np.clip(cells[..., 0], 0, W - 1), np.clip(cells[..., 1], 0, H - 1)]
+        out[group] = ok.all(axis=1)
+    return out
+
+
 def min_distance_during_move(d0: np.ndarray, v: np.ndarray) -> np.ndarray:
     """min over s in [0, 1] of |d0 + s v|, broadcast over leading axes of (..., 2) arrays."""
     vv = np.einsum("...k,...k->...", v, v)
@@ -117,8 +167,9 @@ def nearby_pairs(points: np.ndarray, radius: float) -> np.ndarray:
     pairs = cKDTree(points).query_pairs(radius, output_type="ndarray")
     if len(pairs) == 0:
         return np.zeros((0, 2), dtype=np.intp)
-    pairs = np.sort(pairs, axis=1)
-    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))].astype(np.intp)
+    n = np.int64(len(points))
+    keys = np.sort(np.minimum(pairs[:, 0], pairs[:, 1]).astype(np.int64) * n + np.maximum(pairs[:, 0], pairs[:, 1]))
+    return np.stack([keys // n, keys % n], axis=1).astype(np.intp)
 
 
 def interaction_radius(order: int) -> float:

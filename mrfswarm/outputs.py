@@ -47,8 +47,10 @@ def write_discrete_csv(path: Path, paths_world: np.ndarray) -> Path:
     def write(p: Path) -> None:
         with open(p, "w") as f:
             f.write("step,robot,x,y\n")
-            for s, r, (x, y) in zip(steps, robots, xy):
-                f.write(f"{s},{r},{x:.6g},{y:.6g}\n")
+            for a in range(0, len(xy), 100_000):  # one formatting call per block of rows
+                b = a + 100_000
+                rows = zip(steps[a:b].tolist(), robots[a:b].tolist(), xy[a:b, 0].tolist(), xy[a:b, 1].tolist())
+                f.write("".join(f"{s},{r},{x:.6g},{y:.6g}\n" for s, r, x, y in rows))
 
     return atomic_write(path, write)
 
@@ -84,8 +86,8 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
         plt = plots._plt()
         fig, ax = plt.subplots(figsize=(6, 6), dpi=110)
         plots.draw_map(ax, grid)
-        for i in range(n):
-            ax.plot(world[:, i, 0], world[:, i, 1], ":", color="0.5", lw=0.8)
+        if n <= plots.INDIVIDUAL_MAX:  # the discrete paths beneath the smooth ones
+            plots._lines(ax, [world[:, i] for i in range(n)], "0.5", lw=0.8, ls=":")
         plots.draw_paths(ax, grid, [pos[:, i] for i in range(n)], goal)
         ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
         ax.set_title(title, fontsize=9)
@@ -93,11 +95,12 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
         plots.save_figure(fig, p, dpi=110)
 
     written.append(atomic_write(figs / "trajectories.png", traj_fig))
-    from mrfswarm.continuous_check import separation_series
+    from mrfswarm.metrics import distance_series
 
-    dmin, dmean = separation_series(t, pos)
+    ds = distance_series(pos)
     safety = 2 * cfg.scenario.robot_radius
-    written.append(atomic_write(figs / "distances.png", lambda p: plots.plot_distances(p, t, dmin, dmean, safety)))
+    written.append(atomic_write(figs / "distances.png", lambda p: plots.plot_distances(
+        p, t, ds.min, ds.mean, safety, mean_pairs=None if ds.exact else ds.n_pairs)))
     written.append(atomic_write(figs / "robot_xy.png", lambda p: plots.plot_xy(p, t, pos)))
     f = result.flight
     if f is not None:
@@ -132,5 +135,6 @@ def write_discrete_outputs(result: Result, out: Path) -> list[Path]:
                                 lambda p: plots.plot_energy(p, {result.mrf: result.discrete.energy})))
     m = result.metrics
     written.append(atomic_write(figs / "discrete_distances.png", lambda p: plots.plot_distances(
-        p, np.arange(len(m.mean_distance)), m.min_distance, m.mean_distance, xlabel="MRF step")))
+        p, np.arange(len(m.mean_distance)), m.min_distance, m.mean_distance, xlabel="MRF step",
+        mean_pairs=m.mean_distance_pairs)))
     return written

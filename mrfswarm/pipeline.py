@@ -176,7 +176,7 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
         if cfg.simulation.enabled:
             from mrfswarm.simulation import check_available
 
-            check_available(cfg.simulation.vehicle)
+            check_available(cfg.simulation.vehicle, cfg.simulation.backend)
     return cfg
 
 
@@ -259,6 +259,5 @@ def _simulate(result: Result, show: bool) -> None:
     t0 = time.perf_counter()
     result.flight = fly_swarm(result.continuous.trajectories, cfg.scenario.altitude, result.scenario.grid,
                               cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=result.continuous.j_max,
-                              speed=result.continuous.v_max,
-                              progress=show)
+                              speed=result.continuous.v_max, progress=show, backend=cfg.simulation.backend)
     result.timings_s["simulation"] = time.perf_counter() - t0

@@ -3,6 +3,11 @@
 matplotlib is imported here only (Agg backend); every function writes one PNG and
 returns its path. Obstacles are grey, start positions green, end positions blue, as in
 the paper's Fig. 6.
+
+Many robots: lines are drawn as one ``LineCollection`` per figure element (one artist,
+not one per robot). Above ``INDIVIDUAL_MAX`` robots a figure shows the swarm instead of
+each robot: how long robots stayed in each cell as a density image and the paths of a
+sample of ``HIGHLIGHT`` robots (spread over the swarm) in colour.
 """
 
 from __future__ import annotations
@@ -22,6 +27,37 @@ def _plt():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+#: Up to this many robots, every robot gets its own colour.
+INDIVIDUAL_MAX = 30
+#: Robots drawn in colour when the swarm is drawn as a whole.
+HIGHLIGHT = 12
+#: Points per faint background curve (about the figure's width in pixels).
+_FAINT_POINTS = 800
+
+
+def highlighted(n: int, k: int = HIGHLIGHT) -> np.ndarray:
+    """Indices of the robots drawn in colour: all up to ``INDIVIDUAL_MAX``, else ``k`` evenly spaced."""
+    if n <= INDIVIDUAL_MAX:
+        return np.arange(n)
+    return np.unique(np.linspace(0, n - 1, k).round().astype(int))
+
+
+def _lines(ax, curves: Sequence[np.ndarray], colors, lw: float, alpha: float = 1.0, ls: str = "-", zorder: float = 2):
+    """Many polylines ((M_i, 2) arrays) as one LineCollection."""
+    from matplotlib.collections import LineCollection
+
+    lc = LineCollection([np.asarray(c, dtype=float) for c in curves], colors=colors, linewidths=lw, alpha=alpha,
+                        linestyles=ls, zorder=zorder)
+    ax.add_collection(lc)
+    return lc
+
+
+def _log_norm(vmin: float, vmax: float):
+    from matplotlib.colors import LogNorm
+
+    return LogNorm(vmin=vmin, vmax=vmax)
 
 
 def _robot_colors(n: int):
@@ -44,20 +80,55 @@ def draw_map(ax, grid: OccupancyGrid) -> None:
 
 def draw_paths(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], goal: np.ndarray | None = None,
                markers: bool = True, lw: float = 1.4, waypoints: Sequence[np.ndarray] | None = None) -> None:
-    """Each robot's path (an (T, 2) array in metres) with start (green) and end (blue) markers."""
-    colors = _robot_colors(len(paths_world))
-    for i, p in enumerate(paths_world):
-        ax.plot(p[:, 0], p[:, 1], "-", color=colors[i], lw=lw, alpha=0.9)
+    """Each robot's path (an (T, 2) array in metres) with start (green) and end (blue) markers.
+
+    Above ``INDIVIDUAL_MAX`` robots: a density image and a highlighted sample of paths
+    (module docstring); waypoints only for the sample.
+    """
+    n = len(paths_world)
+    if n > INDIVIDUAL_MAX:
+        _draw_swarm(ax, grid, paths_world, lw, waypoints)
+    else:
+        colors = _robot_colors(n)
+        if n:
+            _lines(ax, paths_world, colors, lw, alpha=0.9)
         if waypoints is not None:
-            w = waypoints[i]
-            ax.plot(w[:, 0], w[:, 1], "o", ms=3, mfc="white", mec=colors[i], mew=1.0)
-    if markers and len(paths_world):
+            for i in range(n):
+                w = waypoints[i]
+                ax.plot(w[:, 0], w[:, 1], "o", ms=3, mfc="white", mec=colors[i], mew=1.0)
+    if markers and n:
+        big = n <= INDIVIDUAL_MAX
+        ms, mec = (7, "k") if big else (max(1.5, 7 / np.sqrt(n / INDIVIDUAL_MAX)), "none")
         starts = np.array([p[0] for p in paths_world])
         ends = np.array([p[-1] for p in paths_world])
-        ax.plot(starts[:, 0], starts[:, 1], "o", ms=7, color="tab:green", mec="k", mew=0.6, label="start", zorder=5)
-        ax.plot(ends[:, 0], ends[:, 1], "o", ms=7, color="tab:blue", mec="k", mew=0.6, label="end", zorder=5)
+        ax.plot(starts[:, 0], starts[:, 1], "o", ms=ms, color="tab:green", mec=mec, mew=0.6, label="start", zorder=5)
+        ax.plot(ends[:, 0], ends[:, 1], "o", ms=ms, color="tab:blue", mec=mec, mew=0.6, label="end", zorder=5)
     if goal is not None:
         ax.plot(goal[0], goal[1], "*", ms=16, color="gold", mec="k", label="goal", zorder=6)
+
+
+def _draw_swarm(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], lw: float,
+                waypoints: Sequence[np.ndarray] | None) -> None:
+    """Density of robot-samples per cell and a highlighted sample of paths in colour."""
+    n = len(paths_world)
+    pts = np.concatenate([np.asarray(p, dtype=float) for p in paths_world])
+    x0, x1, y0, y1 = grid.extent
+    W, H = grid.shape
+    hist, _, _ = np.histogram2d(pts[:, 0], pts[:, 1], bins=(W, H), range=((x0, x1), (y0, y1)))
+    masked = np.ma.masked_equal(hist.T, 0)
+    im = ax.imshow(masked, origin="lower", extent=(x0, x1, y0, y1), cmap="Purples", alpha=0.75,
+                   interpolation="nearest", norm=_log_norm(1, max(2.0, float(hist.max()))),
+                   zorder=1)
+    cb = ax.figure.colorbar(im, ax=ax, orientation="horizontal", fraction=0.04, pad=0.1, aspect=40)
+    cb.set_label(f"samples of the {n} robots per cell")
+    pick = highlighted(n)
+    colors = _robot_colors(len(pick))
+    _lines(ax, [paths_world[i] for i in pick], colors, lw=max(lw, 1.2), zorder=4)
+    ax.plot([], [], "-", color=colors[0], lw=1.2, label=f"{len(pick)} of {n} paths")
+    if waypoints is not None:
+        for c, i in zip(colors, pick):
+            w = waypoints[i]
+            ax.plot(w[:, 0], w[:, 1], "o", ms=3, mfc="white", mec=c, mew=1.0, zorder=4)
 
 
 def plot_paths(path: Path, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], goal: np.ndarray | None = None,
@@ -90,11 +161,14 @@ def plot_energy(path: Path, energies: dict[str, np.ndarray], title: str = "Swarm
 
 
 def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndarray, safety: float | None = None,
-                   xlabel: str = "time [s]") -> Path:
-    """Minimum and average inter-robot distance over time (the paper's Fig. 7c)."""
+                   xlabel: str = "time [s]", mean_pairs: int | None = None) -> Path:
+    """Minimum and average inter-robot distance over time (the paper's Fig. 7c).
+
+    ``mean_pairs``: when the average is over a sample of pairs, how many (said in the legend).
+    """
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 3.5), dpi=110)
-    ax.plot(t, mean_d, label="average distance")
+    ax.plot(t, mean_d, label="average distance" + (f" ({mean_pairs:,} random pairs)" if mean_pairs else ""))
     ax.plot(t, min_d, label="minimum distance")
     if safety is not None:
         ax.axhline(safety, color="r", ls="--", lw=1, label=f"safety distance {safety:g} m")
@@ -108,13 +182,14 @@ def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndar
 
 
 def plot_xy(path: Path, t: np.ndarray, positions: np.ndarray) -> Path:
-    """Each robot's x and y over time (the paper's Fig. 7a); ``positions`` (S, N, 2)."""
+    """Each robot's x and y over time (the paper's Fig. 7a); ``positions`` (S, N, 2).
+
+    Above ``INDIVIDUAL_MAX`` robots, all faint and a highlighted sample in colour.
+    """
     plt = _plt()
     fig, axes = plt.subplots(2, 1, figsize=(7, 5), dpi=110, sharex=True)
-    colors = _robot_colors(positions.shape[1])
-    for i in range(positions.shape[1]):
-        axes[0].plot(t, positions[:, i, 0], color=colors[i], lw=1.2)
-        axes[1].plot(t, positions[:, i, 1], color=colors[i], lw=1.2)
+    _time_lines(axes[0], t, positions[..., 0])
+    _time_lines(axes[1], t, positions[..., 1])
     axes[0].set_ylabel("x [m]")
     axes[1].set_ylabel("y [m]")
     axes[1].set_xlabel("time [s]")
@@ -124,13 +199,26 @@ def plot_xy(path: Path, t: np.ndarray, positions: np.ndarray) -> Path:
     return save_figure(fig, path, dpi=110)
 
 
+def _time_lines(ax, t: np.ndarray, values: np.ndarray, lw: float = 1.2) -> None:
+    """One curve per column of ``values`` (S, N) over ``t``, as LineCollections."""
+    n = values.shape[1]
+    curves = [np.stack([t, values[:, i]], axis=1) for i in range(n)]
+    pick = highlighted(n)
+    if n > INDIVIDUAL_MAX:  # the faint background needs no more points than pixels
+        every = max(1, len(t) // _FAINT_POINTS)
+        _lines(ax, [np.stack([t[::every], values[::every, i]], axis=1) for i in range(n)], "0.5", lw=0.3, alpha=0.3)
+    _lines(ax, [curves[i] for i in pick], _robot_colors(len(pick)) if n > INDIVIDUAL_MAX else _robot_colors(n), lw)
+    ax.autoscale_view()
+
+
 def plot_tracking(path: Path, t: np.ndarray, errors: np.ndarray) -> Path:
     """Tracking error of each simulated robot over time; ``errors`` (S, N) metres."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 3.5), dpi=110)
-    colors = _robot_colors(errors.shape[1])
-    for i in range(errors.shape[1]):
-        ax.plot(t, errors[:, i] * 100, color=colors[i], lw=1.0)
+    _time_lines(ax, t, errors * 100, lw=1.0)
+    if errors.shape[1] > INDIVIDUAL_MAX:
+        ax.plot(t, errors.max(axis=1) * 100, color="k", lw=1.0, label="maximum over robots")
+        ax.legend(fontsize=8)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("tracking error [cm]")
     ax.grid(alpha=0.3)
@@ -148,18 +236,21 @@ def animate(path: Path, grid: OccupancyGrid, t: np.ndarray, positions: np.ndarra
     draw_map(ax, grid)
     if goal is not None:
         ax.plot(goal[0], goal[1], "*", ms=14, color="gold", mec="k")
-    colors = _robot_colors(positions.shape[1])
-    dots = ax.scatter(positions[0, :, 0], positions[0, :, 1], s=30, c=colors, edgecolors="k", zorder=5)
-    trails = [ax.plot([], [], "-", color=colors[i], lw=1.0, alpha=0.7)[0] for i in range(positions.shape[1])]
+    n = positions.shape[1]
+    colors = _robot_colors(n)
+    size = 30 if n <= INDIVIDUAL_MAX else max(2.0, 30 * INDIVIDUAL_MAX / n)
+    dots = ax.scatter(positions[0, :, 0], positions[0, :, 1], s=size, c=colors,
+                      edgecolors="k" if n <= INDIVIDUAL_MAX else "none", zorder=5)
+    trails = _lines(ax, [positions[:1, i] for i in range(n)], colors, lw=1.0 if n <= INDIVIDUAL_MAX else 0.4,
+                    alpha=0.7)
     title = ax.set_title("")
     span = max(1, int(round(trail_s * fps)))
 
     def frame(k: int):
         dots.set_offsets(positions[k])
-        for i, ln in enumerate(trails):
-            ln.set_data(positions[max(0, k - span):k + 1, i, 0], positions[max(0, k - span):k + 1, i, 1])
+        trails.set_segments(list(positions[max(0, k - span):k + 1].transpose(1, 0, 2)))
         title.set_text(f"t = {t[k]:.1f} s")
-        return [dots, *trails, title]
+        return [dots, trails, title]
 
     anim = FuncAnimation(fig, frame, frames=len(t), blit=False)
     anim.save(str(path), writer=PillowWriter(fps=fps))

@@ -6,7 +6,16 @@ of a quadrotor UAV on SE(3)", CDC 2010) that receives the trajectory's flat outp
 (position and its derivatives up to snap, at the configured altitude, yaw 0) at
 ``rate_hz``; the vehicle integrates its full rigid-body and rotor dynamics between
 control updates. Robots do not interact physically, so they are flown independently
-(in parallel processes) and compared on a common time grid afterwards.
+and compared on a common time grid afterwards, by one of two backends:
+
+- ``batched``: RotorPy's ``BatchedMultirotor`` and ``BatchedSE3Control`` (PyTorch, on the
+  CPU) fly the whole swarm as one vectorized simulation, fixed-step RK4 at ``rate_hz``,
+  in double precision, with the same controller gains as ``SE3Control``. Needs the
+  optional extra ``pip install "mrfswarm[batched]"`` (torch, torchdiffeq, roma).
+- ``processes``: one ``Multirotor`` + ``SE3Control`` per robot (scipy's adaptive RK45),
+  in parallel processes; the fallback when torch is not installed.
+
+``auto`` (the default) takes ``batched`` when it is installed.
 
 Tracking bound. Linearized about hover, the SE(3) controller's horizontal loop is a PD
 on position with acceleration feedforward (gains k_p, k_d), commanding a tilt that a PD
@@ -35,7 +44,8 @@ their planned separation minus twice the bound.
 :class:`SwarmFlight` reports the bound next to the measured error, and the clearance and
 separation the bound guarantees (robot radius and safety distance minus the bound).
 
-RotorPy is imported only here (``pip install "mrfswarm[rotorpy]"``).
+RotorPy is imported only here (``pip install "mrfswarm[rotorpy]"``), torch only by the
+batched backend.
 """
 
 from __future__ import annotations
@@ -49,10 +59,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mrfswarm.continuous_check import min_pair_distance
 from mrfswarm.errors import ConfigError, SolverNotFound
 from mrfswarm.maps import OccupancyGrid
-from mrfswarm.metrics import obstacle_clearance
+from mrfswarm.metrics import min_pair_distances, obstacle_clearance
 from mrfswarm.trajectory import PiecewisePolynomial
 
 log = logging.getLogger(__name__)
@@ -61,6 +70,12 @@ log = logging.getLogger(__name__)
 VEHICLES = {"crazyflie": ("rotorpy.vehicles.crazyflie_params", "quad_params")}
 #: Seconds flown after the trajectory ends (to see the vehicle settle).
 SETTLE_S = 1.0
+#: Simulation backends; "auto" is the first one installed.
+BACKENDS = ("batched", "processes")
+#: Modules the batched backend needs (the extra ``mrfswarm[batched]``).
+BATCHED_MODULES = ("torch", "torchdiffeq", "roma")
+#: Control steps whose flat outputs the batched backend evaluates at once.
+_BLOCK = 500
 
 
 @dataclass(frozen=True)
@@ -165,13 +180,40 @@ def tracking_bound(jerk: float, speed: float, vehicle: str = "crazyflie") -> flo
     return gj * jerk + gd * (c1 * speed + c2 * speed**2)
 
 
-def check_available(vehicle: str) -> None:
-    """Fail early: RotorPy installed and the vehicle known."""
+def batched_available() -> bool:
+    """Whether the batched backend's modules (torch, torchdiffeq, roma) and RotorPy are installed."""
+    return all(importlib.util.find_spec(m) is not None for m in ("rotorpy", *BATCHED_MODULES))
+
+
+def resolve_backend(backend: str) -> str:
+    """The backend ``backend`` names ("auto": batched when installed, else processes).
+
+    Raises
+    ------
+    ConfigError
+        An unknown name.
+    SolverNotFound
+        "batched" asked for without its modules.
+    """
+    if backend == "auto":
+        return "batched" if batched_available() else "processes"
+    if backend not in BACKENDS:
+        raise ConfigError(f"simulation.backend = {backend!r}: must be one of auto, {', '.join(BACKENDS)}")
+    if backend == "batched" and not batched_available():
+        missing = [m for m in BATCHED_MODULES if importlib.util.find_spec(m) is None]
+        raise SolverNotFound(f"the batched simulation needs {', '.join(missing)}: pip install \"mrfswarm[batched]\" "
+                             "(or set simulation.backend = \"processes\")")
+    return backend
+
+
+def check_available(vehicle: str, backend: str = "auto") -> None:
+    """Fail early: RotorPy installed, the vehicle known, the backend known and installed."""
     if vehicle not in VEHICLES:
         raise ConfigError(f"simulation.vehicle = {vehicle!r}: must be one of {', '.join(VEHICLES)}")
     if importlib.util.find_spec("rotorpy") is None:
         raise SolverNotFound('the simulation needs RotorPy: pip install "mrfswarm[rotorpy]" '
                              "(or set simulation.enabled = false)")
+    resolve_backend(backend)
 
 
 def _flat_outputs(traj: PiecewisePolynomial, t: float, altitude: float) -> dict:
@@ -212,22 +254,103 @@ def _fly_job(args):
     return fly(*args)
 
 
+def _se3_gains(params: dict) -> dict:
+    """The gains of RotorPy's ``SE3Control`` for these parameters (the batched controller gets the same)."""
+    from rotorpy.controllers.quadrotor_control import SE3Control
+
+    c = SE3Control(params)
+    return {"kp_pos": np.asarray(c.kp_pos, float), "kd_pos": np.asarray(c.kd_pos, float),
+            "kp_att": float(np.atleast_1d(c.kp_att)[0]), "kd_att": float(np.atleast_1d(c.kd_att)[0])}
+
+
+def fly_batched(trajectories: list[PiecewisePolynomial], altitude: float, rate_hz: float = 100.0,
+                vehicle: str = "crazyflie", duration: float | None = None, on_block=None) -> list[Flight]:
+    """Fly every robot in one vectorized RotorPy simulation (``BatchedMultirotor``, torch on the CPU).
+
+    Same vehicle parameters and controller gains as :func:`fly`, fixed-step RK4 at
+    ``rate_hz`` in double precision. ``on_block(k)`` is called after every ``k`` control
+    steps (progress).
+    """
+    import torch
+    from rotorpy.controllers.quadrotor_control import BatchedSE3Control
+    from rotorpy.vehicles.multirotor import BatchedMultirotor, BatchedMultirotorParams
+
+    params = _vehicle_params(vehicle)
+    N = len(trajectories)
+    dt = 1.0 / rate_hz
+    T = max(tr.duration for tr in trajectories) + SETTLE_S if duration is None else duration
+    n = int(np.ceil(T / dt)) + 1
+    times = np.arange(n) * dt
+    device = torch.device("cpu")
+    previous, threads = torch.get_default_dtype(), torch.get_num_threads()
+    torch.set_default_dtype(torch.float64)  # RotorPy's batched model makes some buffers in the default dtype
+    # the tensors are small: one thread, no contention with other processes (measured several times faster)
+    torch.set_num_threads(1)
+    try:
+        bp = BatchedMultirotorParams([params] * N, N, device)
+        g = _se3_gains(params)
+        ctrl = BatchedSE3Control(bp, N, device, kp_pos=torch.tensor(g["kp_pos"]).repeat(N, 1),
+                                 kd_pos=torch.tensor(g["kd_pos"]).repeat(N, 1),
+                                 kp_att=torch.full((N, 1), g["kp_att"]), kd_att=torch.full((N, 1), g["kd_att"]))
+        start = np.array([tr.evaluate(0.0) for tr in trajectories])
+        hover = np.sqrt(params["mass"] * 9.81 / (params["num_rotors"] * params["k_eta"]))
+        state = {"x": torch.tensor(np.column_stack([start, np.full(N, altitude)])),
+                 "v": torch.zeros(N, 3), "q": torch.tensor([[0.0, 0.0, 0.0, 1.0]]).repeat(N, 1),
+                 "w": torch.zeros(N, 3), "wind": torch.zeros(N, 3),
+                 "rotor_speeds": torch.full((N, params["num_rotors"]), float(hover))}
+        quad = BatchedMultirotor(bp, N, state, device, control_abstraction="cmd_motor_speeds", integrator="rk4")
+        pos = np.empty((n, N, 3))
+        des = np.empty((n, N, 3))
+        zeros = torch.zeros(N)
+        every = torch.arange(N)  # as a tensor: RotorPy's default, a list, is converted at every use
+        with torch.inference_mode():
+            for a in range(0, n, _BLOCK):
+                tb = times[a:a + _BLOCK]
+                flat = np.zeros((5, len(tb), N, 3))  # derivative, time, robot, xyz
+                for i, tr in enumerate(trajectories):
+                    for k in range(5):
+                        flat[k, :, i, :2] = tr.evaluate(tb, derivative=k)
+                flat[0, :, :, 2] = altitude
+                flat_t = torch.from_numpy(flat)
+                for j, t in enumerate(tb):
+                    ref = {"x": flat_t[0, j], "x_dot": flat_t[1, j], "x_ddot": flat_t[2, j], "x_dddot": flat_t[3, j],
+                           "x_ddddot": flat_t[4, j], "yaw": zeros, "yaw_dot": zeros, "yaw_ddot": zeros}
+                    pos[a + j] = state["x"].numpy()
+                    des[a + j] = flat[0, j]
+                    if a + j + 1 < n:
+                        state = quad.step(state, ctrl.update(float(t), state, ref, every), dt, every)
+                if on_block is not None:
+                    on_block(len(tb))
+    finally:
+        torch.set_default_dtype(previous)
+        torch.set_num_threads(threads)
+    return [Flight(times=times, positions=pos[:, i], desired=des[:, i]) for i in range(N)]  # views: no copy
+
+
 def fly_swarm(trajectories: list[PiecewisePolynomial], altitude: float, grid: OccupancyGrid, rate_hz: float = 100.0,
               vehicle: str = "crazyflie", workers: int | None = None, jerk: float | None = None,
-              speed: float | None = None, progress: bool | None = None) -> SwarmFlight:
+              speed: float | None = None, progress: bool | None = None, backend: str = "auto") -> SwarmFlight:
     """Fly every robot and measure tracking, separation and clearance on the common time grid.
 
     ``jerk``, ``speed``: the trajectories' maximum jerk and speed, for the tracking bound
     (None: no bound).
     ``progress``: a progress bar on stderr (default: when it is a terminal).
+    ``backend``: "batched", "processes" or "auto" (module docstring); ``workers`` is the
+    number of processes of the "processes" backend.
     """
-    check_available(vehicle)
+    check_available(vehicle, backend)
+    backend = resolve_backend(backend)
     duration = max(tr.duration for tr in trajectories) + SETTLE_S
     from tqdm import tqdm
 
     jobs = [(tr, altitude, rate_hz, vehicle, duration) for tr in trajectories]
     workers = min(len(jobs), workers or os.cpu_count() or 1)
     show = sys.stderr.isatty() if progress is None else progress
+    if backend == "batched":
+        n_steps = int(np.ceil(duration * rate_hz)) + 1
+        with tqdm(total=n_steps, desc=f"flying {len(jobs)} robots", unit="step", disable=not show, leave=False) as bar:
+            flights = fly_batched(trajectories, altitude, rate_hz, vehicle, duration, on_block=bar.update)
+        return _measure(flights, grid, vehicle, jerk, speed)
     with tqdm(total=len(jobs), desc="flying", unit="robot", disable=not show, leave=False) as bar:
         if workers <= 1:
             flights = []
@@ -241,15 +364,15 @@ def fly_swarm(trajectories: list[PiecewisePolynomial], altitude: float, grid: Oc
                     f.result()
                     bar.update(1)
                 flights = [f.result() for f in futures]
+    return _measure(flights, grid, vehicle, jerk, speed)
+
+
+def _measure(flights: list[Flight], grid: OccupancyGrid, vehicle: str, jerk: float | None,
+             speed: float | None) -> SwarmFlight:
+    """Tracking, separation and clearance of flights on one time grid."""
     err = np.concatenate([f.tracking_error for f in flights])
     pts = np.stack([f.positions for f in flights], axis=1)  # (S, N, 3)
-    dmin, _ = min_pair_distance(pts[..., :2]) if len(flights) > 1 else (np.array([np.inf]), None)
-    # altitude differences only add to the horizontal distance; measure in 3-D
-    if len(flights) > 1:
-        iu, ju = np.triu_indices(len(flights), 1)
-        d3 = np.linalg.norm(pts[:, iu] - pts[:, ju], axis=2).min() if len(flights) <= 64 else float(dmin.min())
-    else:
-        d3 = float("inf")
+    d3 = float(min_pair_distances(pts)[0].min()) if len(flights) > 1 else float("inf")  # exact, in 3-D
     xy = pts[..., :2].reshape(-1, 2)
     cells = grid.world_to_cell(xy)
     clr = obstacle_clearance(grid.occupied, (xy - np.asarray(grid.origin)) / grid.resolution)

@@ -47,6 +47,22 @@ def collision_table(order: int) -> tuple[np.ndarray, int]:
     return table, R
 
 
+@lru_cache(maxsize=16)
+def _collision_rows(order: int) -> np.ndarray:
+    """(G, S) uint64: bit b of row (g, a) is ``collision_table(order)[0][g, a, b]`` (S <= 64)."""
+    table, _ = collision_table(order)
+    weights = np.uint64(1) << np.arange(table.shape[2], dtype=np.uint64)
+    rows = (table.astype(np.uint64) * weights).sum(axis=2, dtype=np.uint64)
+    rows.setflags(write=False)
+    return rows
+
+
+def _move_masks(labels: LabelSets) -> np.ndarray:
+    """(N,) uint64: bit s set when stencil move s is one of the robot's valid labels."""
+    bits = np.uint64(1) << labels.index.astype(np.uint64)
+    return np.where(labels.valid, bits, np.uint64(0)).sum(axis=1, dtype=np.uint64)
+
+
 def conflict_tables(labels: LabelSets) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of robots and the label pairs that would collide within the step.
 
@@ -71,6 +87,19 @@ def conflict_tables(labels: LabelSets) -> tuple[np.ndarray, np.ndarray]:
     g = (d0[:, 0] + R) * (2 * R + 1) + (d0[:, 1] + R)
     possible = table.reshape(len(table), -1).any(axis=1)[g]
     pairs, g = pairs[possible], g[possible]
+    if len(pairs) and table.shape[1] <= 64:
+        # Before the (C, L, L) tables, keep the pairs with a colliding pair of *their* moves:
+        # with each robot's moves as a bitmask over the stencil and each offset's collisions
+        # as one bitmask row per move, S word operations per pair. In a dense swarm most
+        # nearby pairs have none (their label sets are disjoint and short).
+        rows = _collision_rows(labels.order)
+        moves = _move_masks(labels)
+        mi, mj = moves[pairs[:, 0]], moves[pairs[:, 1]]
+        hit = np.zeros(len(pairs), dtype=bool)
+        for a in range(table.shape[1]):
+            has = (mi >> np.uint64(a)) & np.uint64(1) != 0
+            hit |= has & (rows[g, a] & mj != 0)
+        pairs, g = pairs[hit], g[hit]
     if len(pairs) == 0:
         return pairs, np.zeros((0, L, L), dtype=bool)
     ia = labels.index[pairs[:, 0]]  # (C, L)
@@ -102,24 +131,92 @@ def _morse_table(morse: Morse, resolution: float) -> _MorseBySquaredDistance:
     return _MorseBySquaredDistance(morse, resolution)
 
 
+#: Start offsets (|dx|, |dy| <= this many cells) whose pairwise tables are gathered from
+#: :func:`_morse_box`; longer edges compute their distances directly.
+_OFFSET_RADIUS = 32
+#: Edges per chunk when gathering pairwise tables.
+_CHUNK = 256
+
+
+@lru_cache(maxsize=8)
+def _morse_box(morse: Morse, resolution: float, order: int) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """rho_I over a box of cell offsets, and the code of each stencil move pair in it.
+
+    With R = ``_OFFSET_RADIUS`` and r = floor(sqrt(order)), the robots' offset at the end
+    of a step, d = d0 + o_a - o_b, lies in the box |dx|, |dy| <= R + 2r whenever the start
+    offset d0 lies in |dx|, |dy| <= R. Its flat index in the box is
+    ``G(d0) + code[a * S + b]``, G(d0) = (dx0 + B) * (2B + 1) + (dy0 + B) with B = R + 2r,
+    so one edge's (L, L) table is two small gathers, whatever its label sets.
+
+    Returns
+    -------
+    table
+        ((2B + 1)^2,) rho_I of each offset of the box (read-only).
+    code
+        (S * S,) int32 flat offset o_a - o_b of each move pair.
+    R, B
+        The start offset radius and the box radius.
+    """
+    off = stencil(order)
+    R = _OFFSET_RADIUS
+    B = R + 2 * int(np.floor(np.sqrt(order)))
+    width = 2 * B + 1
+    dx, dy = np.meshgrid(np.arange(-B, B + 1), np.arange(-B, B + 1), indexing="ij")
+    table = _morse_table(morse, resolution)((dx * dx + dy * dy).ravel())
+    v = off[:, None, :] - off[None, :, :]
+    code = (v[..., 0] * width + v[..., 1]).astype(np.int32).ravel()
+    table.setflags(write=False)
+    code.setflags(write=False)
+    return table, code, R, B
+
+
+def pairwise_tables(labels: LabelSets, edges: np.ndarray, weights: np.ndarray, morse: Morse,
+                    resolution: float) -> np.ndarray:
+    """(E, L, L) w_ij rho_I(|x_i - x_j|) for every label pair of every edge.
+
+    Padding labels repeat "stay", so their entries are finite and never chosen (their
+    unary is inf); they need no special value. The distance depends only on the start
+    offset and the two stencil moves: edges whose start offset lies within
+    ``_OFFSET_RADIUS`` gather their table from :func:`_morse_box`; longer edges (a
+    stretched graph) compute their squared distances directly.
+    """
+    L = labels.index.shape[1]
+    if not len(edges):
+        return np.zeros((0, L, L))
+    S = len(stencil(labels.order))
+    table, code, R, B = _morse_box(morse, resolution, labels.order)
+    ia, ib = labels.index[edges[:, 0]], labels.index[edges[:, 1]]
+    d0 = labels.starts[edges[:, 0]] - labels.starts[edges[:, 1]]
+    far = np.flatnonzero(np.any(np.abs(d0) > R, axis=1))
+    dc = np.clip(d0, -R, R)  # far edges gather a placeholder, replaced below
+    g = ((dc[:, 0] + B) * (2 * B + 1) + (dc[:, 1] + B)).astype(np.int32)
+    ia32, ib32 = (ia * S).astype(np.int32), ib.astype(np.int32)
+    out = np.empty((len(edges), L, L))
+    # in chunks: small temporaries are reused by the allocator instead of being mapped
+    # (and page-faulted) afresh every step
+    for a in range(0, len(edges), _CHUNK):
+        b = a + _CHUNK
+        flat = code.take(ia32[a:b, :, None] + ib32[a:b, None, :])
+        flat += g[a:b, None, None]
+        table.take(flat, out=out[a:b])
+    if len(far):
+        off = stencil(labels.order)
+        d = d0[far][:, None, None, :] + off[ia[far]][:, :, None, :] - off[ib[far]][:, None, :, :]
+        out[far] = _morse_table(morse, resolution)((d ** 2).sum(axis=-1))
+    out *= weights[:, None, None]
+    return out
+
+
 def step_mrf(labels: LabelSets, weights: CliqueWeights, static: np.ndarray, morse: Morse,
              resolution: float) -> PairwiseMRF:
     """The pairwise MRF of one step, with ``initial`` = everybody stays (label 0)."""
-    cells = labels.cells.astype(np.int32)
+    cells = labels.cells
     valid = labels.valid
-    N, L = valid.shape
+    N = valid.shape[0]
     unary = weights.node[:, None] * static[cells[..., 0], cells[..., 1]]
     unary = np.where(valid, unary, np.inf)
     e = weights.edges
-    if len(e):
-        # Padding labels repeat "stay", so their entries are finite and never chosen (their
-        # unary is inf); they need no special value.
-        cx, cy = cells[..., 0], cells[..., 1]
-        dx = cx[e[:, 0]][:, :, None] - cx[e[:, 1]][:, None, :]
-        dy = cy[e[:, 0]][:, :, None] - cy[e[:, 1]][:, None, :]
-        pairwise = weights.edge[:, None, None] * _morse_table(morse, resolution)(dx * dx + dy * dy)
-    else:
-        pairwise = np.zeros((0, L, L))
+    pairwise = pairwise_tables(labels, e, weights.edge, morse, resolution)
     pairs, mask = conflict_tables(labels)
     return PairwiseMRF(unary=unary, edges=e, pairwise=pairwise, conflicts=pairs, conflict_mask=mask,
                        initial=np.zeros(N, dtype=np.intp))

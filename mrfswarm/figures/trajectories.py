@@ -24,8 +24,8 @@ from scipy.spatial import ConvexHull
 from scipy.spatial.distance import pdist, squareform
 
 from mrfswarm import plots
-from mrfswarm.continuous_check import separation_series
 from mrfswarm.figures.runs import SCENARIOS, discrete_run, scenario_run
+from mrfswarm.metrics import distance_series
 from mrfswarm.pipeline import Result
 
 #: How each scenario is smoothed in Fig. 6 (e)-(h) (a key of ``runs.SMOOTHING``).
@@ -112,8 +112,8 @@ def time_series(name: str, rate_hz: float = RATE_HZ, smoothing: str | None = Non
     c = r.continuous
     t = np.linspace(0.0, c.makespan_s, int(c.makespan_s * rate_hz) + 1)
     pos = c.positions(t)
-    dmin, dmean = separation_series(t, pos)
-    return TimeSeries(t=t, positions=pos, min_distance=dmin, mean_distance=dmean,
+    ds = distance_series(pos)
+    return TimeSeries(t=t, positions=pos, min_distance=ds.min, mean_distance=ds.mean,
                       safety=2 * r.config.scenario.robot_radius)
 
 

@@ -81,8 +81,8 @@ class PairwiseMRF:
                 raise InvalidProblem(f"{name} refer to nodes outside 0..{N - 1}")
             if np.any(pairs[:, 0] == pairs[:, 1]):
                 raise InvalidProblem(f"{name} contain a self-loop")
-            key = np.sort(pairs, axis=1)
-            if len(np.unique(key, axis=0)) != len(key):
+            key = np.sort(np.minimum(pairs[:, 0], pairs[:, 1]) * np.int64(N) + np.maximum(pairs[:, 0], pairs[:, 1]))
+            if np.any(key[1:] == key[:-1]):
                 raise InvalidProblem(f"{name} contain a repeated pair")
         if initial.shape != (N,):
             raise InvalidProblem(f"initial has shape {initial.shape}, expected ({N},)")
