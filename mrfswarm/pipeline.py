@@ -181,7 +181,7 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
 
 
 def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None = None, seed: int | None = None,
-         progress: bool | None = None) -> Result:
+         progress: bool | None = None, workers: int | None = None) -> Result:
     """Plan a scenario: the discrete stage, waypoint pruning, metrics.
 
     Parameters
@@ -194,6 +194,9 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         Overrides the start sampling seed and the optimizer's seed.
     progress
         Show a progress bar (default: when stderr is a terminal).
+    workers
+        Processes for the continuous stage's independent chunks of robots and for the
+        simulation (default: the machine's cores). Plans do not depend on it.
     """
     cfg = resolve_config(config, mrf=mrf, qp=qp)
     timings: dict[str, float] = {}
@@ -219,9 +222,9 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
                 f"the swarm cannot move: no robot has a free move that lowers the swarm energy from the start "
                 f"(goal {metrics.final_goal_distance:.1f} m away)")
         if cfg.smoothing.enabled:
-            _continuous(result, show)
+            _continuous(result, show, workers)
         if cfg.smoothing.enabled and cfg.simulation.enabled:
-            _simulate(result, show)
+            _simulate(result, show, workers)
     except MrfswarmError as e:
         result.failure = str(e)
         _paper_pruning(result)
@@ -239,25 +242,26 @@ def _paper_pruning(result: Result) -> None:
         result.timings_s["pruning"] = time.perf_counter() - t0
 
 
-def _continuous(result: Result, show: bool) -> None:
+def _continuous(result: Result, show: bool, workers: int | None = None) -> None:
     from tqdm import tqdm
 
     from mrfswarm.continuous import RecedingHorizon
 
     cfg = result.config
     rh = RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
-                         cfg.smoothing.backend)
+                         cfg.smoothing.backend, workers=workers)
     with tqdm(total=len(rh.windows()), desc="smoothing", unit="window", disable=not show, leave=False) as bar:
         result.continuous = rh.run(on_window=lambda w: bar.update(1))
     result.timings_s.update(result.continuous.timings)
 
 
-def _simulate(result: Result, show: bool) -> None:
+def _simulate(result: Result, show: bool, workers: int | None = None) -> None:
     from mrfswarm.simulation import fly_swarm
 
     cfg = result.config
     t0 = time.perf_counter()
     result.flight = fly_swarm(result.continuous.trajectories, cfg.scenario.altitude, result.scenario.grid,
                               cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=result.continuous.j_max,
-                              speed=result.continuous.v_max, progress=show, backend=cfg.simulation.backend)
+                              workers=workers, speed=result.continuous.v_max, progress=show,
+                              backend=cfg.simulation.backend)
     result.timings_s["simulation"] = time.perf_counter() - t0

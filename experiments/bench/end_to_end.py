@@ -1,12 +1,28 @@
-"""Time of each pipeline stage, end to end, for the corridor (5 and 10 robots) and 100 robots.
+"""The continuous stage end to end, per scenario and variant, against the code it replaced.
 
-Stages: discrete (MRF steps), pruning (per execution block, made safe), smoothing
-(receding-horizon min-snap QPs), checking (sampled certification at 200 Hz), simulation
-(RotorPy, every robot). Targets (issue 4): planning without simulation of the 10-robot
-corridor under 2 s, of 100 robots under 30 s. Prints a table and writes CSV. Each row
-is one run (the planner is deterministic); ``--repeats`` takes the median.
+Variants (all without the quadrotor simulation):
 
-    python experiments/bench/end_to_end.py [--no-sim] [--repeats 1] [--qp osqp]
+- ``tube (before)``: the continuous stage of git revision ``--baseline`` (default
+  ``be04db8``, before safe regions: a sampled tube around a reference at rest at every
+  step, rest seams), run from that revision's code in a child process of the same
+  session;
+- ``paper seams``: safe regions with the paper's receding horizon (4 steps planned, 50 %
+  executed, at rest at every seam);
+- ``default``: safe regions, 8 steps planned, 50 % executed, continuous up to jerk;
+- ``refined``: the default with each window's step durations refined (Ipopt NLP).
+
+Per run, measured from the trajectories by the same code for every variant: makespan,
+makespan over a lower bound (the longest robot path over v_max), full stops (speed below
+0.05 m/s and back up inside the flight; max and mean per robot), the integral of squared
+snap summed over robots, the smallest separation and obstacle clearance (sampled at
+200 Hz), the exact maxima of v, a, j; and seconds: the discrete stage, the continuous
+stage (regions or pruning, smoothing, checking) and the paper's waypoint pruning.
+
+Targets (issue 9) at v 2, a 4, j 4: corridor makespan <= 35 s, no stop, snap <= 1,500,
+continuous stage <= 2 s; swarm100 makespan <= 150 s, planning no slower than before.
+
+    python experiments/bench/end_to_end.py [--cases corridor,corridor10,blocks,blocks12,swarm100]
+        [--variants tube,paper,default,refined] [--baseline be04db8]
         [--out experiments/bench/results/end_to_end.csv]
 """
 
@@ -14,57 +30,112 @@ from __future__ import annotations
 
 import argparse
 import csv
-import statistics
+import json
+import sys
+import tempfile
 import time
 from pathlib import Path
 
-import mrfswarm
-from mrfswarm.pipeline import plan
+sys.path.insert(0, str(Path(__file__).parent))
+from baseline_code import extract, run_child, use
 
 EXP = Path(__file__).resolve().parents[1]
-CASES = [
-    ("corridor, 5 robots", "corridor.toml", True),
-    ("corridor, 10 robots", "corridor10.toml", True),
-    ("free space, 100 robots", "swarm100.toml", False),  # 100 RotorPy flights take minutes: off unless --sim-all
-]
-STAGES = ("discrete", "pruning", "smoothing", "checking", "simulation")
+RESULTS = Path(__file__).parent / "results"
+VARIANTS = {
+    "tube": ("tube (before)", []),
+    "paper": ("paper seams", ['smoothing.seam="rest"', "smoothing.horizon=4", "smoothing.execution=0.5"]),
+    "default": ("default", []),
+    "refined": ("refined", ["smoothing.time_refinement=true"]),
+}
+#: Speed under which a robot counts as stopped (m/s).
+STOP_SPEED = 0.05
+
+
+def measure(trajectories, grid, v_max: float) -> dict:
+    """Flight metrics of trajectories on one time grid (the same code for every variant)."""
+    import numpy as np
+
+    from mrfswarm.continuous_check import min_pair_distance
+    from mrfswarm.metrics import obstacle_clearance
+    from mrfswarm.trajectory import integral_squared_derivative, max_derivative_norms
+
+    T = max(tr.duration for tr in trajectories)
+    t = np.linspace(0.0, T, int(T * 200) + 1)
+    pos = np.stack([tr.evaluate(t) for tr in trajectories], axis=1)
+    speed = np.stack([np.linalg.norm(tr.evaluate(t, 1), axis=-1) for tr in trajectories], axis=1)
+    stops = []
+    for i in range(speed.shape[1]):
+        slow = (speed[:, i] < STOP_SPEED).astype(int)
+        starts, ends = np.flatnonzero(np.diff(slow) == 1), np.flatnonzero(np.diff(slow) == -1)
+        stops.append(int(sum(1 for s in starts if (ends > s).any())))
+    lengths = np.linalg.norm(np.diff(pos, axis=0), axis=-1).sum(axis=0)
+    clr = obstacle_clearance(grid.occupied, (pos.reshape(-1, 2) - np.asarray(grid.origin)) / grid.resolution)
+    return {
+        "makespan_s": round(float(T), 2),
+        "makespan_over_bound": round(float(T / (lengths.max() / v_max)), 2),
+        "stops_max": max(stops),
+        "stops_mean": round(float(np.mean(stops)), 1),
+        "snap_integral": round(float(sum(integral_squared_derivative(tr, 4) for tr in trajectories)), 1),
+        "min_separation_m": round(float(min_pair_distance(pos)[0].min()), 3),
+        "min_clearance_m": None if clr is None else round(clr * grid.resolution, 3),
+        "v_a_j_max": [round(float(max_derivative_norms(trajectories, k).max()), 2) for k in (1, 2, 3)],
+    }
+
+
+def child(case: str, variant: str, code: str | None) -> None:
+    """Plan one case with one variant and print its row as JSON (run in a child process)."""
+    use(code)
+    import mrfswarm
+    from mrfswarm.pipeline import plan
+
+    cfg = mrfswarm.load_config(EXP / f"{case}.toml", ["simulation.enabled=false", *VARIANTS[variant][1]])
+    t0 = time.perf_counter()
+    r = plan(cfg, progress=False)
+    total = time.perf_counter() - t0
+    c, ts = r.continuous, r.timings_s
+    continuous = sum(ts.get(k, 0.0) for k in ("regions", "smoothing", "checking"))
+    paper_pruning = ts.get("pruning", 0.0)
+    if variant == "tube":  # before: pruning was part of the continuous stage
+        continuous += paper_pruning
+        paper_pruning = 0.0
+    row = {"case": case, "variant": VARIANTS[variant][0], "robots": r.scenario.n_robots, "mrf_steps": r.discrete.n_steps,
+           **measure(c.trajectories, r.scenario.grid, cfg.smoothing.v_max),
+           "discrete_s": round(ts.get("discrete", 0.0), 2), "continuous_s": round(continuous, 2),
+           "paper_pruning_s": round(paper_pruning, 2), "total_s": round(total, 2)}
+    print(json.dumps(row))
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--no-sim", action="store_true", help="skip the RotorPy simulation everywhere")
-    ap.add_argument("--sim-all", action="store_true", help="also simulate the 100-robot swarm")
-    ap.add_argument("--repeats", type=int, default=1)
-    ap.add_argument("--qp", default=None, help="QP backend (default: the config's, osqp)")
-    ap.add_argument("--out", type=Path, default=Path(__file__).parent / "results" / "end_to_end.csv")
+    ap.add_argument("--cases", default="corridor,corridor10,blocks,blocks12,swarm100")
+    ap.add_argument("--variants", default=",".join(VARIANTS))
+    ap.add_argument("--baseline", default="be04db8", help="git revision of the code before safe regions")
+    ap.add_argument("--out", type=Path, default=RESULTS / "end_to_end.csv")
+    ap.add_argument("--child", nargs=2, metavar=("CASE", "VARIANT"), help=argparse.SUPPRESS)
+    ap.add_argument("--code", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.child:
+        child(*args.child, args.code)
+        return
+    variants = args.variants.split(",")
     rows = []
-    print(f"{'case':<24} {'steps':>5} " + " ".join(f"{s:>10}" for s in STAGES) + f" {'planning':>9} {'total':>8}")
-    for name, cfg_name, sim in CASES:
-        sim = (sim or args.sim_all) and not args.no_sim
-        cfg = mrfswarm.load_config(EXP / cfg_name, [f"simulation.enabled={'true' if sim else 'false'}"])
-        runs = []
-        for _ in range(args.repeats):
-            t0 = time.perf_counter()
-            r = plan(cfg, qp=args.qp, progress=False)
-            runs.append((time.perf_counter() - t0, r))
-        total = statistics.median(t for t, _ in runs)
-        r = runs[0][1]
-        st = {s: statistics.median(rr.timings_s.get(s, 0.0) for _, rr in runs) for s in STAGES}
-        planning = sum(st[s] for s in STAGES if s != "simulation") + r.timings_s.get("scenario", 0.0)
-        row = {"case": name, "robots": r.scenario.n_robots, "mrf_steps": r.discrete.n_steps, "qp": r.qp,
-               **{f"{s}_s": round(st[s], 3) for s in STAGES}, "planning_s": round(planning, 3),
-               "total_s": round(total, 3), "makespan_s": round(r.continuous.makespan_s, 2),
-               "min_separation_m": round(r.continuous.check.min_separation, 3), "simulated": sim}
-        rows.append(row)
-        print(f"{name:<24} {r.discrete.n_steps:>5} " + " ".join(f"{st[s]:>10.2f}" for s in STAGES)
-              + f" {planning:>9.2f} {total:>8.2f}", flush=True)
+    cols = ["makespan_s", "makespan_over_bound", "stops_max", "snap_integral", "min_separation_m", "min_clearance_m",
+            "discrete_s", "continuous_s"]
+    print(f"{'case':<11} {'variant':<14} " + " ".join(f"{c[:13]:>13}" for c in cols))
+    with tempfile.TemporaryDirectory() as tmp:
+        old = extract(args.baseline, Path(tmp)) if "tube" in variants else None
+        for case in args.cases.split(","):
+            for v in variants:
+                row = run_child(Path(__file__), ["--child", case, v], old if v == "tube" else None)
+                rows.append(row)
+                print(f"{case:<11} {row['variant']:<14} " + " ".join(f"{str(row[c]):>13}" for c in cols), flush=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with open(args.out, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
-        w.writerows(rows)
-    print(f"seconds per stage; planning = everything but the simulation. wrote {args.out}")
+        for row in rows:
+            w.writerow({k: json.dumps(v) if isinstance(v, list) else v for k, v in row.items()})
+    print(f"continuous_s: regions (or, before, pruning), smoothing and checking; wrote {args.out}")
 
 
 if __name__ == "__main__":

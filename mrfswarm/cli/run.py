@@ -17,8 +17,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=None, help="seed of the start sampling and the optimizer")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key by dotted path, e.g. --set interaction.k=7 (repeatable)")
+    p.add_argument("--workers", type=_positive_int, default=None,
+                   help="processes for the continuous stage's chunks of robots and the simulation "
+                        "(default: the machine's cores; plans do not depend on it)")
     p.add_argument("--animate", action="store_true", help="also write an animation (GIF) of the swarm")
     p.set_defaults(func=run)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {text!r}")
+    return value
 
 
 def run(args: argparse.Namespace) -> int:
@@ -29,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = load_config(args.config, args.overrides)
     out = args.out if args.out is not None else Path("out") / args.config.stem
     try:
-        result = plan(cfg, mrf=args.mrf, qp=args.qp, seed=args.seed)
+        result = plan(cfg, mrf=args.mrf, qp=args.qp, seed=args.seed, workers=args.workers)
     except MrfswarmError as e:
         partial = getattr(e, "partial_result", None)
         if partial is not None:  # keep what was computed before the failure

@@ -38,6 +38,7 @@ is accepted if it certifies and lowers that cost.
 from __future__ import annotations
 
 import logging
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -82,6 +83,10 @@ MARGIN = 1e-6
 NOMINAL_ACCELERATION = 0.25
 #: Ipopt's settings for time refinement (a local improvement: its last iterate is a candidate).
 NLP_OPTIONS = QPOptions(eps_abs=1e-6, eps_rel=1e-6, max_iter=150)
+#: Robots per chunk: independent groups are packed into QPs of about this many robots.
+CHUNK_ROBOTS = 64
+#: Swarms at least this large solve their chunks in worker processes (smaller ones gain nothing).
+PARALLEL_ROBOTS = 200
 #: Rounds of lazy constraint generation before every row is switched on.
 MAX_ROUNDS = 12
 #: Limits that need steps this many times slower than nominal are refused as unreachable.
@@ -206,6 +211,10 @@ class RecedingHorizon:
         QP backend name for every solve (default ``cfg.backend``).
     qp_options
         Options of every QP solve.
+    workers
+        Processes that solve a window's independent chunks of robots at once (default:
+        the machine's cores; used for swarms of ``PARALLEL_ROBOTS`` or more). The plan
+        does not depend on it.
 
     Raises
     ------
@@ -217,7 +226,7 @@ class RecedingHorizon:
     """
 
     def __init__(self, paths: np.ndarray, grid: OccupancyGrid, cfg: SmoothingConfig, radius: float,
-                 backend: str | None = None, qp_options: QPOptions | None = None) -> None:
+                 backend: str | None = None, qp_options: QPOptions | None = None, workers: int | None = None) -> None:
         t0 = time.perf_counter()
         self.paths = np.asarray(paths, dtype=np.int64)
         self.grid, self.cfg = grid, cfg
@@ -250,6 +259,8 @@ class RecedingHorizon:
         # rows switched on by lazy constraint generation (grow over the run)
         self.active = np.zeros(len(self.seps), dtype=bool)
         self.limit_rows = np.zeros((self.T, self.N, 3), dtype=bool)
+        self.workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
+        self._pool = None
         self.regions_s = time.perf_counter() - t0
         self._check_s = 0.0
 
@@ -293,6 +304,7 @@ class RecedingHorizon:
         Y = np.zeros((self.N, M + 1, q, 2))
         B = np.zeros((self.N, M, pm.nz - 2 * q, 2))
         cost = np.zeros(self.N)
+        cps = [np.zeros((self.N, M, pm.degree + 1 - r, 2)) for r in range(4)]
         cand = np.flatnonzero((self.seps.step >= a) & (self.seps.step < b))
         seps = self.seps.select(cand)
         todo = np.ones(self.N, dtype=bool)
@@ -301,26 +313,33 @@ class RecedingHorizon:
                 self.active[cand] = True
                 self.limit_rows[a:b] = True
                 todo[:] = True
-            on = cand[self.active[cand] & todo[seps.first] & todo[seps.second]]
-            robots = np.flatnonzero(todo)
-            form = WindowFormulation(self._spec(a, b, robots, start, on))
-            try:
-                sol = solvers.qp.solve(form.qp(durations), self.backend, self.qp_options)
-            except SolverError as e:
-                return None, f"{len(robots)} robots: {e}"
+            groups = interaction_groups(self.N, seps.select(self.active[cand] & todo[seps.first] & todo[seps.second]))
+            chunks = pack_groups([g for g in groups if todo[g[0]]], CHUNK_ROBOTS)
+            specs = []
+            for robots in chunks:
+                mine = np.zeros(self.N, dtype=bool)
+                mine[robots] = True
+                specs.append(self._spec(a, b, robots, start, cand[self.active[cand] & mine[seps.first]]))
+            results = self._map(solve_window, [(spec, durations, self.backend, self.qp_options) for spec in specs])
             rec.rounds += 1
-            x = form.exact_ends(sol.x)
-            Y[robots], B[robots] = form.unpack(x)
-            cost[robots] = form.robot_objectives(x, durations)
-            cps = self._control_points(Y, B, durations)
-            # corridors: n . (P_i - P_k) >= d (+ half the margin: what the solver must reach)
-            gap = np.einsum("pmk,pk->pm", cps[0][seps.first, seps.step - a] - cps[0][seps.second, seps.step - a],
-                            seps.normal).min(axis=1)
+            for robots, out in zip(chunks, results):
+                if isinstance(out, str):
+                    return None, f"{len(robots)} robots: {out}"
+                Y[robots], B[robots], cost[robots] = out
+            robots = np.flatnonzero(todo)
+            for r, part in enumerate(self._control_points(Y[robots], B[robots], durations)):
+                cps[r][robots] = part
+            # corridors (of the robots just solved): n . (P_i - P_k) >= d (+ half the margin: what the solver reaches)
+            look = todo[seps.first] | todo[seps.second]
+            gap = np.full(len(cand), np.inf)
+            gap[look] = np.einsum("pmk,pk->pm", cps[0][seps.first[look], seps.step[look] - a]
+                                  - cps[0][seps.second[look], seps.step[look] - a], seps.normal[look]).min(axis=1)
             new_pairs = (gap < self.distance + MARGIN / 2) & ~self.active[cand]
             new_limits = np.zeros((M, self.N, 3), dtype=bool)
             for r, lim in zip((1, 2, 3), self.limits):
-                proj = np.abs(cps[r] @ OCTAGON.T).max(axis=(2, 3))  # (N, M)
-                new_limits[:, :, r - 1] = (proj.T > lim * OCTAGON_INNER * (1 - MARGIN / 2)) & ~self.limit_rows[a:b, :, r - 1]
+                proj = np.abs(cps[r][robots] @ OCTAGON.T).max(axis=(2, 3))  # (n, M)
+                new_limits[:, robots, r - 1] = (proj.T > lim * OCTAGON_INNER * (1 - MARGIN / 2)) & \
+                    ~self.limit_rows[a:b, robots, r - 1]
             if not new_pairs.any() and not new_limits.any():
                 rec.active_pairs = int(self.active[cand].sum())
                 return _Solution(Y, B, durations, float(cost.sum())), ""
@@ -329,12 +348,17 @@ class RecedingHorizon:
             touched = np.zeros(self.N, dtype=bool)
             touched[seps.first[new_pairs]] = touched[seps.second[new_pairs]] = True
             touched |= new_limits.any(axis=(0, 2))
-            groups = interaction_groups(self.N, seps.select(self.active[cand]))
             todo = np.zeros(self.N, dtype=bool)
-            for g in groups:
+            for g in interaction_groups(self.N, seps.select(self.active[cand])):
                 if touched[g].any():
                     todo[g] = True
         return None, "constraint generation did not settle"  # unreachable: the last round has every row
+
+    def _map(self, fn: Callable, args: list[tuple]) -> list:
+        """``fn(*a)`` for every ``a``: in the worker processes when there are several chunks and workers."""
+        if self._pool is None or len(args) < 2:
+            return [fn(*a) for a in args]
+        return list(self._pool.map(fn, *zip(*args)))
 
     def _control_points(self, Y: np.ndarray, B: np.ndarray, durations: np.ndarray) -> list[np.ndarray]:
         """[P, V, A, J] control points (N, M, K_r, 2) of knot derivatives ``Y`` and bubbles ``B``."""
@@ -444,6 +468,18 @@ class RecedingHorizon:
     # ------------------------------------------------------------------ run
     def run(self, on_window: Callable[[WindowRecord], None] | None = None) -> ContinuousPlan:
         """Plan every window; returns the assembled, certified trajectories."""
+        if self.workers > 1 and self.N >= PARALLEL_ROBOTS:
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(self.workers)
+        try:
+            return self._run(on_window)
+        finally:
+            if self._pool is not None:
+                self._pool.shutdown()
+                self._pool = None
+
+    def _run(self, on_window: Callable[[WindowRecord], None] | None) -> ContinuousPlan:
         cfg, N, T = self.cfg, self.N, self.T
         q, pm = cfg.derivative, piece_maps(cfg.degree, cfg.derivative)
         tic = time.perf_counter()
@@ -488,6 +524,41 @@ class RecedingHorizon:
         check_s = time.perf_counter() - t0 + self._check_s
         return ContinuousPlan(trajectories, knots, regions, self.seps, records, cert, v, acc, jerk, min_sep, clearance,
                               sampled, {"regions": self.regions_s, "smoothing": smoothing_s, "checking": check_s})
+
+
+def solve_window(spec: WindowSpec, durations: np.ndarray, backend: str, options: QPOptions) -> tuple | str:
+    """Solve one chunk's QP: its robots' knot derivatives, bubbles and snap integrals, or why it failed.
+
+    A plain function of picklable data, so chunks can be solved in worker processes (or,
+    later, on a cluster).
+    """
+    form = WindowFormulation(spec)
+    try:
+        sol = solvers.qp.solve(form.qp(durations), backend, options)
+    except SolverError as e:
+        return str(e)
+    x = form.exact_ends(sol.x)
+    Y, B = form.unpack(x)
+    return Y, B, form.robot_objectives(x, durations)
+
+
+def pack_groups(groups: list[np.ndarray], size: int) -> list[np.ndarray]:
+    """Independent groups of robots packed, in order, into chunks of at most ``size`` robots.
+
+    A group larger than ``size`` is a chunk of its own. The packing depends on the groups
+    only (not on how many workers solve them), so a plan is the same with any number of
+    workers.
+    """
+    chunks, current, count = [], [], 0
+    for g in sorted(groups, key=lambda g: int(g[0])):
+        if count and count + len(g) > size:
+            chunks.append(np.concatenate(current))
+            current, count = [], 0
+        current.append(g)
+        count += len(g)
+    if current:
+        chunks.append(np.concatenate(current))
+    return [np.sort(c) for c in chunks]
 
 
 def _hover_regions(X: np.ndarray, radius: float) -> Regions:
