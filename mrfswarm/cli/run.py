@@ -5,16 +5,19 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from mrfswarm.cli import _args
 from mrfswarm.config import load_config
+from mrfswarm.errors import ConfigError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="plan a scenario and write result.json, paths, trajectories and figures")
     p.add_argument("config", type=Path, help="experiment config (TOML)")
-    p.add_argument("--out", type=Path, default=None, help="output folder (default: out/<config name>)")
+    p.add_argument("--out", type=_args.output_dir, default=None, help="output folder (default: out/<config name>)")
     p.add_argument("--mrf", default=None, help="MRF optimizer (see `mrfswarm solvers`)")
     p.add_argument("--qp", default=None, help="QP backend for smoothing (see `mrfswarm solvers`)")
-    p.add_argument("--seed", type=int, default=None, help="seed of the start sampling and the optimizer")
+    p.add_argument("--seed", type=_args.seed, default=None,
+                   help="seed (integer >= 0) of the start sampling and the optimizer")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key by dotted path, e.g. --set interaction.k=7 (repeatable)")
     p.add_argument("--animate", action="store_true", help="also write an animation (GIF) of the swarm")
@@ -27,7 +30,12 @@ def run(args: argparse.Namespace) -> int:
     from mrfswarm.pipeline import plan
 
     cfg = load_config(args.config, args.overrides)
-    out = args.out if args.out is not None else Path("out") / args.config.stem
+    out = args.out
+    if out is None:
+        try:
+            out = _args.output_dir(str(Path("out") / args.config.stem))
+        except argparse.ArgumentTypeError as e:
+            raise ConfigError(f"default output folder {e}; give --out") from None
     try:
         result = plan(cfg, mrf=args.mrf, qp=args.qp, seed=args.seed)
     except MrfswarmError as e:
