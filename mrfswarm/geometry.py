@@ -82,6 +82,31 @@ def segment_segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2:
     return np.where(proper, 0.0, best)
 
 
+def segments_clear(free: np.ndarray, p: np.ndarray, q: np.ndarray, clearance: float = 0.5) -> np.ndarray:
+    """(M,) for each segment p_m q_m ((M, 2) ends, cell units): is every cell closer than
+    ``clearance`` to it free and on the map? One array expression over all segments.
+
+    Each segment is tested against the cells of one common window (the largest segment's
+    bounding box grown by ``ceil(clearance) + 1``) placed at its own lower corner; the
+    window's extra cells lie farther than ``clearance`` from it and do not count.
+    """
+    p = np.asarray(p, float).reshape(-1, 2)
+    q = np.asarray(q, float).reshape(-1, 2)
+    if len(p) == 0:
+        return np.zeros(0, dtype=bool)
+    r = int(np.ceil(clearance)) + 1
+    lo = np.floor(np.minimum(p, q)).astype(int) - r
+    hi = np.ceil(np.maximum(p, q)).astype(int) + r
+    span = (hi - lo).max(axis=0) + 1
+    ox, oy = np.meshgrid(np.arange(span[0]), np.arange(span[1]), indexing="ij")
+    cells = lo[:, None, :] + np.stack([ox.ravel(), oy.ravel()], axis=1)[None]  # (M, K, 2)
+    near = segment_box_distance(p[:, None, :], q[:, None, :], cells.astype(float)) < clearance - 1e-9
+    W, H = free.shape
+    inb = (cells[..., 0] >= 0) & (cells[..., 0] < W) & (cells[..., 1] >= 0) & (cells[..., 1] < H)
+    ok = inb & free[np.clip(cells[..., 0], 0, W - 1), np.clip(cells[..., 1], 0, H - 1)]
+    return np.all(ok | ~near, axis=1)
+
+
 def segment_clear(free: np.ndarray, p: np.ndarray, q: np.ndarray, clearance: float = 0.5) -> bool:
     """True if every cell closer than ``clearance`` to segment pq (cell units) is free and on the map."""
     p, q = np.asarray(p, float), np.asarray(q, float)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrfswarm.geometry import segment_clear, segment_segment_distance
+from mrfswarm.geometry import segment_segment_distance, segments_clear
 from mrfswarm.motion import WALL_CLEARANCE
 
 _TOUCH = 1e-9
@@ -27,30 +27,36 @@ def horizon_bounds(n_steps: int, horizon: int) -> list[tuple[int, int]]:
     return [(a, min(a + horizon, n_steps)) for a in range(0, max(n_steps, 1), horizon) if a < n_steps] or [(0, 0)]
 
 
-def _crosses_others(paths: np.ndarray, robot: int, a: int, b: int, p: np.ndarray, q: np.ndarray) -> bool:
-    """Does segment pq meet another robot's discrete trajectory over steps a..b?"""
+def _crosses_others(paths: np.ndarray, robot: int, a: int, b: int, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """(C,) does each segment p_c q_c ((C, 2) ends) meet another robot's discrete trajectory over steps a..b?"""
     others = np.delete(np.arange(paths.shape[1]), robot)
     if len(others) == 0:
-        return False
+        return np.zeros(len(p), dtype=bool)
     seg_p = paths[a:b, others].reshape(-1, 2).astype(float)
     seg_q = paths[a + 1 : b + 1, others].reshape(-1, 2).astype(float)
     if len(seg_p) == 0:  # a one-point window: the others' positions
         seg_p = seg_q = paths[a, others].astype(float)
-    d = segment_segment_distance(p[None, :], q[None, :], seg_p, seg_q)
-    return bool(np.any(d < _TOUCH))
+    d = segment_segment_distance(p[:, None, :], q[:, None, :], seg_p[None], seg_q[None])
+    return np.any(d < _TOUCH, axis=1)
 
 
 def prune_robot(paths: np.ndarray, free: np.ndarray, robot: int, a: int, b: int) -> list[int]:
     """Kept step indices of ``robot`` within window [a, b] (both ends kept)."""
     P = paths[:, robot].astype(float)
+    if np.all(P[a:b + 1] == P[a]):
+        # At rest through the window: the ends join by a point, in a free cell no other
+        # robot's move comes within a cell of (the discrete invariant); the loop below
+        # would keep [a, b] too.
+        return [a, b] if b > a else [a]
     kept = [a]
     k = a
     while k < b:
-        nxt = k + 1
-        for m in range(b, k + 1, -1):  # farthest first
-            if segment_clear(free, P[k], P[m], WALL_CLEARANCE) and not _crosses_others(paths, robot, a, b, P[k], P[m]):
-                nxt = m
-                break
+        far = np.arange(b, k + 1, -1)  # farthest first
+        start = np.broadcast_to(P[k], (len(far), 2))
+        ok = segments_clear(free, start, P[far], WALL_CLEARANCE)
+        if ok.any():
+            ok[ok] = ~_crosses_others(paths, robot, a, b, start[ok], P[far[ok]])
+        nxt = int(far[np.argmax(ok)]) if ok.any() else k + 1
         kept.append(nxt)
         k = nxt
     return kept

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrfswarm.geometry import segment_clear
+from mrfswarm.geometry import segments_clear
 from mrfswarm.motion import MIN_SEPARATION, WALL_CLEARANCE, step_min_separation
 
 
@@ -41,9 +41,9 @@ def discrete_violations(paths: np.ndarray, free: np.ndarray, limit: int = 10) ->
             out.append(f"step {t}: two robots share cell {tuple(p[f])}")
         if t > 0:
             moved = np.flatnonzero(np.any(paths[t - 1] != p, axis=1))
-            for i in moved:
-                if not segment_clear(free, paths[t - 1][i], p[i], WALL_CLEARANCE):
-                    out.append(f"step {t}: robot {i}'s move {tuple(paths[t - 1][i])} -> {tuple(p[i])} cuts an obstacle")
+            clear = segments_clear(free, paths[t - 1][moved], p[moved], WALL_CLEARANCE)
+            for i in moved[~clear]:
+                out.append(f"step {t}: robot {i}'s move {tuple(paths[t - 1][i])} -> {tuple(p[i])} cuts an obstacle")
             d, pair = step_min_separation(paths[t - 1], p)
             if d < MIN_SEPARATION - 1e-9:
                 out.append(f"step {t}: robots {pair} come {d:.3f} cells close while moving")

@@ -16,7 +16,7 @@ MovingAI convention, so :func:`mrfswarm.maps.save_movingai` writes them unchange
     Single occupied cells scattered with density 10-20 %, away from small clearings
     around the start and the goal.
 ``maze``
-    A perfect maze (a random spanning tree of a coarse grid, ``networkx``) with corridors
+    A perfect maze (a random spanning tree of a coarse grid) with corridors
     2 or 3 cells wide between 1-cell walls, and open halls (4 x 4 maze cells, 11-15 cells
     wide) at the start and the goal corners so that a swarm of 50 has room to start and
     to gather.
@@ -84,6 +84,23 @@ def _keep_goal_region(occ: np.ndarray, goal: tuple[int, int]) -> np.ndarray:
     return labels != labels[goal]
 
 
+def _random_spanning_tree(nx_: int, ny_: int, rng: np.random.Generator) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """Edges of a random spanning tree of the nx_ x ny_ grid graph (randomized Kruskal).
+
+    The minimum spanning tree (``scipy.sparse.csgraph``) under independent uniform edge
+    weights: the classic randomized-Kruskal maze.
+    """
+    from scipy.sparse import coo_array
+    from scipy.sparse.csgraph import minimum_spanning_tree
+
+    idx = np.arange(nx_ * ny_).reshape(nx_, ny_)
+    a = np.concatenate([idx[:-1, :].ravel(), idx[:, :-1].ravel()])
+    b = np.concatenate([idx[1:, :].ravel(), idx[:, 1:].ravel()])
+    w = rng.random(len(a)) + 1.0  # > 0: a zero weight would read as no edge
+    tree = minimum_spanning_tree(coo_array((w, (a, b)), shape=(nx_ * ny_, nx_ * ny_))).tocoo()
+    return [((int(i) // ny_, int(i) % ny_), (int(j) // ny_, int(j) % ny_)) for i, j in zip(tree.row, tree.col)]
+
+
 def _border(W: int, H: int) -> np.ndarray:
     occ = np.zeros((W, H), dtype=bool)
     occ[[0, -1], :] = True
@@ -93,8 +110,6 @@ def _border(W: int, H: int) -> np.ndarray:
 
 def rooms(seed: int) -> SyntheticMap:
     """Rooms of 12-15 cells behind 1-cell walls, doorways 2-3 cells wide."""
-    import networkx as nx
-
     rng = np.random.default_rng(seed)
     nx_, ny_ = int(rng.integers(2, 4)), int(rng.integers(2, 4))
     if nx_ * ny_ < 4:
@@ -105,10 +120,10 @@ def rooms(seed: int) -> SyntheticMap:
     occ = np.zeros((W, H), dtype=bool)
     occ[::step, :] = True
     occ[:, ::step] = True
-    g = nx.grid_2d_graph(nx_, ny_)
-    tree = nx.random_spanning_tree(g, seed=int(rng.integers(2**31)))
-    doors = set(map(frozenset, tree.edges()))
-    extra = [e for e in g.edges() if frozenset(e) not in doors]
+    doors = set(map(frozenset, _random_spanning_tree(nx_, ny_, rng)))
+    grid_edges = [((i, j), (i + 1, j)) for i in range(nx_ - 1) for j in range(ny_)] + \
+                 [((i, j), (i, j + 1)) for i in range(nx_) for j in range(ny_ - 1)]
+    extra = [e for e in grid_edges if frozenset(e) not in doors]
     if extra:
         doors.add(frozenset(extra[int(rng.integers(len(extra)))]))
     for door in doors:
@@ -183,8 +198,6 @@ def forest(seed: int) -> SyntheticMap:
 
 def maze(seed: int) -> SyntheticMap:
     """A perfect maze with 2-3-cell corridors and halls at the start and the goal."""
-    import networkx as nx
-
     rng = np.random.default_rng(seed)
     corridor = int(rng.integers(2, 4))
     n = int(rng.integers(10, 14)) if corridor == 2 else int(rng.integers(9, 12))
@@ -195,10 +208,10 @@ def maze(seed: int) -> SyntheticMap:
     def block(i: int, j: int) -> tuple[slice, slice]:
         return slice(1 + i * step, 1 + i * step + corridor), slice(1 + j * step, 1 + j * step + corridor)
 
-    g = nx.grid_2d_graph(n, n)
-    for i, j in g.nodes:
-        occ[block(i, j)] = False
-    for (i0, j0), (i1, j1) in nx.random_spanning_tree(g, seed=int(rng.integers(2**31))).edges():
+    for i in range(n):
+        for j in range(n):
+            occ[block(i, j)] = False
+    for (i0, j0), (i1, j1) in _random_spanning_tree(n, n, rng):
         (i0, j0), (i1, j1) = sorted([(i0, j0), (i1, j1)])
         if i0 != i1:
             occ[1 + i0 * step + corridor, block(i0, j0)[1]] = False
