@@ -4,12 +4,16 @@ Each step t: build the interaction graph G_t on the robots' cells x^{t-1}, its m
 cliques and their pairwise reduction; build the label sets X^t and the hard conflicts;
 hand the step's pairwise MRF to an optimizer of :mod:`solvers.mrf` (ICM by default)
 starting from "everybody stays"; move. Stop when a step lowers the swarm energy (on its
-own graph) by less than ``tol`` (relative): converged. The k-NN graph changes as the
+own graph) by less than ``tol`` (relative): *converged* if every robot that can reach the
+goal region is in it (or there is no goal), *trapped* otherwise (ICM, a local method,
+found no move that lowers the energy short of the goal). The k-NN graph changes as the
 swarm moves, so the dynamics need not have a fixed point (a swarm packed at its goal
 can keep circulating, each step lowering the energy of its own graph); such a run stops
-as *stalled* when the swarm energy has made no new minimum for ``patience`` steps, and
-its paths end at the step of that minimum (the steps after it only circulate).
-Otherwise it stops at ``max_steps``.
+as *stalled* when it has made no progress (a new minimum of the swarm energy, or of the
+robots' static field sum: ``progress``) for ``patience`` steps, and its paths end at the
+step of its last progress (the steps after it only circulate). Otherwise it stops at
+``max_steps``. Every step also counts the robots separated from the swarm (nearest
+neighbour beyond 1.5 d_min).
 
 ``energy[t]`` is the swarm energy of configuration x^t on its own interaction graph
 G(x^t): the quantity the paper plots in its convergence figure.

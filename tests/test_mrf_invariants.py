@@ -1,4 +1,4 @@
-"""The discrete safety invariants (DESIGN.md) hold for every MRF method, by brute force.
+"""The discrete safety invariants hold for every MRF method, by brute force.
 
 Every method of ``solvers.mrf.METHODS`` (the registry, never a list of names) plans a few
 steps on hypothesis-generated maps and swarms, and the paths are checked by dense

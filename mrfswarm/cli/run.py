@@ -46,7 +46,17 @@ def run(args: argparse.Namespace) -> int:
         raise
     write_outputs(result, out, animate=args.animate)
     s = result.summary()
-    goal = "" if s["reached_goal"] is None else f", reached goal: {s['reached_goal']}"
+    goal = "" if s["reached_goal"] is None else (
+        f", reached goal: {s['reached_goal']}, robots at goal: {s['robots_at_goal']}/{s['n_robots']}")
+    short = [r for r in s["robots"] if r["stop_reason"] is not None]
+    if short:
+        why = {}
+        for r in short:
+            why.setdefault(r["stop_reason"], []).append(str(r["robot"]))
+        goal += " (" + "; ".join(f"{k}: robot{'s' * (len(v) > 1)} {', '.join(v[:8])}{' ...' if len(v) > 8 else ''}"
+                                 for k, v in why.items()) + ")"
+    if s["robots_separated"]:
+        goal += f", {s['robots_separated']} separated from the swarm"
     line = (f"{s['n_robots']} robots, {s['mrf_steps']} MRF steps ({s['mrf']}, {s['stop_reason']}{goal}), "
             f"min separation {s['min_separation_discrete']:.2f} m discrete")
     if s["min_separation_continuous"] is not None:

@@ -1,6 +1,6 @@
 """The occupancy grid and the one place where world and cell coordinates meet.
 
-Frame convention (DESIGN.md, "Frames"): arrays are indexed ``[ix, iy]`` (x index first);
+Frame convention: arrays are indexed ``[ix, iy]`` (x index first);
 cell ``(i, j)`` is centred at ``origin + resolution * (i, j)`` (metres) and covers
 ``[c - res/2, c + res/2)`` on each axis. With the default 1 m cells at origin (0, 0),
 cell (i, j) is centred at (i, j), as in the authors' data.
