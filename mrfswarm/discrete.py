@@ -70,6 +70,9 @@ class DiscreteProblem:
         Neighbours in the interaction graph; label-set order n.
     trim_backward, contested
         Label-set rules (:func:`mrfswarm.label_sets.label_sets`).
+    goal_distance
+        (W, H) the distance the goal field uses when it is not the straight line (the
+        geodesic one); ``trim_backward`` then drops moves that increase it.
     goal_path
         (W, H) length (metres) of the shortest free path from each cell to the goal
         (``inf`` without one), or None: then any fixed point of the energy counts as
@@ -90,6 +93,7 @@ class DiscreteProblem:
     order: int = 2
     trim_backward: bool = False
     contested: str = "downhill"
+    goal_distance: np.ndarray | None = None
     goal_path: np.ndarray | None = None
     goal_region_radius: float = 0.0
 
@@ -197,7 +201,7 @@ def mrf_step(problem: DiscreteProblem, positions: np.ndarray, method: str = "icm
 def problem_label_sets(problem: DiscreteProblem, positions: np.ndarray) -> LabelSets:
     """X^t for the robots at ``positions`` under the problem's label-set rules."""
     return label_sets(problem.free, positions, problem.order, problem.goal, problem.trim_backward, problem.static,
-                      problem.contested)
+                      problem.contested, problem.goal_distance)
 
 
 def _static_sum(problem: DiscreteProblem, positions: np.ndarray) -> float:

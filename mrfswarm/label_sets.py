@@ -75,7 +75,7 @@ class LabelSets:
 
 def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.ndarray | None = None,
                trim_backward: bool = False, static: np.ndarray | None = None,
-               contested: str = "nearest") -> LabelSets:
+               contested: str = "nearest", goal_distance: np.ndarray | None = None) -> LabelSets:
     """Build X_i^t for every robot.
 
     Parameters
@@ -89,12 +89,17 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     goal_cell
         Needed only with ``trim_backward``.
     trim_backward
-        Drop moves pointing away from the goal (negative dot product with the direction
-        to the goal); "stay" is kept.
+        Drop moves pointing away from the goal; "stay" is kept. Away: a negative dot
+        product with the direction to the goal (the paper's), or, when ``goal_distance``
+        is given, a larger distance to the goal along free paths (the straight direction
+        would cut the way around a wall).
     static
         (W, H) the static field rho_S; needed by ``contested = "downhill"``.
     contested
         Who gets a contested cell: a name in :data:`CONTESTED_RULES`.
+    goal_distance
+        (W, H) the goal field's distance to the goal (:mod:`mrfswarm.goal_distance`),
+        for ``trim_backward``; None: trim by direction.
     """
     if contested not in CONTESTED_RULES:
         raise ValueError(f"contested = {contested!r}: must be one of {', '.join(CONTESTED_RULES)}")
@@ -116,8 +121,11 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     ok &= (other == -1) | (other == np.arange(N)[:, None])
     # (c) the half that points away from the goal
     if trim_backward and goal_cell is not None:
-        to_goal = np.asarray(goal_cell)[None, :] - starts  # (N, 2)
-        ok &= (off[None, :, :] * to_goal[:, None, :]).sum(-1) >= 0
+        if goal_distance is None:
+            to_goal = np.asarray(goal_cell)[None, :] - starts  # (N, 2)
+            ok &= (off[None, :, :] * to_goal[:, None, :]).sum(-1) >= 0
+        else:
+            ok &= goal_distance[cx, cy] <= goal_distance[starts[:, 0], starts[:, 1]][:, None]
     ok[:, 0] = True  # staying is always allowed (the cell is free and one's own)
     # (b) X_i ∩ X_j = ∅: a contested cell goes to one robot (the first in the sort below)
     r, s = np.nonzero(ok)

@@ -73,6 +73,8 @@ class Scenario:
             order=c.mrf.order,
             trim_backward=c.mrf.trim_backward,
             contested=c.mrf.contested,
+            goal_distance=self.distances.field if self.distances is not None and c.goal_potential.distance == "geodesic"
+            else None,
             goal_path=None if self.distances is None else self.distances.path,
             goal_region_radius=0.0 if self.goal_region_radius is None else self.goal_region_radius,
         )

@@ -403,3 +403,34 @@ def test_defaults_navigate_and_paper_configs_pin_the_papers_rules():
                  "combined_field", "swarm_size"):
         c = load_config(ROOT / "experiments" / f"{name}.toml")
         assert (c.goal_potential.distance, c.mrf.contested, c.mrf.progress) == ("euclidean", "nearest", "energy")
+
+
+def test_trim_backward_follows_the_free_path_with_the_geodesic_field():
+    """Trimming by the straight direction to the goal cuts the way around a wall; with the
+    geodesic field the trim drops the moves that lengthen the way along free paths instead."""
+    from mrfswarm.label_sets import label_sets
+
+    m = generate("trap", 1)
+    free = ~m.occupied
+    goal = np.array(m.goal)
+    d = goal_distances(m.occupied.astype(float), goal, 1.0, GoalPotentialConfig(), ObstaclePotentialConfig())
+    cells = np.argwhere(free & (d.path > 0))
+    for order in (1, 2, 4):
+        paper = label_sets(free, cells, order, goal, trim_backward=True)
+        geo = label_sets(free, cells, order, goal, trim_backward=True, goal_distance=d.field)
+        after = geo.cells[np.arange(len(cells))[:, None], np.arange(geo.index.shape[1])[None]]
+        here = d.field[cells[:, 0], cells[:, 1]][:, None]
+        assert np.all(~geo.valid | (d.field[after[..., 0], after[..., 1]] <= here))
+        # one robot alone keeps its move toward the goal; the straight-line trim loses it somewhere
+        lone = [label_sets(free, c[None], order, goal, trim_backward=True, goal_distance=d.field) for c in cells[::37]]
+        nxt = d.next_cell[cells[::37, 0], cells[::37, 1]]
+        if order >= 2:
+            assert all(any((ls.cells[0, :ls.count[0]] == n).all(1)) for ls, n in zip(lone, nxt))
+        kept_paper = [any((paper.cells[i, :paper.count[i]] == n).all(1))
+                      for i, n in zip(range(len(cells)), d.next_cell[cells[:, 0], cells[:, 1]])]
+        assert not all(kept_paper)
+
+
+def test_trim_backward_still_gets_the_swarm_around_a_trap():
+    r = run_map("trap_02", "mrf.trim_backward=true")
+    assert all(x.at_goal for x in r.robots)
