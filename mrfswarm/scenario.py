@@ -9,9 +9,9 @@ import numpy as np
 from mrfswarm.config import Config
 from mrfswarm.discrete import DiscreteProblem
 from mrfswarm.errors import ScenarioError
+from mrfswarm.goal_distance import GoalDistance
 from mrfswarm.interaction_graph import check_k
 from mrfswarm.maps import OccupancyGrid, load_map
-from mrfswarm.goal_distance import GoalDistance
 from mrfswarm.potentials import Morse, goal_distances, static_field
 from mrfswarm.robot_outcomes import goal_region_radius
 from mrfswarm.start import start_cells

@@ -13,7 +13,6 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import mrfswarm
 from mrfswarm.cli import main as cli_main
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig, load_config
 from mrfswarm.discrete import SEPARATION_FACTOR, DiscretePlan, DiscreteProblem, plan_discrete
