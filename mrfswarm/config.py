@@ -31,7 +31,9 @@ class ScenarioConfig:
 
     ``map`` and ``start`` are tables checked by :func:`mrfswarm.maps.load_map` and
     :func:`mrfswarm.start.start_cells`; ``goal_radius`` defines "reached the goal":
-    the swarm's centroid within this many metres of the goal. Without a goal there is no
+    the swarm's centroid within this many metres of the goal. A robot is *at the goal*
+    within ``goal_radius`` plus the free-path radius that holds 4 free cells per robot
+    (:mod:`mrfswarm.robot_outcomes`). Without a goal there is no
     goal potential (the paper's free-space formation experiments, rho_S = 0 there).
     """
 

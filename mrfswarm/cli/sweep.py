@@ -20,7 +20,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=_args.output_dir, required=True, help="output folder")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help='run on this Dask distributed scheduler, e.g. tcp://host:8786 (pip install "mrfswarm[dask]")')
-    p.add_argument("--workers", type=_args.positive_int, default=None, metavar="N",
+    p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="local processes (default: the number of CPUs; 1 runs in this process)")
     p.add_argument("--seeds", default=None, metavar="S1,S2,...",
                    help="plan each point once per seed (start sampling and optimizer), e.g. 0,1,2")
