@@ -43,8 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm.config import load_config
-from mrfswarm.discrete import DiscreteProblem, StepOutcome, plan_discrete
-from mrfswarm.label_sets import label_sets
+from mrfswarm.discrete import DiscreteProblem, StepOutcome, plan_discrete, problem_label_sets
 from mrfswarm.metrics import discrete_metrics
 from mrfswarm.scenario import build_scenario
 from mrfswarm.swarm_mrf import step_mrf
@@ -138,7 +137,7 @@ def _recorder(problem: DiscreteProblem, records: list[StepRecord]):
 
     def on_step(t: int, out: StepOutcome) -> None:
         pos = state["pos"]
-        labels = label_sets(problem.free, pos, problem.order, problem.goal, problem.trim_backward)
+        labels = problem_label_sets(problem, pos)
         model = step_mrf(labels, out.weights, problem.static, problem.morse, problem.resolution)
         e = model.energy(out.result.labels)
         if not math.isclose(e, out.energy_after, rel_tol=1e-9, abs_tol=1e-9):
@@ -168,7 +167,7 @@ def run_one(config: Path, method: str, max_steps: int | None = None, seed: int =
     records: list[StepRecord] = []
     plan = plan_discrete(problem, method=method, max_steps=max_steps or cfg.mrf.max_steps, tol=cfg.mrf.tol,
                          patience=cfg.mrf.patience, options=mrf.Options(seed=seed),
-                         on_step=_recorder(problem, records))
+                         on_step=_recorder(problem, records), progress=cfg.mrf.progress)
     if plan.stop_reason == "stalled":
         del records[plan.n_steps:]  # the planner drops the steps after the energy's minimum; so do we
     m = discrete_metrics(plan.paths, scn.grid.occupied, scn.grid.resolution, scn.goal, cfg.scenario.goal_radius)

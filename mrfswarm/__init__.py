@@ -13,12 +13,14 @@ QP backend of :mod:`solvers.qp`, certified collision-free, and flown in simulati
 from mrfswarm.config import Config, load_config
 from mrfswarm.discrete import DiscreteProblem, mrf_step, plan_discrete
 from mrfswarm.errors import ConfigError, MrfswarmError, ScenarioError, SolverNotFound, UnsafeTrajectoryError
+from mrfswarm.goal_distance import GoalDistance, goal_distance
 from mrfswarm.interaction_graph import interaction_graph, knn_edges, maximal_cliques
 from mrfswarm.maps import OccupancyGrid, load_map
 from mrfswarm.pipeline import Result, plan
 from mrfswarm.potentials import Morse, static_field
 from mrfswarm.pruning import prune_paths
 from mrfswarm.continuous import RecedingHorizon
+from mrfswarm.robot_outcomes import RobotOutcome, robot_outcomes
 from mrfswarm.safety import discrete_violations
 from mrfswarm.scenario import Scenario, build_scenario
 
@@ -28,17 +30,20 @@ __all__ = [
     "Config",
     "ConfigError",
     "DiscreteProblem",
+    "GoalDistance",
     "Morse",
     "MrfswarmError",
     "OccupancyGrid",
     "RecedingHorizon",
     "Result",
+    "RobotOutcome",
     "Scenario",
     "ScenarioError",
     "SolverNotFound",
     "UnsafeTrajectoryError",
     "build_scenario",
     "discrete_violations",
+    "goal_distance",
     "interaction_graph",
     "knn_edges",
     "load_config",
@@ -48,5 +53,6 @@ __all__ = [
     "plan",
     "plan_discrete",
     "prune_paths",
+    "robot_outcomes",
     "static_field",
 ]

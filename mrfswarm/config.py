@@ -15,9 +15,14 @@ from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
 from mrfswarm.errors import ConfigError
+from mrfswarm.label_sets import CONTESTED_RULES
 from mrfswarm.maps import LOADERS
 
 SEAM_MODES = ("rest", "continuous")
+#: What resets the discrete stage's patience (see :func:`mrfswarm.discrete.plan_discrete`).
+PROGRESS_RULES = ("static", "energy")
+#: How the goal potential measures the distance to the goal (see :mod:`mrfswarm.potentials`).
+GOAL_DISTANCES = ("geodesic", "euclidean")
 
 #: Keys of earlier versions, and what replaced them.
 REMOVED_KEYS = {
@@ -35,7 +40,9 @@ class ScenarioConfig:
     :func:`mrfswarm.start.start_cells`; ``robot_radius`` (metres, below half a cell) is
     each robot's size: trajectories keep it from obstacles and twice it (the safety
     distance) from each other; ``goal_radius`` defines "reached the goal":
-    the swarm's centroid within this many metres of the goal. Without a goal there is no
+    the swarm's centroid within this many metres of the goal. A robot is *at the goal*
+    within ``goal_radius`` plus the free-path radius that holds 4 free cells per robot
+    (:mod:`mrfswarm.robot_outcomes`). Without a goal there is no
     goal potential (the paper's free-space formation experiments, rho_S = 0 there).
     """
 
@@ -65,10 +72,19 @@ class InteractionConfig:
 
 @dataclass(frozen=True)
 class GoalPotentialConfig:
-    """rho_G(p) = a exp(|p - p_g| / k)."""
+    """rho_G(p) = a exp(d(p) / k).
+
+    ``distance`` is how d is measured: ``"geodesic"`` (default), the length of the
+    shortest free path to the goal, with the obstacle potential climbed on the way
+    counted too, so that the static field has no local minimum but the goal and the swarm
+    gets around concave obstacles and through doorways; ``"euclidean"``, the paper's
+    straight-line |p - p_g|, under which every concave obstacle facing the swarm is a
+    local minimum (kept for the paper's scenarios and the ablation).
+    """
 
     a: float = 3.0
     k: float = 20.0
+    distance: str = "geodesic"
 
 
 @dataclass(frozen=True)
@@ -88,7 +104,15 @@ class MrfConfig:
     (relative: converged), when the swarm energy has made no new minimum for ``patience``
     steps (stalled: the k-NN graph changes as the swarm moves, so the dynamics need not
     settle), or after ``max_steps`` steps. ``trim_backward`` drops candidate cells that point away from the
-    goal (the paper's optional heuristic).
+    goal (the paper's optional heuristic). ``contested`` says which of several equally near robots
+    gets a cell they could all move to (label sets are disjoint; the nearest robot gets
+    it): ``"downhill"`` (default), the one whose static field it lowers most;
+    ``"nearest"``, the lower index (the paper's scenario configs), which can lock a crowd
+    up in a corridor (:mod:`mrfswarm.label_sets`).
+    ``progress`` says what resets the patience: ``"static"`` (default), a new minimum of
+    the swarm energy or of the robots' static field sum; ``"energy"``, of the swarm
+    energy only (the paper's scenario configs), which jumps whenever the k-NN graph's
+    cliques change and so can stall a large swarm that is still on its way.
     """
 
     optimizer: str = "icm"
@@ -97,6 +121,8 @@ class MrfConfig:
     tol: float = 1e-6
     patience: int = 20
     trim_backward: bool = False
+    contested: str = "downhill"
+    progress: str = "static"
 
 
 @dataclass(frozen=True)
@@ -253,6 +279,7 @@ def _validate(cfg: Config) -> None:
     g = cfg.goal_potential
     need(g.a > 0, "goal_potential.a", g.a, "must be > 0")
     need(g.k > 0, "goal_potential.k", g.k, "must be > 0")
+    need(g.distance in GOAL_DISTANCES, "goal_potential.distance", g.distance, f"must be one of {', '.join(GOAL_DISTANCES)}")
     o = cfg.obstacle_potential
     need(o.gamma > 0, "obstacle_potential.gamma", o.gamma, "must be > 0")
     need(o.sigma >= 0, "obstacle_potential.sigma", o.sigma, "must be >= 0")
@@ -261,6 +288,8 @@ def _validate(cfg: Config) -> None:
     need(m.max_steps >= 1, "mrf.max_steps", m.max_steps, "must be >= 1")
     need(m.tol >= 0, "mrf.tol", m.tol, "must be >= 0")
     need(m.patience >= 1, "mrf.patience", m.patience, "must be >= 1")
+    need(m.progress in PROGRESS_RULES, "mrf.progress", m.progress, f"must be one of {', '.join(PROGRESS_RULES)}")
+    need(m.contested in CONTESTED_RULES, "mrf.contested", m.contested, f"must be one of {', '.join(CONTESTED_RULES)}")
     sm = cfg.smoothing
     need(sm.degree >= 3, "smoothing.degree", sm.degree, "must be >= 3 (jerk is bounded on control points)")
     need(sm.degree >= 2 * sm.derivative - 1, "smoothing.degree", sm.degree,

@@ -4,12 +4,16 @@ Each step t: build the interaction graph G_t on the robots' cells x^{t-1}, its m
 cliques and their pairwise reduction; build the label sets X^t and the hard conflicts;
 hand the step's pairwise MRF to an optimizer of :mod:`solvers.mrf` (ICM by default)
 starting from "everybody stays"; move. Stop when a step lowers the swarm energy (on its
-own graph) by less than ``tol`` (relative): converged. The k-NN graph changes as the
+own graph) by less than ``tol`` (relative): *converged* if every robot that can reach the
+goal region is in it (or there is no goal), *trapped* otherwise (ICM, a local method,
+found no move that lowers the energy short of the goal). The k-NN graph changes as the
 swarm moves, so the dynamics need not have a fixed point (a swarm packed at its goal
 can keep circulating, each step lowering the energy of its own graph); such a run stops
-as *stalled* when the swarm energy has made no new minimum for ``patience`` steps, and
-its paths end at the step of that minimum (the steps after it only circulate).
-Otherwise it stops at ``max_steps``.
+as *stalled* when it has made no progress (a new minimum of the swarm energy, or of the
+robots' static field sum: ``progress``) for ``patience`` steps, and its paths end at the
+step of its last progress (the steps after it only circulate). Otherwise it stops at
+``max_steps``. Every step also counts the robots separated from the swarm (nearest
+neighbour beyond 1.5 d_min).
 
 ``energy[t]`` is the swarm energy of configuration x^t on its own interaction graph
 G(x^t): the quantity the paper plots in its convergence figure.
@@ -23,9 +27,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial import cKDTree
 
+from mrfswarm.config import PROGRESS_RULES
+from mrfswarm.errors import ScenarioError
 from mrfswarm.interaction_graph import CliqueWeights, clique_weights_of_graph, knn_edges, update_clique_weights
-from mrfswarm.label_sets import label_sets
+from mrfswarm.label_sets import LabelSets, label_sets
 from mrfswarm.potentials import Morse
 from mrfswarm.safety import discrete_violations
 from mrfswarm.swarm_mrf import step_mrf
@@ -35,6 +42,10 @@ log = logging.getLogger(__name__)
 
 #: The per-step stages whose times are recorded, in order.
 STAGES = ("graph", "cliques", "labels", "energy", "optimizer")
+
+
+#: A robot whose nearest neighbour is farther than this many d_min is separated from the swarm.
+SEPARATION_FACTOR = 1.5
 
 
 @dataclass(frozen=True)
@@ -57,6 +68,19 @@ class DiscreteProblem:
         Metres per cell (potential distances are in metres).
     k, order
         Neighbours in the interaction graph; label-set order n.
+    trim_backward, contested
+        Label-set rules (:func:`mrfswarm.label_sets.label_sets`).
+    goal_distance
+        (W, H) the distance the goal field uses when it is not the straight line (the
+        geodesic one); ``trim_backward`` then drops moves that increase it.
+    goal_path
+        (W, H) length (metres) of the shortest free path from each cell to the goal
+        (``inf`` without one), or None: then any fixed point of the energy counts as
+        converged.
+    goal_region_radius
+        A robot with ``goal_path <= goal_region_radius`` is at the goal. A run whose
+        energy stops decreasing with a robot that could reach the goal region outside it
+        ends as ``"trapped"``, not ``"converged"``.
     """
 
     free: np.ndarray
@@ -68,6 +92,10 @@ class DiscreteProblem:
     k: int = 3
     order: int = 2
     trim_backward: bool = False
+    contested: str = "downhill"
+    goal_distance: np.ndarray | None = None
+    goal_path: np.ndarray | None = None
+    goal_region_radius: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -97,10 +125,13 @@ class DiscretePlan:
     energy
         (T + 1,) swarm energy of each configuration on its own graph.
     converged
-        True if the energy converged (a step lowered it by less than the tolerance).
+        True if the energy converged (a step lowered it by less than the tolerance) with
+        every robot that can reach the goal region in it (any fixed point without a goal).
     stop_reason
-        "converged", "stalled" (no new minimum in ``patience`` steps; the paths end at
-        the minimum) or "max_steps".
+        "converged"; "trapped" (the energy stopped decreasing with robots short of the
+        goal region: ICM, a local method, found no move that lowers it); "stalled" (no
+        progress in ``patience`` steps; the paths end at the last progress) or
+        "max_steps".
     timings
         stage -> (T,) seconds per step.
     steps
@@ -154,7 +185,7 @@ def mrf_step(problem: DiscreteProblem, positions: np.ndarray, method: str = "icm
     else:
         timings.update(graph_timings or {"graph": 0.0, "cliques": 0.0})
     t0 = time.perf_counter()
-    labels = label_sets(problem.free, positions, problem.order, problem.goal, problem.trim_backward)
+    labels = problem_label_sets(problem, positions)
     t1 = time.perf_counter()
     model = step_mrf(labels, weights, problem.static, problem.morse, problem.resolution)
     t2 = time.perf_counter()
@@ -174,6 +205,37 @@ def mrf_step(problem: DiscreteProblem, positions: np.ndarray, method: str = "icm
     )
 
 
+def problem_label_sets(problem: DiscreteProblem, positions: np.ndarray) -> LabelSets:
+    """X^t for the robots at ``positions`` under the problem's label-set rules."""
+    return label_sets(problem.free, positions, problem.order, problem.goal, problem.trim_backward, problem.static,
+                      problem.contested, problem.goal_distance)
+
+
+def _static_sum(problem: DiscreteProblem, positions: np.ndarray) -> float:
+    return float(problem.static[positions[:, 0], positions[:, 1]].sum())
+
+
+def separation_cells(problem: DiscreteProblem) -> float:
+    """Nearest-neighbour distance (cells) beyond which a robot is separated: 1.5 d_min."""
+    return SEPARATION_FACTOR * problem.morse.d_min / problem.resolution
+
+
+def nearest_neighbour_cells(positions: np.ndarray) -> np.ndarray:
+    """(N,) distance (cells) from each robot to its nearest other robot (cKDTree)."""
+    if len(positions) < 2:
+        return np.full(len(positions), np.inf)
+    d, _ = cKDTree(positions.astype(float)).query(positions.astype(float), 2)
+    return d[:, 1]
+
+
+def _check_start(problem: DiscreteProblem, start: np.ndarray) -> None:
+    cut = ~np.isfinite(problem.static[start[:, 0], start[:, 1]])
+    if cut.any():
+        i = int(np.flatnonzero(cut)[0])
+        raise ScenarioError(f"robot {i} at cell ({start[i, 0]}, {start[i, 1]}) has no free path to the goal "
+                            f"({int(cut.sum())} robot(s) cut off)")
+
+
 def swarm_energy(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueWeights | None = None) -> float:
     """eps(x) on the interaction graph of x (pairwise reduction)."""
     w = weights if weights is not None else graph_weights(positions, problem.k)
@@ -187,7 +249,8 @@ def swarm_energy(problem: DiscreteProblem, positions: np.ndarray, weights: Cliqu
 
 def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int = 300, tol: float = 1e-6,
                   patience: int = 20, options: mrf_solvers.Options | None = None,
-                  on_step: Callable[[int, StepOutcome], None] | None = None) -> DiscretePlan:
+                  on_step: Callable[[int, StepOutcome], None] | None = None,
+                  progress: str = "static") -> DiscretePlan:
     """Iterate MRF steps from ``problem.start`` until the swarm energy converges.
 
     Parameters
@@ -200,10 +263,28 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         Converged when one step lowers the energy (on its graph) by less than ``tol``
         relative to that energy (absolute below 1: the goal potential is exponential, so
         energies span many orders of magnitude across maps).
+    patience
+        Stalled after this many steps without progress; the paths end at the last step
+        that made progress.
+    progress
+        What counts as progress (a name in :data:`PROGRESS_RULES`): ``"energy"``, a new
+        minimum of the swarm energy; ``"static"``, that or a new minimum of the robots'
+        static field sum_i rho_S(x_i). The swarm energy jumps whenever the k-NN graph's
+        set of maximal cliques changes (it counts each robot once per clique), so a
+        large swarm still filing toward its goal can go ``patience`` steps without a
+        new energy minimum; the static sum has no such jumps.
     on_step
         Called after every step (progress bars, snapshots).
+
+    Raises
+    ------
+    ScenarioError
+        A robot starts where the static field is not finite (no free path to the goal).
     """
+    if progress not in PROGRESS_RULES:
+        raise ValueError(f"progress = {progress!r}: must be one of {', '.join(PROGRESS_RULES)}")
     pos = np.asarray(problem.start, dtype=np.intp).copy()
+    _check_start(problem, pos)
     paths = [pos]
     energy = []
     timings: dict[str, list[float]] = {s: [] for s in STAGES}
@@ -211,6 +292,8 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     converged = False
     reason = "max_steps"
     best, since_best = np.inf, 0
+    best_static = _static_sum(problem, pos)
+    apart = separation_cells(problem)
     gt: dict[str, float] = {}
     weights = graph_weights(pos, problem.k, gt)
     for t in range(1, max_steps + 1):
@@ -226,6 +309,7 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
             "lower_bound": out.result.lower_bound,
             "moved": out.moved,
             "decrease": out.energy_before - out.energy_after,
+            "separated": int(np.count_nonzero(nearest_neighbour_cells(out.positions) > apart)),
         })
         if on_step is not None:
             on_step(t, out)
@@ -243,17 +327,30 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         if out.energy_before - out.energy_after < tol * max(1.0, abs(out.energy_before)):
             converged, reason = True, "converged"
             break
-        if energy[-1] < best - tol * max(1.0, abs(best)):
-            best, since_best, best_t = energy[-1], 0, t
+        improved = energy[-1] < best - tol * max(1.0, abs(best))
+        if improved:
+            best = energy[-1]
+        if progress == "static":
+            st = _static_sum(problem, pos)
+            if st < best_static - tol * max(1.0, abs(best_static)):
+                best_static, improved = st, True
+        if improved:
+            since_best, best_t = 0, t
         else:
             since_best += 1
             if since_best >= patience:
-                # the steps since the minimum only circulate: the plan ends at the minimum
+                # the steps since the last progress only circulate: the plan ends there
                 reason = "stalled"
                 del paths[best_t + 1:], energy[best_t + 1:], steps[best_t:]
                 for s in STAGES:
                     del timings[s][best_t:]
                 break
+    if converged and problem.goal_path is not None:
+        final = paths[-1]
+        d = problem.goal_path[final[:, 0], final[:, 1]]
+        short = np.isfinite(d) & ~(d <= problem.goal_region_radius)
+        if short.any():  # a fixed point short of the goal is not convergence
+            converged, reason = False, "trapped"
     log.info("discrete stage: %d steps, %s", len(paths) - 1, reason)
     stacked = np.stack(paths)
     bad = discrete_violations(stacked, problem.free)

@@ -2,11 +2,27 @@
 
 X_i^t = cells with (x_i - x)^2 + (y_i - y)^2 <= n (the n-th order neighbourhood), with the
 paper's heuristics: (a) cells occupied by obstacles or by other robots removed, (b) a cell
-wanted by several robots given to one only (X_i ∩ X_j = ∅): the robot nearest to it, ties
-to the lower index; optionally (c) the half pointing away from the goal trimmed. We add
-one rule the paper leaves implicit: the straight move must keep half a cell from every
-occupied cell (:mod:`mrfswarm.motion`), so no move cuts a wall's corner or jumps a wall.
-Label 0 is always "stay", which is always in X_i.
+wanted by several robots given to one only (X_i ∩ X_j = ∅); optionally (c) the half
+pointing away from the goal trimmed.
+
+We add one rule the paper leaves implicit: the straight move must keep half a cell from
+every occupied cell (:mod:`mrfswarm.motion`), so no move cuts a wall's corner or jumps a
+wall. Label 0 is always "stay", which is always in X_i.
+
+A contested cell goes to the robot nearest to it (so each robot's cells lie in its own
+Voronoi cell, and moves of different robots rarely conflict). The paper does not say who
+gets it among equally near robots; ``contested`` does:
+
+- ``"nearest"``: the lower index. In a crowd this can hand a cell to a robot that has no
+  use for it (it lies behind that robot) while the robot beside it, for which it is the
+  way forward, loses it: a swarm queued in a 2-cell corridor or doorway can lock up for
+  good, every robot's way forward held by one that stays (with the geodesic field, 29 of
+  64 runs with 50 robots on generated maps ended with robots held short of the goal;
+  none with ``"downhill"``). The paper's scenario configs use it (their discrete outputs
+  are the ones reproduced).
+- ``"downhill"`` (default): the robot whose static field the cell lowers most,
+  rho_S(x_i) - rho_S(cell), then the lower index. Where rho_S is flat (free space
+  without a goal) it is ``"nearest"``.
 """
 
 from __future__ import annotations
@@ -17,6 +33,9 @@ from functools import cached_property
 import numpy as np
 
 from mrfswarm.motion import moves_clear, stencil
+
+#: Rules for who gets a cell several robots could move to (see the module docstring).
+CONTESTED_RULES = ("downhill", "nearest")
 
 
 @dataclass(frozen=True)
@@ -62,7 +81,8 @@ def _read_only(a: np.ndarray) -> np.ndarray:
 
 
 def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.ndarray | None = None,
-               trim_backward: bool = False) -> LabelSets:
+               trim_backward: bool = False, static: np.ndarray | None = None,
+               contested: str = "nearest", goal_distance: np.ndarray | None = None) -> LabelSets:
     """Build X_i^t for every robot.
 
     Parameters
@@ -76,9 +96,22 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     goal_cell
         Needed only with ``trim_backward``.
     trim_backward
-        Drop moves pointing away from the goal (negative dot product with the direction
-        to the goal); "stay" is kept.
+        Drop moves pointing away from the goal; "stay" is kept. Away: a negative dot
+        product with the direction to the goal (the paper's), or, when ``goal_distance``
+        is given, a larger distance to the goal along free paths (the straight direction
+        would cut the way around a wall).
+    static
+        (W, H) the static field rho_S; needed by ``contested = "downhill"``.
+    contested
+        Who gets a contested cell: a name in :data:`CONTESTED_RULES`.
+    goal_distance
+        (W, H) the goal field's distance to the goal (:mod:`mrfswarm.goal_distance`),
+        for ``trim_backward``; None: trim by direction.
     """
+    if contested not in CONTESTED_RULES:
+        raise ValueError(f"contested = {contested!r}: must be one of {', '.join(CONTESTED_RULES)}")
+    if contested == "downhill" and static is None:
+        raise ValueError('contested = "downhill" needs the static field')
     starts = np.asarray(starts, dtype=np.intp)
     N = len(starts)
     off = stencil(order)
@@ -95,14 +128,21 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     ok &= (other == -1) | (other == np.arange(N)[:, None])
     # (c) the half that points away from the goal
     if trim_backward and goal_cell is not None:
-        to_goal = np.asarray(goal_cell)[None, :] - starts  # (N, 2)
-        ok &= (off[None, :, :] * to_goal[:, None, :]).sum(-1) >= 0
+        if goal_distance is None:
+            to_goal = np.asarray(goal_cell)[None, :] - starts  # (N, 2)
+            ok &= (off[None, :, :] * to_goal[:, None, :]).sum(-1) >= 0
+        else:
+            ok &= goal_distance[cx, cy] <= goal_distance[starts[:, 0], starts[:, 1]][:, None]
     ok[:, 0] = True  # staying is always allowed (the cell is free and one's own)
-    # (b) X_i ∩ X_j = ∅: a contested cell goes to the nearest robot, ties to the lower index
+    # (b) X_i ∩ X_j = ∅: a contested cell goes to one robot (the first in the sort below)
     r, s = np.nonzero(ok)
     cell_id = cand[r, s, 0] * H + cand[r, s, 1]
     dist2 = (off[s] ** 2).sum(axis=1)
-    order_idx = np.lexsort((r, dist2, cell_id))
+    if contested == "downhill":
+        rise = static[cand[r, s, 0], cand[r, s, 1]] - static[starts[r, 0], starts[r, 1]]
+        order_idx = np.lexsort((r, rise, dist2, cell_id))
+    else:
+        order_idx = np.lexsort((r, dist2, cell_id))
     first = np.ones(len(order_idx), dtype=bool)
     first[1:] = cell_id[order_idx][1:] != cell_id[order_idx][:-1]
     keep = np.zeros(len(r), dtype=bool)

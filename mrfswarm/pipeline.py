@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import numbers
 import sys
 import time
 from dataclasses import dataclass, field
@@ -12,10 +13,11 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm.config import Config, load_config
-from mrfswarm.discrete import DiscretePlan, plan_discrete
-from mrfswarm.errors import MrfswarmError, ScenarioError
+from mrfswarm.discrete import SEPARATION_FACTOR, DiscretePlan, plan_discrete
+from mrfswarm.errors import ConfigError, MrfswarmError, ScenarioError
 from mrfswarm.metrics import DiscreteMetrics, discrete_metrics
 from mrfswarm.pruning import prune_paths
+from mrfswarm.robot_outcomes import RobotOutcome, robot_outcomes
 from mrfswarm.scenario import Scenario, build_scenario
 from solvers import mrf as mrf_solvers
 
@@ -71,6 +73,14 @@ class Result:
     def qp(self) -> str | None:
         return self.config.smoothing.backend if self.config.smoothing.enabled else None
 
+    def robots(self) -> list[RobotOutcome]:
+        """Where each robot ended and, if short of the goal region, why (:mod:`mrfswarm.robot_outcomes`)."""
+        scn = self.scenario
+        d = scn.distances
+        return robot_outcomes(self.discrete.paths[-1], scn.grid.free, scn.static, self.config.mrf.order,
+                              scn.grid.resolution, SEPARATION_FACTOR * scn.morse.d_min, self.discrete.stop_reason,
+                              None if d is None else d.path, scn.goal_region_radius)
+
     def discrete_paths_world(self) -> np.ndarray:
         """(T + 1, N, 2) discrete paths in metres."""
         return self.scenario.grid.cell_to_world(self.discrete.paths)
@@ -81,6 +91,8 @@ class Result:
         g = self.scenario.goal_world
         c = self.continuous
         sm = self.config.smoothing
+        robots = self.robots()
+        grid = self.scenario.grid
         out = {
             "n_robots": self.scenario.n_robots,
             "mrf_steps": self.discrete.n_steps,
@@ -89,6 +101,21 @@ class Result:
             "reached_goal": m.reached_goal,
             "goal": None if g is None else [float(v) for v in g],
             "final_goal_distance": m.final_goal_distance,
+            "goal_region_radius_m": self.scenario.goal_region_radius,
+            "goal_distance": self.config.goal_potential.distance,
+            "robots_at_goal": None if g is None else sum(bool(r.at_goal) for r in robots),
+            "robots_separated": sum(r.separated for r in robots),
+            "robots": [{
+                "robot": r.robot,
+                "final": [float(v) for v in grid.cell_to_world(r.final_cell)],
+                "goal_distance_m": r.goal_distance,
+                "nearest_neighbour_m": _num(r.nearest_neighbour),
+                "at_goal": r.at_goal,
+                "separated": r.separated,
+                "stop_reason": r.stop_reason,
+            } for r in robots],
+            "separation_threshold_m": SEPARATION_FACTOR * self.scenario.morse.d_min,
+            "steps_with_separated_robots": int(sum(s.get("separated", 0) > 0 for s in self.discrete.steps)),
             "swarm_energy": [float(e) for e in self.discrete.energy],
             "min_separation_discrete": _num(m.min_separation),
             "min_separation_continuous": None if c is None else _num(c.min_separation),
@@ -191,13 +218,20 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     mrf, qp
         Override the MRF optimizer / QP backend.
     seed
-        Overrides the start sampling seed and the optimizer's seed.
+        Overrides the start sampling seed and the optimizer's seed (an integer >= 0).
     progress
         Show a progress bar (default: when stderr is a terminal).
     workers
         Processes for the continuous stage's independent chunks of robots and for the
         simulation (default: the machine's cores). Plans do not depend on it.
+
+    Raises
+    ------
+    ConfigError
+        A bad config or seed (the message names it).
     """
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0):
+        raise ConfigError(f"seed = {seed!r}: must be an integer >= 0")
     cfg = resolve_config(config, mrf=mrf, qp=qp)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -211,7 +245,7 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         t0 = time.perf_counter()
         plan_d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.optimizer, max_steps=cfg.mrf.max_steps,
                                tol=cfg.mrf.tol, patience=cfg.mrf.patience, options=options,
-                               on_step=lambda t, out: bar.update(1))
+                               on_step=lambda t, out: bar.update(1), progress=cfg.mrf.progress)
         timings["discrete"] = time.perf_counter() - t0
     metrics = discrete_metrics(plan_d.paths, scn.grid.occupied, scn.grid.resolution, scn.goal,
                                cfg.scenario.goal_radius)

@@ -4,7 +4,10 @@
   with a, b, k_a, k_r > 0, b >= a, k_a > k_r and b k_r / (a k_a) < 1. Its minimum is at
   d_min = ln(b k_a / (a k_r)) k_a k_r / (k_a - k_r) (the paper prints the log's argument
   upside down); zeta > |rho'_I(d_min)| makes rho_I positive.
-- Goal: rho_G(p) = a_G exp(|p - p_g| / k_G).
+- Goal: rho_G(p) = a_G exp(d(p) / k_G), with d the distance to the goal: the paper's
+  straight-line |p - p_g| (``goal_potential.distance = "euclidean"``) or the distance
+  over free paths (``"geodesic"``, the default; :mod:`mrfswarm.goal_distance`), which
+  leaves the static field no local minimum but the goal.
 - Obstacle: m_hat = Gamma where P(occupied) >= 0.5 else 0, convolved with a Gaussian of
   sigma_hat cells.
 - Static field rho_S = rho_G + rho_O: one array over the grid, computed once per scenario.
@@ -21,7 +24,8 @@ import numpy as np
 from scipy import ndimage
 
 from mrfswarm.config import GoalPotentialConfig, InteractionConfig, ObstaclePotentialConfig
-from mrfswarm.errors import ConfigError
+from mrfswarm.errors import ConfigError, ScenarioError
+from mrfswarm.goal_distance import GoalDistance, goal_distance
 
 #: zeta = ZETA_MARGIN * |rho'_I(d_min)| when the config leaves zeta unset.
 ZETA_MARGIN = 1.01
@@ -84,17 +88,34 @@ class Morse:
         return self.raw(d) + self.zeta
 
 
+#: exp(x) overflows float64 above ~709.8; a goal distance beyond this many k_G is refused.
+MAX_EXPONENT = 700.0
+
+
 def goal_field(shape: tuple[int, int], goal_cell: np.ndarray | None, resolution: float,
-               cfg: GoalPotentialConfig) -> np.ndarray:
+               cfg: GoalPotentialConfig, distance: np.ndarray | None = None) -> np.ndarray:
     """rho_G over every cell, shape (W, H); zeros when there is no goal.
 
-    rho_G(p) = a_G exp(|p - p_g| / k_G), with |p - p_g| in metres.
+    rho_G(p) = a_G exp(d(p) / k_G), d in metres: ``distance`` (W, H) if given (``inf``
+    gives ``inf``), else the straight-line distance |p - p_g|.
+
+    Raises
+    ------
+    ScenarioError
+        The goal is so far that exp(d / k_G) would overflow (names goal_potential.k).
     """
     if goal_cell is None:
         return np.zeros(shape)
-    ix, iy = np.meshgrid(np.arange(shape[0]), np.arange(shape[1]), indexing="ij")
-    d = np.hypot(ix - goal_cell[0], iy - goal_cell[1]) * resolution
-    return cfg.a * np.exp(d / cfg.k)
+    if distance is None:
+        ix, iy = np.meshgrid(np.arange(shape[0]), np.arange(shape[1]), indexing="ij")
+        distance = np.hypot(ix - goal_cell[0], iy - goal_cell[1]) * resolution
+    finite = distance[np.isfinite(distance)]
+    far = float(finite.max(initial=0.0))
+    if far / cfg.k > MAX_EXPONENT:
+        raise ScenarioError(
+            f"goal_potential.k = {cfg.k:g} is too small for this map: cells lie {far:.0f} m from the goal "
+            f"(goal_potential.distance = {cfg.distance!r}) and exp(d / k) overflows; use k >= {far / MAX_EXPONENT:.3g}")
+    return cfg.a * np.exp(distance / cfg.k)
 
 
 def obstacle_field(prob: np.ndarray, cfg: ObstaclePotentialConfig) -> np.ndarray:
@@ -105,7 +126,36 @@ def obstacle_field(prob: np.ndarray, cfg: ObstaclePotentialConfig) -> np.ndarray
     return ndimage.gaussian_filter(m_hat, sigma=cfg.sigma, mode="nearest")
 
 
+def goal_distances(prob: np.ndarray, goal_cell: np.ndarray, resolution: float, goal_cfg: GoalPotentialConfig,
+                   obstacle_cfg: ObstaclePotentialConfig, order: int = 2) -> GoalDistance:
+    """The free-path distances to the goal, and the distance rho_G uses (``goal_cfg.distance``).
+
+    ``"geodesic"``: the free-path distance with the obstacle potential climbed counted at
+    k_G / a_G metres per unit (:func:`mrfswarm.goal_distance.goal_distance`), which
+    leaves rho_S no local minimum but the goal; ``"euclidean"``: the straight-line
+    distance of the paper (``path`` is still the free-path length, for reporting).
+    """
+    free = prob < 0.5
+    if goal_cfg.distance == "geodesic":
+        return goal_distance(free, goal_cell, resolution, order, obstacle_field(prob, obstacle_cfg),
+                             climb_weight=goal_cfg.k / goal_cfg.a)
+    d = goal_distance(free, goal_cell, resolution, order)
+    ix, iy = np.meshgrid(np.arange(prob.shape[0]), np.arange(prob.shape[1]), indexing="ij")
+    straight = np.hypot(ix - goal_cell[0], iy - goal_cell[1]) * resolution
+    return GoalDistance(path=d.path, field=straight, next_cell=d.next_cell)
+
+
 def static_field(prob: np.ndarray, goal_cell: np.ndarray | None, resolution: float,
-                 goal_cfg: GoalPotentialConfig, obstacle_cfg: ObstaclePotentialConfig) -> np.ndarray:
-    """rho_S = rho_G + rho_O over the grid, shape (W, H), computed once per scenario."""
-    return goal_field(prob.shape, goal_cell, resolution, goal_cfg) + obstacle_field(prob, obstacle_cfg)
+                 goal_cfg: GoalPotentialConfig, obstacle_cfg: ObstaclePotentialConfig, order: int = 2,
+                 distances: GoalDistance | None = None) -> np.ndarray:
+    """rho_S = rho_G + rho_O over the grid, shape (W, H), computed once per scenario.
+
+    The goal term uses ``goal_cfg.distance`` (``distances`` if already computed by
+    :func:`goal_distances`; ``order`` is the label-set order n, which sets the search
+    graph). With ``"geodesic"``, occupied cells and free cells without a path to the goal
+    are ``inf``.
+    """
+    if goal_cell is not None and distances is None:
+        distances = goal_distances(prob, goal_cell, resolution, goal_cfg, obstacle_cfg, order)
+    d = None if distances is None else distances.field
+    return goal_field(prob.shape, goal_cell, resolution, goal_cfg, d) + obstacle_field(prob, obstacle_cfg)

@@ -1,4 +1,4 @@
-"""Checks of the safety invariants, run on every plan before it is returned.
+"""Checks of the discrete safety invariants, run on every plan before it is returned.
 
 Discrete: at every step no two robots share a cell, no robot is in an occupied cell or
 off the map, every straight move keeps half a cell from occupied cells, and robots moving

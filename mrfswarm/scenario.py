@@ -9,9 +9,11 @@ import numpy as np
 from mrfswarm.config import Config
 from mrfswarm.discrete import DiscreteProblem
 from mrfswarm.errors import ConfigError, ScenarioError
+from mrfswarm.goal_distance import GoalDistance
 from mrfswarm.interaction_graph import check_k
 from mrfswarm.maps import OccupancyGrid, load_map
-from mrfswarm.potentials import Morse, static_field
+from mrfswarm.potentials import Morse, goal_distances, static_field
+from mrfswarm.robot_outcomes import goal_region_radius
 from mrfswarm.start import start_cells
 
 
@@ -33,6 +35,11 @@ class Scenario:
         The interaction potential.
     config
         The config it was built from.
+    distances
+        Distances from every cell to the goal over free paths (None without a goal).
+    goal_region_radius
+        Robots within this free-path distance (metres) of the goal are at the goal
+        (:func:`mrfswarm.robot_outcomes.goal_region_radius`); None without a goal.
     """
 
     grid: OccupancyGrid
@@ -41,6 +48,8 @@ class Scenario:
     static: np.ndarray
     morse: Morse
     config: Config
+    distances: GoalDistance | None = None
+    goal_region_radius: float | None = None
 
     @property
     def n_robots(self) -> int:
@@ -63,6 +72,11 @@ class Scenario:
             k=c.interaction.k,
             order=c.mrf.order,
             trim_backward=c.mrf.trim_backward,
+            contested=c.mrf.contested,
+            goal_distance=self.distances.field if self.distances is not None and c.goal_potential.distance == "geodesic"
+            else None,
+            goal_path=None if self.distances is None else self.distances.path,
+            goal_region_radius=0.0 if self.goal_region_radius is None else self.goal_region_radius,
         )
 
 
@@ -93,5 +107,39 @@ def build_scenario(cfg: Config, seed: int | None = None) -> Scenario:
         if not grid.is_free(gc):
             raise ScenarioError(f"scenario.goal ({g[0]:g}, {g[1]:g}) is inside an obstacle (cell ({gc[0]}, {gc[1]}))")
         goal = gc.astype(np.intp)
-    static = static_field(grid.prob, goal, grid.resolution, cfg.goal_potential, cfg.obstacle_potential)
-    return Scenario(grid=grid, start=start, goal=goal, static=static, morse=morse, config=cfg)
+    distances = None
+    if goal is not None:
+        distances = goal_distances(grid.prob, goal, grid.resolution, cfg.goal_potential, cfg.obstacle_potential,
+                                   cfg.mrf.order)
+        if cfg.goal_potential.distance == "geodesic":
+            _check_reachable(grid, start, goal, distances)
+    static = static_field(grid.prob, goal, grid.resolution, cfg.goal_potential, cfg.obstacle_potential,
+                          cfg.mrf.order, distances)
+    region = None if distances is None else goal_region_radius(distances.path, len(start), cfg.scenario.goal_radius)
+    return Scenario(grid=grid, start=start, goal=goal, static=static, morse=morse, config=cfg, distances=distances,
+                    goal_region_radius=region)
+
+
+def _check_reachable(grid: OccupancyGrid, start: np.ndarray, goal: np.ndarray, distances: GoalDistance) -> None:
+    """Every robot needs a free path to the goal for the geodesic field to guide it.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the robots without a path (or saying that none has one).
+    """
+    cut = ~distances.reachable[start[:, 0], start[:, 1]]
+    if not cut.any():
+        return
+    g = grid.cell_to_world(goal)
+    region = int(distances.reachable.sum())
+    if cut.all():
+        raise ScenarioError(
+            f"scenario.goal ({g[0]:g}, {g[1]:g}) cannot be reached: no robot has a free path to it (the goal's "
+            f"free region has {region} cells)")
+    bad = np.flatnonzero(cut)
+    where = ", ".join(f"robot {i} at ({grid.cell_to_world(start[i])[0]:g}, {grid.cell_to_world(start[i])[1]:g})"
+                      for i in bad[:3])
+    more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
+    raise ScenarioError(f"no free path to the goal ({g[0]:g}, {g[1]:g}) from {where}{more}; move them into the "
+                        f"goal's free region or set goal_potential.distance = \"euclidean\"")

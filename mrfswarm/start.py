@@ -100,8 +100,8 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None) -> np.
     sigma = _number(spec, "sigma", positive=True) if "sigma" in spec else 2.0
     if seed is None:
         seed = spec.get("seed", 0)
-        if isinstance(seed, bool) or not isinstance(seed, int):
-            raise ConfigError(f"scenario.start.seed = {seed!r}: must be an integer")
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise ConfigError(f"scenario.start.seed = {seed!r}: must be an integer >= 0")
     c = np.asarray(center, dtype=float)
     cc = grid.world_to_cell(c)
     if not grid.in_bounds(cc):

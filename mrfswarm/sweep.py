@@ -474,11 +474,14 @@ def run_sweep(config: str | Path, grid: dict[str, Sequence], out_dir: str | Path
         if not seeds:
             raise ConfigError("--seeds: empty list")
         for s in seeds:
-            if isinstance(s, bool) or not isinstance(s, numbers.Integral):
-                raise ConfigError(f"--seeds: {s!r} is not an integer")
+            if isinstance(s, bool) or not isinstance(s, numbers.Integral) or s < 0:
+                raise ConfigError(f"--seeds: {s!r} is not an integer >= 0")
         seeds = [int(s) for s in seeds]
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ConfigError(f"--workers {workers!r}: must be an integer >= 1")
+    if isinstance(connect_timeout, bool) or not isinstance(connect_timeout, numbers.Real) \
+            or not (math.isfinite(connect_timeout) and connect_timeout > 0):
+        raise ConfigError(f"--connect-timeout {connect_timeout!r}: must be a positive finite number of seconds")
 
     from mrfswarm.pipeline import resolve_config
 

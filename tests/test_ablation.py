@@ -94,7 +94,7 @@ def test_final_energy_matches_an_independent_run(outputs):
     problem = build_scenario(cfg).discrete_problem()
     for r in rows:
         plan = plan_discrete(problem, method=r["method"], max_steps=STEPS, tol=cfg.mrf.tol, patience=cfg.mrf.patience,
-                             options=mrf.Options(seed=0))
+                             options=mrf.Options(seed=0), progress=cfg.mrf.progress)
         assert float(r["final_energy"]) == pytest.approx(plan.energy[-1], rel=1e-9)
         assert int(r["steps"]) == plan.n_steps
         lengths = np.hypot(*np.diff(plan.paths, axis=0).astype(float).T).sum()

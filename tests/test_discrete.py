@@ -5,11 +5,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
 from mrfswarm.discrete import DiscreteProblem, mrf_step, plan_discrete
-from mrfswarm.potentials import Morse, static_field
+from mrfswarm.potentials import Morse
 from mrfswarm.safety import discrete_violations
 from solvers.errors import SolverNotFound
+from field_support import random_map_static
 
 
 def brute_invariants(paths, free):
@@ -45,7 +45,7 @@ def scenarios(draw):
     k = draw(st.integers(1, n - 1))
     order = draw(st.sampled_from([1, 2, 4, 5, 8]))
     goal = cells[n] if len(cells) > n and draw(st.booleans()) else None
-    static = static_field((~free).astype(float), goal, 1.0, GoalPotentialConfig(), ObstaclePotentialConfig())
+    static = random_map_static(free, goal, start, draw(st.sampled_from(["geodesic", "euclidean"])), order)
     return DiscreteProblem(free=free, static=static, start=start, goal=goal, morse=Morse(), k=k, order=order,
                            trim_backward=draw(st.booleans()))
 

@@ -151,3 +151,46 @@ def test_step_min_separation_checks_all_pairs():
     assert d == pytest.approx(0.0) and pair == (0, 1)
     d, _ = step_min_separation(p0, p0)
     assert d == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("contested", ["nearest", "downhill"])
+@pytest.mark.parametrize("seed", range(4))
+def test_a_contested_cell_goes_to_a_nearest_claimant_ties_by_rule(seed, contested):
+    """Brute force over every claimant of every cell: the owner is one of the nearest; among
+    equally near ones, the lower index ("nearest") or the one the cell lowers most ("downhill")."""
+    rng = np.random.default_rng(seed)
+    free = rng.random((16, 16)) > 0.2
+    cells = np.argwhere(free)
+    rng.shuffle(cells)
+    starts = cells[:30]  # packed: many contested cells
+    static = rng.normal(size=free.shape).round(1)  # coarse values: ties in the rise too
+    order = 2
+    ls = label_sets(free, starts, order, static=static, contested=contested)
+    occupied = {tuple(c) for c in starts.tolist()}
+    claim: dict[tuple, list[int]] = {}
+    for i, s in enumerate(starts):
+        for o in stencil(order)[1:]:
+            c = tuple((s + o).tolist())
+            if 0 <= c[0] < 16 and 0 <= c[1] < 16 and c not in occupied and segment_clear(free, s, s + o):
+                claim.setdefault(c, []).append(i)
+    owner = {tuple(ls.cells[i, l].tolist()): i for i in range(len(starts)) for l in range(1, ls.count[i])}
+    contested_cells = 0
+    for c, who in claim.items():
+        d2 = [int(((np.array(c) - starts[i]) ** 2).sum()) for i in who]
+        near = [i for i, d in zip(who, d2) if d == min(d2)]
+        if contested == "nearest":
+            expect = min(near)
+        else:
+            rise = {i: static[c] - static[tuple(starts[i])] for i in near}
+            expect = min(near, key=lambda i: (rise[i], i))
+        assert owner.get(c) == expect, (c, who, near)
+        contested_cells += len(who) > 1
+    assert contested_cells > 10
+
+
+def test_contested_rule_is_checked():
+    free = np.ones((4, 4), bool)
+    with pytest.raises(ValueError, match="must be one of downhill, nearest"):
+        label_sets(free, np.array([[0, 0]]), 2, contested="random")
+    with pytest.raises(ValueError, match="needs the static field"):
+        label_sets(free, np.array([[0, 0]]), 2, contested="downhill")

@@ -31,6 +31,8 @@ from solvers import mrf
 from solvers.mrf.exact import MAX_LABELLINGS
 from solvers.mrf.synthetic import random_mrf, swarm_mrf
 
+from field_support import random_map_static
+
 METHODS = mrf.METHODS.names()
 #: Exhaustive methods: exponential in N, given tiny problems only.
 TINY_ONLY = {b.name for b in mrf.METHODS if "optimal" in b.capabilities}
@@ -141,9 +143,10 @@ def swarm_problems(draw, max_robots: int) -> DiscreteProblem:
         others = np.argwhere(free)
         others = others[~(others[:, None, :] == start[None]).all(axis=2).any(axis=1)]
         goal = others[rng.integers(len(others))]
-    static = static_field((~free).astype(float), goal, 1.0, GoalPotentialConfig(), ObstaclePotentialConfig())
+    order = draw(st.sampled_from(ORDERS))
+    static = random_map_static(free, goal, start, draw(st.sampled_from(["geodesic", "euclidean"])), order)
     return DiscreteProblem(free=free, static=static, start=start, goal=goal, morse=Morse(),
-                           k=draw(st.integers(1, n - 1)), order=draw(st.sampled_from(ORDERS)))
+                           k=draw(st.integers(1, n - 1)), order=order)
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -209,8 +212,9 @@ def dense_swarms(draw, max_robots: int):
     assume(free.sum() > n + 1)
     start = clustered(rng, free, n)
     goal = np.argwhere(free)[rng.integers(free.sum())]
-    static = static_field((~free).astype(float), goal, 1.0, GoalPotentialConfig(), ObstaclePotentialConfig())
-    return free, static, start, draw(st.integers(1, n - 1)), draw(st.sampled_from(ORDERS))
+    order = draw(st.sampled_from(ORDERS))
+    static = random_map_static(free, goal, start, draw(st.sampled_from(["geodesic", "euclidean"])), order)
+    return free, static, start, draw(st.integers(1, n - 1)), order
 
 
 @pytest.mark.parametrize("method", METHODS)

@@ -10,7 +10,7 @@ from scipy.optimize import minimize_scalar
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
 from mrfswarm.errors import ConfigError
-from mrfswarm.potentials import Morse, goal_field, obstacle_field, static_field
+from mrfswarm.potentials import Morse, goal_distances, goal_field, obstacle_field, static_field
 
 
 def test_paper_values():
@@ -81,6 +81,16 @@ def test_obstacle_field_is_blurred_threshold():
 def test_static_field_is_the_sum():
     prob = np.zeros((12, 9))
     prob[4:6, 2:7] = 1.0
-    gc, oc = GoalPotentialConfig(), ObstaclePotentialConfig()
-    s = static_field(prob, np.array([10, 4]), 1.0, gc, oc)
-    np.testing.assert_allclose(s, goal_field(prob.shape, np.array([10, 4]), 1.0, gc) + obstacle_field(prob, oc))
+    goal = np.array([10, 4])
+    oc = ObstaclePotentialConfig()
+    euclid = GoalPotentialConfig(distance="euclidean")
+    s = static_field(prob, goal, 1.0, euclid, oc)
+    np.testing.assert_allclose(s, goal_field(prob.shape, goal, 1.0, euclid) + obstacle_field(prob, oc))
+    geo = GoalPotentialConfig()  # the default
+    d = goal_distances(prob, goal, 1.0, geo, oc)
+    s = static_field(prob, goal, 1.0, geo, oc)
+    free = prob < 0.5
+    np.testing.assert_allclose(s[free], (goal_field(prob.shape, goal, 1.0, geo, d.field) + obstacle_field(prob, oc))[free])
+    assert np.all(np.isinf(s[~free]))
+    # behind the wall the geodesic field is higher than the straight-line one
+    assert s[2, 4] > goal_field(prob.shape, goal, 1.0, euclid)[2, 4] + obstacle_field(prob, oc)[2, 4]

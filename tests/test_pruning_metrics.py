@@ -78,3 +78,17 @@ def test_discrete_metrics_summary():
     assert m.min_obstacle_clearance == pytest.approx((10 - 2 - 0.5) * 0.5)
     assert m.final_goal_distance == pytest.approx(np.hypot(0, 0.5) * 0.5)
     assert m.reached_goal is True
+
+
+def test_segments_clear_is_segment_clear_for_every_segment():
+    from mrfswarm.motion import segments_clear
+
+    rng = np.random.default_rng(7)
+    for density in (0.05, 0.3):
+        free = rng.random((25, 25)) > density
+        p = np.round(rng.uniform(-2, 26, (800, 2)))
+        q = p + np.round(rng.uniform(-4, 4, (800, 2)))
+        want = np.array([segment_clear(free, a, b) for a, b in zip(p, q)])
+        assert 0.05 < want.mean() < 0.95
+        np.testing.assert_array_equal(segments_clear(free, p, q), want)
+    assert segments_clear(free, np.zeros((0, 2)), np.zeros((0, 2))).shape == (0,)

@@ -44,8 +44,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
-from mrfswarm.discrete import STAGES, DiscreteProblem, graph_weights, mrf_step
-from mrfswarm.label_sets import label_sets
+from mrfswarm.discrete import STAGES, DiscreteProblem, graph_weights, mrf_step, problem_label_sets
 from mrfswarm.motion import MIN_SEPARATION, min_distance_during_move, stencil
 from mrfswarm.potentials import Morse, static_field
 from mrfswarm.swarm_mrf import step_mrf
@@ -69,8 +68,11 @@ def swarm(n: int, seed: int = 0) -> DiscreteProblem:
     start = np.array(sorted(cells))
     free = np.ones((W, H), bool)
     goal = np.array([W - side // 2, side // 2])
-    static = static_field(np.zeros((W, H)), goal, 1.0, GoalPotentialConfig(), ObstaclePotentialConfig())
-    return DiscreteProblem(free=free, static=static, start=start, goal=goal, morse=Morse(), k=min(7, n - 1), order=2)
+    # the paper's straight-line field and contested-cell rule, which the plain baseline implements
+    static = static_field(np.zeros((W, H)), goal, 1.0, GoalPotentialConfig(distance="euclidean"),
+                          ObstaclePotentialConfig())
+    return DiscreteProblem(free=free, static=static, start=start, goal=goal, morse=Morse(), k=min(7, n - 1), order=2,
+                           contested="nearest")
 
 
 def baseline_step(problem: DiscreteProblem, pos: np.ndarray) -> tuple[np.ndarray, float]:
@@ -182,7 +184,7 @@ def methods_table(methods: list[str], sizes: list[int], steps: int, out: Path, o
         for _ in range(steps):
             t0 = time.perf_counter()
             weights = graph_weights(pos, problem.k)
-            labels = label_sets(problem.free, pos, problem.order, problem.goal, problem.trim_backward)
+            labels = problem_label_sets(problem, pos)
             model = step_mrf(labels, weights, problem.static, problem.morse, problem.resolution)
             shared_t.append(time.perf_counter() - t0)
             stay_e.append(model.energy(model.initial))

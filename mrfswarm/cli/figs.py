@@ -6,10 +6,13 @@ import argparse
 import time
 from pathlib import Path
 
+from mrfswarm.cli import _args
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("figs", help="regenerate the paper's figures (PNG), the animations (GIF) and measured.json")
-    p.add_argument("--out", type=Path, default=Path("paper_figs"), help="output folder (default: paper_figs)")
+    p.add_argument("--out", type=_args.output_dir, default=Path("paper_figs"),
+                   help="output folder (default: paper_figs)")
     p.add_argument("--quick", action="store_true",
                    help="fewer sweep points and sizes, no animations (a smoke run of every figure)")
     p.add_argument("--only", default=None, metavar="NAME,...",

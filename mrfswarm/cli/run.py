@@ -5,16 +5,19 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from mrfswarm.cli import _args
 from mrfswarm.config import load_config
+from mrfswarm.errors import ConfigError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="plan a scenario and write result.json, paths, trajectories and figures")
     p.add_argument("config", type=Path, help="experiment config (TOML)")
-    p.add_argument("--out", type=Path, default=None, help="output folder (default: out/<config name>)")
+    p.add_argument("--out", type=_args.output_dir, default=None, help="output folder (default: out/<config name>)")
     p.add_argument("--mrf", default=None, help="MRF optimizer (see `mrfswarm solvers`)")
     p.add_argument("--qp", default=None, help="QP backend for smoothing (see `mrfswarm solvers`)")
-    p.add_argument("--seed", type=int, default=None, help="seed of the start sampling and the optimizer")
+    p.add_argument("--seed", type=_args.seed, default=None,
+                   help="seed (integer >= 0) of the start sampling and the optimizer")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key by dotted path, e.g. --set interaction.k=7 (repeatable)")
     p.add_argument("--workers", type=_positive_int, default=None,
@@ -40,7 +43,12 @@ def run(args: argparse.Namespace) -> int:
     from mrfswarm.pipeline import plan
 
     cfg = load_config(args.config, args.overrides)
-    out = args.out if args.out is not None else Path("out") / args.config.stem
+    out = args.out
+    if out is None:
+        try:
+            out = _args.output_dir(str(Path("out") / args.config.stem))
+        except argparse.ArgumentTypeError as e:
+            raise ConfigError(f"default output folder {e}; give --out") from None
     try:
         result = plan(cfg, mrf=args.mrf, qp=args.qp, seed=args.seed, workers=args.workers)
     except MrfswarmError as e:
@@ -51,7 +59,17 @@ def run(args: argparse.Namespace) -> int:
         raise
     write_outputs(result, out, animate=args.animate)
     s = result.summary()
-    goal = "" if s["reached_goal"] is None else f", reached goal: {s['reached_goal']}"
+    goal = "" if s["reached_goal"] is None else (
+        f", reached goal: {s['reached_goal']}, robots at goal: {s['robots_at_goal']}/{s['n_robots']}")
+    short = [r for r in s["robots"] if r["stop_reason"] is not None]
+    if short:
+        why = {}
+        for r in short:
+            why.setdefault(r["stop_reason"], []).append(str(r["robot"]))
+        goal += " (" + "; ".join(f"{k}: robot{'s' * (len(v) > 1)} {', '.join(v[:8])}{' ...' if len(v) > 8 else ''}"
+                                 for k, v in why.items()) + ")"
+    if s["robots_separated"]:
+        goal += f", {s['robots_separated']} separated from the swarm"
     line = (f"{s['n_robots']} robots, {s['mrf_steps']} MRF steps ({s['mrf']}, {s['stop_reason']}{goal}), "
             f"min separation {s['min_separation_discrete']:.2f} m discrete")
     if s["min_separation_continuous"] is not None:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from mrfswarm.cli import _args
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("sweep", help="plan every point of a parameter grid; one result.json per point, one CSV table",
@@ -15,7 +17,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--grid", action="append", default=[], required=True, metavar="KEY=V1,V2,...",
                    help="a config key and its values, TOML literals as for --set, e.g. "
                         "--grid interaction.k_a=8,14,20 (repeatable: the points are the product)")
-    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--out", type=_args.output_dir, required=True, help="output folder")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help='run on this Dask distributed scheduler, e.g. tcp://host:8786 (pip install "mrfswarm[dask]")')
     p.add_argument("--workers", type=int, default=None, metavar="N",
@@ -25,7 +27,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key for every point (repeatable)")
     p.add_argument("--figures", action="store_true", help="also write each point's figures and paths")
-    p.add_argument("--connect-timeout", type=float, default=10.0, metavar="S",
+    p.add_argument("--connect-timeout", type=_args.positive_float, default=10.0, metavar="S",
                    help="seconds to wait for the Dask scheduler (default 10)")
     p.set_defaults(func=run)
 
@@ -40,6 +42,8 @@ def parse_seeds(text: str) -> list[int]:
             seeds.append(int(item.strip()))
         except ValueError:
             raise ConfigError(f"--seeds {text!r}: {item.strip()!r} is not an integer") from None
+        if seeds[-1] < 0:
+            raise ConfigError(f"--seeds {text!r}: {item.strip()!r} must be an integer >= 0")
     return seeds
 
 

@@ -598,9 +598,11 @@ def exact_min_separation(trajectories: list[PiecewisePolynomial], reach: float) 
         if len(rc):
             upper = np.linalg.norm(np.einsum("sk,pkd->psd", V, rc), axis=-1).min()  # sampled: an upper bound
             lower = hull_distance_from_origin(rp)  # control points: a lower bound per pair and step
-            keep = lower <= upper
-            vals, _ = piece_extrema(rc[keep], minimum=True)
-            best = min(float(upper), float(vals.min()))
+            keep = lower <= upper + 1e-9 * (1.0 + upper)  # rounding: a bound attained at a piece's end
+            best = float(upper)
+            if keep.any():
+                vals, _ = piece_extrema(rc[keep], minimum=True)
+                best = min(best, float(vals.min()))
         if best <= reach or reach > span:
             return best
         reach *= 4

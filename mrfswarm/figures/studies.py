@@ -250,8 +250,7 @@ def step_times(quick: bool = False) -> list[dict]:
     toward a goal in free space (k = min(7, N - 1)); one warm-up step first. Also records
     the mean label-set size (cells per robot), the work that grows with n.
     """
-    from mrfswarm.discrete import DiscreteProblem, mrf_step
-    from mrfswarm.label_sets import label_sets
+    from mrfswarm.discrete import DiscreteProblem, mrf_step, problem_label_sets
 
     swarm = _bench_swarm()
     mrf_step(swarm(5), swarm(5).start)  # warm-up (imports, caches)
@@ -261,7 +260,7 @@ def step_times(quick: bool = False) -> list[dict]:
         for n in TIMING_ORDERS[quick]:
             problem = DiscreteProblem(**{**base.__dict__, "order": n})
             pos = problem.start
-            labels = label_sets(problem.free, pos, n, problem.goal, problem.trim_backward)
+            labels = problem_label_sets(problem, pos)
             ts = []
             for _ in range(TIMING_STEPS[quick]):
                 best = np.inf

@@ -1,0 +1,23 @@
+"""Static fields for tests on random maps, with either goal distance."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
+from mrfswarm.potentials import static_field
+
+
+def random_map_static(free: np.ndarray, goal: np.ndarray | None, start: np.ndarray, distance: str,
+                      order: int = 2) -> np.ndarray:
+    """rho_S of a random map with ``distance`` ("geodesic" or "euclidean").
+
+    A random map can cut robots off from the goal; the geodesic field is ``inf`` there
+    (the planner refuses such a start, tested in test_navigation.py), so those draws fall
+    back to the paper's straight-line field, which is finite everywhere.
+    """
+    prob = (~free).astype(float)
+    s = static_field(prob, goal, 1.0, GoalPotentialConfig(distance=distance), ObstaclePotentialConfig(), order)
+    if np.isfinite(s[start[:, 0], start[:, 1]]).all():
+        return s
+    return static_field(prob, goal, 1.0, GoalPotentialConfig(distance="euclidean"), ObstaclePotentialConfig(), order)

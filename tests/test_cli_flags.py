@@ -1,0 +1,100 @@
+"""Every flag of every subcommand: a bad value is one line on stderr and exit 2, nothing written."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from mrfswarm.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+FREE5 = str(ROOT / "experiments" / "free5.toml")
+
+# (argv after the program name, a pattern of the one-line message); FILE is a regular file,
+# OUT a fresh folder, WP a waypoints CSV
+BAD = {
+    "run --seed negative": (["run", FREE5, "--seed", "-5", "--out", "OUT"], "argument --seed: must be an integer >= 0, got '-5'"),
+    "run --seed text": (["run", FREE5, "--seed", "x", "--out", "OUT"], "argument --seed: must be an integer >= 0"),
+    "run --out a file": (["run", FREE5, "--out", "FILE"], "argument --out: .* is a file, not a folder"),
+    "run --out under a file": (["run", FREE5, "--out", "FILE/sub"], "argument --out: .* lies under the file"),
+    "run --mrf unknown": (["run", FREE5, "--mrf", "nope", "--out", "OUT"], "unknown MRF backend 'nope'"),
+    "run --qp unknown": (["run", FREE5, "--qp", "nope", "--out", "OUT"], "unknown QP backend 'nope'"),
+    "run --set no value": (["run", FREE5, "--set", "mrf.order", "--out", "OUT"], "expected KEY=VALUE"),
+    "run --set bad distance": (["run", FREE5, "--set", "goal_potential.distance=manhattan", "--out", "OUT"],
+                               "goal_potential.distance = 'manhattan': must be one of geodesic, euclidean"),
+    "run start seed negative": (["run", FREE5, "--set", "scenario.start.seed=-3", "--out", "OUT"],
+                                r"scenario.start.seed = -3: must be an integer >= 0"),
+    "run config missing": (["run", "nowhere.toml", "--out", "OUT"], "cannot read config"),
+    "sweep --seeds negative": (["sweep", FREE5, "--grid", "mrf.order=1", "--out", "OUT", "--seeds", "0,-5"],
+                               "--seeds '0,-5': '-5' must be an integer >= 0"),
+    "sweep --seeds text": (["sweep", FREE5, "--grid", "mrf.order=1", "--out", "OUT", "--seeds", "1.5"], "is not an integer"),
+    "sweep --workers zero": (["sweep", FREE5, "--grid", "mrf.order=1", "--out", "OUT", "--workers", "0"],
+                             "--workers 0: must be an integer >= 1"),
+    "sweep --workers text": (["sweep", FREE5, "--grid", "mrf.order=1", "--out", "OUT", "--workers", "two"],
+                             "argument --workers: invalid int value: 'two'"),
+    "sweep --connect-timeout negative": (["sweep", FREE5, "--grid", "mrf.order=1", "--out", "OUT", "--scheduler",
+                                          "tcp://127.0.0.1:1", "--connect-timeout", "-1"],
+                                         "argument --connect-timeout: must be a positive finite number"),
+    "sweep --connect-timeout nan": (["sweep", FREE5, "--grid", "mrf.order=1", "--out", "OUT", "--scheduler",
+                                     "tcp://127.0.0.1:1", "--connect-timeout", "nan"],
+                                    "argument --connect-timeout: must be a positive finite number"),
+    "sweep --out a file": (["sweep", FREE5, "--grid", "mrf.order=1", "--out", "FILE"], "argument --out: .* is a file"),
+    "sweep --grid bad": (["sweep", FREE5, "--grid", "order", "--out", "OUT"], "expected KEY=V1,V2"),
+    "figs --out a file": (["figs", "--out", "FILE", "--only", "fig2"], "argument --out: .* is a file"),
+    "figs --only unknown": (["figs", "--out", "OUT", "--only", "fig99"], "unknown figure"),
+    "smooth --speed negative": (["smooth", "WP", "--out", "OUT.csv", "--speed", "-1"], "--speed must be a positive"),
+    "smooth --degree negative": (["smooth", "WP", "--out", "OUT.csv", "--degree", "-1"], "--degree -1"),
+    "smooth --derivative zero": (["smooth", "WP", "--out", "OUT.csv", "--derivative", "0"], "--derivative must be >= 1"),
+    "smooth --altitude nan": (["smooth", "WP", "--out", "OUT.csv", "--altitude", "nan"], "--altitude must be finite"),
+    "smooth --durations text": (["smooth", "WP", "--out", "OUT.csv", "--durations", "1,x"], "is not a number"),
+    "smooth --qp unknown": (["smooth", "WP", "--out", "OUT.csv", "--qp", "nope"], "unknown QP backend 'nope'"),
+    "unknown subcommand": (["fly"], "invalid choice: 'fly'"),
+}
+
+
+def run_cli(argv: list[str]) -> int:
+    """``mrfswarm ARGV``'s exit code (argparse exits by SystemExit, the rest by main's return)."""
+    try:
+        return main(argv)
+    except SystemExit as e:
+        return e.code
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_flag_value_is_one_line_and_exit_2(case, tmp_path, capsys):
+    import re
+
+    argv, pattern = BAD[case]
+    (tmp_path / "file").write_text("x")
+    (tmp_path / "wp.csv").write_text("x,y\n0,0\n1,0\n2,1\n")
+    subs = {"FILE": str(tmp_path / "file"), "OUT": str(tmp_path / "out"), "WP": str(tmp_path / "wp.csv")}
+    argv = [re.sub(r"^(FILE|OUT|WP)", lambda m: subs[m.group(1)], a) for a in argv]
+    rc = run_cli(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2, err
+    assert len(err) == 1 and err[0].startswith("mrfswarm: error: "), err
+    assert re.search(pattern, err[0]), err[0]
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+    assert not (tmp_path / "out.csv").exists()
+
+
+def test_negative_seed_from_a_real_process_has_no_traceback(tmp_path):
+    p = subprocess.run([sys.executable, "-m", "mrfswarm.cli", "run", FREE5, "--seed", "-5", "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert p.stderr.strip() == "mrfswarm: error: argument --seed: must be an integer >= 0, got '-5'"
+
+
+def test_seed_zero_and_large_are_fine(tmp_path):
+    for seed in ("0", "123456789"):
+        assert main(["run", FREE5, "--seed", seed, "--set", "smoothing.enabled=false", "--out",
+                     str(tmp_path / seed)]) == 0
+
+
+def test_plan_refuses_a_negative_seed():
+    import mrfswarm
+    from mrfswarm.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="seed = -1: must be an integer >= 0"):
+        mrfswarm.plan(FREE5, seed=-1)
