@@ -108,8 +108,8 @@ def test_robots_too_close_are_caught():
     assert not cert.ok and "robots 0 and 1 are not proven apart in step 0" in cert.problems[0]
 
 
-@pytest.mark.parametrize("which, limits", [("speed", (0.5, 4.0, 4.0)), ("acceleration", (2.0, 0.5, 4.0)),
-                                           ("jerk", (2.0, 4.0, 0.5))])
+@pytest.mark.parametrize("which, limits", [("speed", (0.2, 4.0, 4.0)), ("acceleration", (2.0, 0.1, 4.0)),
+                                           ("jerk", (2.0, 4.0, 0.08))])
 def test_limits_are_caught(which, limits):
     flight, regions = _setting()
     cert = certify(flight, np.array([0.0, 8.0]), regions, 0.5, limits)

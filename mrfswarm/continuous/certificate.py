@@ -14,7 +14,8 @@ all t when
    of their *relative* control points (the differences, since both pieces share the
    step's interval and basis) stays at least the safety distance from the origin
    (separation >= safety distance for all t in the step);
-4. every velocity, acceleration and jerk control point is within its limit.
+4. every velocity, acceleration and jerk control point (of each quarter of a piece) is
+   within its limit.
 
 Check 3 does not use the planner's separating half-planes: it finds the pairs to look at
 itself (control-point bounding boxes within the safety distance, through a k-d tree)
@@ -33,6 +34,7 @@ import numpy as np
 
 from mrfswarm.continuous.regions import Regions, near_pairs
 from mrfswarm.geometry import point_segment_distance
+from mrfswarm.continuous.formulation import LIMIT_PARTS
 from mrfswarm.trajectory.bernstein import tau_control_points
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial
 
@@ -143,7 +145,7 @@ def control_point_stack(trajectories: list[PiecewisePolynomial]) -> list[np.ndar
     """[P, V, A, J] control points (N, M, K_r, 2) of trajectories that share their knots."""
     c = np.stack([tr.tau_coefficients() for tr in trajectories])  # (N, M, D+1, 2)
     T = trajectories[0].durations
-    return [tau_control_points(c, r) / T[None, :, None, None] ** r for r in range(4)]
+    return [tau_control_points(c, r, 1 if r == 0 else LIMIT_PARTS) / T[None, :, None, None] ** r for r in range(4)]
 
 
 def certify(trajectories: list[PiecewisePolynomial], knot_times: np.ndarray, regions: Regions, distance: float,

@@ -25,9 +25,10 @@ combination of those coefficients, ``P.data = S_P k(T)``, ``A.data = S_A k(T)``,
 - the region of every robot and step: ``lower <= axes @ P_m <= upper`` for every
   control point (:mod:`mrfswarm.continuous.regions`);
 - every relative safe corridor: ``n . (P_m^g - P_m^h) >= d_safe``;
-- the limits: every velocity, acceleration and jerk control point inside a regular
-  octagon inscribed in the disc of radius ``v_max`` (``a_max``, ``j_max``), so the
-  derivative's norm stays below the limit for all t;
+- the limits: every velocity, acceleration and jerk control point (of each of
+  ``LIMIT_PARTS`` equal sub-intervals of a piece: a linear map of the same variables) inside
+  a regular octagon inscribed in the disc of radius ``v_max`` (``a_max``, ``j_max``), so
+  the derivative's norm stays below the limit for all t;
 - the window's ends: the start state (position and derivatives 1..q-1) and rest at the
   end position.
 
@@ -55,7 +56,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from mrfswarm.continuous.regions import Regions
-from mrfswarm.trajectory.bernstein import difference_matrix, monomial_to_bernstein
+from mrfswarm.trajectory.bernstein import difference_matrix, monomial_to_bernstein, subdivision_matrix
 from mrfswarm.trajectory.formulation import hermite_basis
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial, cost_hessian, tau_to_time
 from solvers.qp import QPProblem
@@ -67,6 +68,10 @@ LIMIT_ORDERS = (1, 2, 3)
 #: Directions of the octagon's faces; its inner radius is cos(pi/8) of the disc's.
 OCTAGON = np.array([[1.0, 0.0], [0.0, 1.0], [math.sqrt(0.5), math.sqrt(0.5)], [math.sqrt(0.5), -math.sqrt(0.5)]])
 OCTAGON_INNER = math.cos(math.pi / 8)
+#: Each piece's derivatives are bounded on the control points of this many equal
+#: sub-intervals: within 5 % of the true maximum of jerk for a rest-to-rest step, where
+#: the whole piece's control points overestimate it eightfold.
+LIMIT_PARTS = 4
 
 
 class PieceMaps:
@@ -76,6 +81,8 @@ class PieceMaps:
     ----------
     degree, derivative
         Polynomial degree D and minimized derivative q (D >= 2q - 1, D >= 3).
+    parts
+        Derivative control points are those of this many equal sub-intervals.
 
     Attributes
     ----------
@@ -90,7 +97,7 @@ class PieceMaps:
         Length of one piece's coefficient vector ``k``.
     """
 
-    def __init__(self, degree: int, derivative: int) -> None:
+    def __init__(self, degree: int, derivative: int, parts: int = 4) -> None:
         import casadi as ca
 
         D, q = degree, derivative
@@ -112,11 +119,12 @@ class PieceMaps:
         blocks, self.rows, self.k_offset = [], [], []
         start = 0
         for r in range(4):
-            Kr = ca.densify(ca.jacobian(ca.mtimes(ca.DM(difference_matrix(D, r)), P) / T**r, z))
+            Dr = difference_matrix(D, r) if r == 0 else subdivision_matrix(D - r, parts) @ difference_matrix(D, r)
+            Kr = ca.densify(ca.jacobian(ca.mtimes(ca.DM(Dr), P) / T**r, z))
             blocks.append(ca.vec(Kr))
-            self.rows.append(D + 1 - r)
+            self.rows.append(Dr.shape[0])
             self.k_offset.append(start)
-            start += (D + 1 - r) * self.nz
+            start += Dr.shape[0] * self.nz
         cost = T ** (1 - 2 * q) * ca.mtimes([c.T, ca.DM(cost_hessian(D, q)), c])
         Hc = ca.densify(ca.hessian(cost, z)[0])
         blocks.append(ca.vec(Hc))
@@ -168,9 +176,9 @@ class PieceMaps:
 
 
 @lru_cache(maxsize=8)
-def piece_maps(degree: int, derivative: int) -> PieceMaps:
-    """The compiled :class:`PieceMaps` of a degree and derivative (built on first use)."""
-    return PieceMaps(degree, derivative)
+def piece_maps(degree: int, derivative: int, parts: int = LIMIT_PARTS) -> PieceMaps:
+    """The compiled :class:`PieceMaps` of a degree, derivative and subdivision (built on first use)."""
+    return PieceMaps(degree, derivative, parts)
 
 
 @dataclass(frozen=True)
@@ -203,6 +211,9 @@ class WindowSpec:
     limit_mask
         (M, G, 3) bool: which (step, robot, derivative order) get limit rows (None: all).
         The window loop adds them lazily, where a solution without them exceeds a limit.
+    limit_parts
+        Sub-intervals whose control points bear the limits (1: the whole piece's, more
+        conservative: they contain every sub-interval's).
     """
 
     degree: int
@@ -220,6 +231,7 @@ class WindowSpec:
     time_scale: float
     margin: float = 1e-6
     limit_mask: np.ndarray | None = None
+    limit_parts: int = LIMIT_PARTS
 
     @property
     def steps(self) -> int:
@@ -252,7 +264,7 @@ class WindowFormulation:
 
     def __init__(self, spec: WindowSpec) -> None:
         self.spec = spec
-        pm = self.maps = piece_maps(spec.degree, spec.derivative)
+        pm = self.maps = piece_maps(spec.degree, spec.derivative, spec.limit_parts)
         M, G, D, q, nz = spec.steps, spec.robots, spec.degree, spec.derivative, pm.nz
         self.per_dim = (M + 1) * pm.stride - (pm.stride - q)  # y_0, b_0, ..., y_M
         self.n = 2 * G * self.per_dim
@@ -289,7 +301,7 @@ class WindowFormulation:
             reg.lower[:, :, None, :] - shift + spec.margin, reg.upper[:, :, None, :] - shift - spec.margin)
         # limits: rows (j, g, m, direction) per order
         for r, lim in zip(LIMIT_ORDERS, spec.limits):
-            R = D + 1 - r
+            R = pm.rows[r]
             J, Gi, Mm, Kk, Dd, Aa = np.ix_(np.arange(M), np.arange(G), np.arange(R), np.arange(4), np.arange(2),
                                            np.arange(nz))
             bound = lim * Ts**r * OCTAGON_INNER * (1 - spec.margin)

@@ -37,6 +37,7 @@ is accepted if it certifies and lowers that cost.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import time
@@ -49,6 +50,7 @@ import solvers.qp
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous.certificate import Certificate, certify, certify_pieces
 from mrfswarm.continuous.formulation import (
+    LIMIT_PARTS,
     OCTAGON,
     OCTAGON_INNER,
     WindowFormulation,
@@ -82,7 +84,7 @@ MARGIN = 1e-6
 #: The nominal time grid speeds up and slows down at this fraction of a_max.
 NOMINAL_ACCELERATION = 0.25
 #: Ipopt's settings for time refinement (a local improvement: its last iterate is a candidate).
-NLP_OPTIONS = QPOptions(eps_abs=1e-6, eps_rel=1e-6, max_iter=150)
+NLP_OPTIONS = QPOptions(eps_abs=1e-6, eps_rel=1e-6, max_iter=80)
 #: Robots per chunk: independent groups are packed into QPs of about this many robots.
 CHUNK_ROBOTS = 64
 #: Swarms at least this large solve their chunks in worker processes (smaller ones gain nothing).
@@ -304,7 +306,7 @@ class RecedingHorizon:
         Y = np.zeros((self.N, M + 1, q, 2))
         B = np.zeros((self.N, M, pm.nz - 2 * q, 2))
         cost = np.zeros(self.N)
-        cps = [np.zeros((self.N, M, pm.degree + 1 - r, 2)) for r in range(4)]
+        cps = [np.zeros((self.N, M, pm.rows[r], 2)) for r in range(4)]
         cand = np.flatnonzero((self.seps.step >= a) & (self.seps.step < b))
         seps = self.seps.select(cand)
         todo = np.ones(self.N, dtype=bool)
@@ -367,7 +369,7 @@ class RecedingHorizon:
         scale = durations[:, None] ** pm.rpow[None, :]
         c = np.einsum("ka,ma,nmad->nmkd", pm.E, scale, z)
         T = durations[None, :, None, None]
-        return [tau_control_points(c, r) / T**r for r in range(4)]
+        return [tau_control_points(c, r, 1 if r == 0 else LIMIT_PARTS) / T**r for r in range(4)]
 
     def _certify(self, sol: _Solution, a: int) -> Certificate:
         tic = time.perf_counter()
@@ -435,34 +437,41 @@ class RecedingHorizon:
     def _refine(self, sol: _Solution, a: int, start: np.ndarray, rec: WindowRecord) -> _Solution:
         """Durations as variables (Ipopt, all robots: one time grid), warm-started at ``sol``.
 
-        The NLP carries the corridor and limit rows found active. Its last iterate is kept
-        if it certifies (the certificate checks every corridor and limit, active or not)
-        and lowers snap + ``time_weight`` x duration (per robot); failing that, the QP at
-        its durations is tried the same way.
+        The NLP carries the corridors found active and every limit, on whole pieces'
+        control points (conservative, so the QP at its durations meets the limits too). It
+        only picks the durations: the trajectory is the window's QP at those durations (with its lazy
+        rows, so it meets every constraint of the window problem: the next window's
+        recursive feasibility rests on that). If the QP is infeasible there, durations
+        halfway back to the QP's are tried. A refinement is kept if it certifies and lowers
+        snap + ``time_weight`` x duration (per robot).
         """
         M = len(sol.durations)
         b = a + M
         weight = self.cfg.time_weight
         on = np.flatnonzero(self.active & (self.seps.step >= a) & (self.seps.step < b))
-        form = WindowFormulation(self._spec(a, b, np.arange(self.N), start, on))
+        # every limit on, on whole pieces: conservative (a whole piece's control points contain
+        # its quarters'), so the QP at the NLP's durations meets the limits too
+        spec = dataclasses.replace(self._spec(a, b, np.arange(self.N), start, on), limit_parts=1,
+                                   limit_mask=np.ones((M, self.N, 3), dtype=bool))
+        form = WindowFormulation(spec)
         bounds = (np.maximum(0.2 * self.nominal[a:b], 1e-3), 2 * np.maximum(self.witness[a:b], self.nominal[a:b]))
-        x, durations, res = form.refine_time(form.pack(sol.Y, sol.B), sol.durations, np.ones(M, dtype=bool), weight,
+        _, durations, res = form.refine_time(form.pack(sol.Y, sol.B), sol.durations, np.ones(M, dtype=bool), weight,
                                              bounds, NLP_OPTIONS)
         if not np.all(np.isfinite(durations) & (durations > 0)):
             log.info("window %d..%d: time refinement failed (%s)", a, b, res.raw_status)
             return sol
-        # Ipopt's last iterate (interior point: feasible in practice), else the QP at its durations
-        x = form.exact_ends(x)
-        Y, B = form.unpack(x)
-        new = _Solution(Y, B, durations, float(form.robot_objectives(x, durations).sum()))
-        if not self._certify(new, a).ok:
-            new, why = self._solve(a, b, start, durations, rec)
+        before = sol.cost + weight * self.N * sol.durations.sum()
+        for blend in (1.0, 0.5):
+            d = np.exp(blend * np.log(durations) + (1 - blend) * np.log(sol.durations))
+            new, why = self._solve(a, b, start, d, rec)
             if new is None or not self._certify(new, a).ok:
-                log.info("window %d..%d: refined durations not certified (%s)", a, b, why or "certificate")
-                return sol
-        if new.cost + weight * self.N * durations.sum() < sol.cost + weight * self.N * sol.durations.sum():
-            rec.refined = True
-            return new
+                log.info("window %d..%d: refined durations (x%g) not solved or certified (%s)", a, b, blend,
+                         why or "certificate")
+                continue
+            if new.cost + weight * self.N * d.sum() < before:
+                rec.refined = True
+                return new
+            return sol
         return sol
 
     # ------------------------------------------------------------------ run

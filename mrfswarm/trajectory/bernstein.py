@@ -51,7 +51,32 @@ def difference_matrix(degree: int, order: int) -> np.ndarray:
     return Dm
 
 
-def tau_control_points(tau_coefficients: np.ndarray, order: int = 0) -> np.ndarray:
+@lru_cache(maxsize=64)
+def subdivision_matrix(degree: int, parts: int) -> np.ndarray:
+    """(parts (n+1), n+1) matrix: Bernstein control points on [0, 1] -> those of the ``parts`` equal sub-intervals.
+
+    A polynomial restricted to [k/S, (k+1)/S] is again a polynomial of the same degree in
+    its own local parameter; the convex hulls of the pieces' control points enclose the
+    curve more tightly than the whole one's (the control points converge to the curve
+    quadratically in 1/S). Read-only.
+    """
+    n = degree
+    B = monomial_to_bernstein(n)
+    Binv = np.linalg.inv(B)
+    blocks = []
+    for k in range(parts):
+        # monomial coefficients of c(tau) -> those of c((k + u) / S) in u
+        R = np.zeros((n + 1, n + 1))
+        for j in range(n + 1):
+            col = np.polynomial.polynomial.polypow([k / parts, 1.0 / parts], j)
+            R[: len(col), j] = col
+        blocks.append(B @ R @ Binv)
+    out = np.vstack(blocks)
+    out.setflags(write=False)
+    return out
+
+
+def tau_control_points(tau_coefficients: np.ndarray, order: int = 0, parts: int = 1) -> np.ndarray:
     """Control points of the ``order``-th tau-derivative of pieces given by tau-coefficients.
 
     Parameters
@@ -60,25 +85,30 @@ def tau_control_points(tau_coefficients: np.ndarray, order: int = 0) -> np.ndarr
         (..., D+1, dim) coefficients in increasing power of tau.
     order
         Derivative order r >= 0.
+    parts
+        Split each piece into this many equal sub-intervals and return all their control
+        points (a tighter hull; see :func:`subdivision_matrix`).
 
     Returns
     -------
     numpy.ndarray
-        (..., D+1-r, dim).
+        (..., parts (D+1-r), dim).
     """
     D = tau_coefficients.shape[-2] - 1
     M = difference_matrix(D, order) @ monomial_to_bernstein(D)
+    if parts > 1:
+        M = subdivision_matrix(D - order, parts) @ M
     return np.einsum("mk,...kd->...md", M, tau_coefficients)
 
 
-def control_points(trajectory: PiecewisePolynomial, order: int = 0) -> np.ndarray:
+def control_points(trajectory: PiecewisePolynomial, order: int = 0, parts: int = 1) -> np.ndarray:
     """Control points of the ``order``-th time derivative of every piece of ``trajectory``.
 
     Returns
     -------
     numpy.ndarray
-        (M, D+1-r, dim): piece i's r-th derivative lies in the convex hull of row i for
-        all t in the piece.
+        (M, parts (D+1-r), dim): piece i's r-th derivative lies in the convex hull of row
+        i for all t in the piece (of each sub-interval's points in its sub-interval).
     """
     T = trajectory.durations
-    return tau_control_points(trajectory.tau_coefficients(), order) / T[:, None, None] ** order
+    return tau_control_points(trajectory.tau_coefficients(), order, parts) / T[:, None, None] ** order
