@@ -15,6 +15,7 @@ from mrfswarm.trajectory import (
     solve_min_snap,
     trapezoidal_durations,
 )
+from mrfswarm.trajectory.time_allocation import scaled_time_weight, stationary_time_weight
 from solvers.errors import InvalidProblem
 
 
@@ -132,3 +133,70 @@ def test_toppra_retiming_respects_limits_and_waypoints(dim):
     uniform = scale_to_limits(traj, v_max, a_max, allow_speedup=True).trajectory.duration
     assert tr.duration < uniform
     assert tr.duration < 1.2 * out.toppra_duration
+
+
+def test_refinement_without_weight_keeps_the_total_and_only_redistributes():
+    rng = np.random.default_rng(6)
+    W = random_walk(rng, 9, step=(0.2, 3.0))
+    T0 = constant_speed_durations(W, 1.0)
+    res = refine_durations(W, T0)
+    assert res.durations.sum() == pytest.approx(T0.sum(), rel=1e-12)
+    J0 = cost_and_gradient(MinSnapProblem(W, T0))[0]
+    assert res.cost < 0.95 * J0  # same total, less snap (constant speed is far from optimal here)
+    assert res.objective < res.initial_objective
+    # the reported weight is the one for which the result is stationary
+    _, g = cost_and_gradient(MinSnapProblem(W, res.durations))
+    np.testing.assert_allclose(g, -res.time_weight, rtol=2e-3)
+    # and the shares are those of any explicit weight (the weight only sets the time scale): the best
+    # uniform scaling of the result reaches that weight's optimum
+    for k in (1.0, 1e4):
+        other = refine_durations(W, T0, time_weight=k)
+        alpha = (7 * res.cost / (k * res.durations.sum())) ** (1 / 8)
+        F = cost_and_gradient(MinSnapProblem(W, alpha * res.durations))[0] + k * alpha * res.durations.sum()
+        assert F == pytest.approx(other.objective, rel=1e-6)
+        np.testing.assert_allclose(other.durations / other.durations.sum(), res.durations / res.durations.sum(), rtol=1e-2)
+
+
+def test_stationary_time_weight_makes_the_given_total_optimal():
+    rng = np.random.default_rng(7)
+    W = random_walk(rng, 6)
+    T0 = rng.uniform(0.5, 2.0, 6)
+    k = stationary_time_weight(W, T0)
+    J0 = cost_and_gradient(MinSnapProblem(W, T0))[0]
+
+    def F(alpha):
+        return cost_and_gradient(MinSnapProblem(W, alpha * T0))[0] + k * alpha * T0.sum()
+
+    assert F(1.0) < F(0.99) and F(1.0) < F(1.01)
+    assert k == pytest.approx(7 * J0 / T0.sum())
+
+
+def test_scaled_time_weight_is_the_weight_of_the_scaled_optimum():
+    rng = np.random.default_rng(8)
+    W = random_walk(rng, 7)
+    res = refine_durations(W, constant_speed_durations(W, 1.0), time_weight=30.0)
+    for alpha in (0.4, 1.7):
+        _, g = cost_and_gradient(MinSnapProblem(W, alpha * res.durations))
+        np.testing.assert_allclose(g, -scaled_time_weight(30.0, alpha), rtol=2e-3)
+
+
+def test_refinement_guards():
+    W = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
+    for bad in (0.0, -1.0, np.nan, np.inf):
+        with pytest.raises(InvalidProblem, match="time_weight must be positive"):
+            refine_durations(W, [1.0, 1.0], time_weight=bad)
+    # keeping the total needs homogeneous ends; a given non-zero end velocity breaks it
+    with pytest.raises(InvalidProblem, match="needs ends at rest or free"):
+        refine_durations(W, [1.0, 1.0], start=[[1.0, 0.0]])
+    res = refine_durations(W, [1.0, 1.0], start=[[1.0, 0.0]], time_weight=5.0)
+    assert res.objective <= res.initial_objective
+    # free ends are homogeneous too; through four points a cubic costs nothing, so nothing moves
+    W4 = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [3.0, 2.0]])
+    zero = refine_durations(W4, [1.0, 2.0, 1.5], start="free", end="free")
+    assert zero.cost == 0.0 and zero.iterations == 0
+    np.testing.assert_array_equal(zero.durations, [1.0, 2.0, 1.5])
+    rng = np.random.default_rng(10)
+    W6 = random_walk(rng, 6)
+    T6 = constant_speed_durations(W6, 1.0)
+    free = refine_durations(W6, T6, start="free", end="free")
+    assert free.durations.sum() == pytest.approx(T6.sum()) and free.cost < free.initial_objective - free.time_weight * T6.sum()
