@@ -322,8 +322,8 @@ def test_a_late_failure_writes_nothing(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(cmd, "retime_toppra", fail)
     wp = write(tmp_path, "x,y\n0,0\n1,1\n2,0\n")
     out = tmp_path / "o.csv"
-    out_args = ["smooth", str(wp), "--out", str(out), "--refine-time", "--retime", "toppra", "--v-max", "1", "--a-max", "1"]
-    assert main(out_args) == 2
+    assert main(["smooth", str(wp), "--out", str(out), "--refine-time", "--retime", "toppra",
+                 "--v-max", "1", "--a-max", "1"]) == 2
     err = capsys.readouterr().err
     assert err.strip().splitlines() == ["mrfswarm: error: toppra failed to parametrize the path: test"]
     assert [p.name for p in tmp_path.iterdir()] == [wp.name]

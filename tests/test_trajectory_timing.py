@@ -156,7 +156,8 @@ def test_refinement_without_weight_keeps_the_total_and_only_redistributes():
         alpha = (7 * res.cost / (k * res.durations.sum())) ** (1 / 8)
         F = cost_and_gradient(MinSnapProblem(W, alpha * res.durations))[0] + k * alpha * res.durations.sum()
         assert F == pytest.approx(other.objective, rel=1e-6)
-        np.testing.assert_allclose(other.durations / other.durations.sum(), res.durations / res.durations.sum(), rtol=1e-2)
+        shares = res.durations / res.durations.sum()
+        np.testing.assert_allclose(other.durations / other.durations.sum(), shares, rtol=1e-2)
 
 
 def test_stationary_time_weight_makes_the_given_total_optimal():
@@ -201,7 +202,8 @@ def test_refinement_guards():
     W6 = random_walk(rng, 6)
     T6 = constant_speed_durations(W6, 1.0)
     free = refine_durations(W6, T6, start="free", end="free")
-    assert free.durations.sum() == pytest.approx(T6.sum()) and free.cost < free.initial_objective - free.time_weight * T6.sum()
+    assert free.durations.sum() == pytest.approx(T6.sum())
+    assert free.cost < cost_and_gradient(MinSnapProblem(W6, T6, start="free", end="free"))[0]
 
 
 def test_scale_to_limits_rejects_limits_beyond_floating_point():
@@ -222,7 +224,8 @@ def test_toppra_retiming_does_not_depend_on_the_input_speed(v_max, a_max):
     for out in outs:
         tr = out.trajectory
         assert out.method == "toppra"
-        assert max_derivative_norm(tr, 1)[0] <= v_max * (1 + 1e-9) and max_derivative_norm(tr, 2)[0] <= a_max * (1 + 1e-9)
+        assert max_derivative_norm(tr, 1)[0] <= v_max * (1 + 1e-9)
+        assert max_derivative_norm(tr, 2)[0] <= a_max * (1 + 1e-9)
         assert dense_max(tr, 1, 2000) <= v_max * (1 + 1e-9) and dense_max(tr, 2, 2000) <= a_max * (1 + 1e-9)
         # lengthening the refit's overloaded pieces brings it within 2 % of toppra's optimum here (4-14 % without)
         assert tr.duration < 1.03 * out.toppra_duration

@@ -275,7 +275,8 @@ def require_toppra() -> None:
         toppra is not installed; the message names the pip extra.
     """
     if importlib.util.find_spec("toppra") is None:
-        raise SolverNotFound(f'toppra retiming needs toppra, which is not installed: pip install "mrfswarm[{TOPPRA_EXTRA}]"')
+        raise SolverNotFound("toppra retiming needs toppra, which is not installed: "
+                             f'pip install "mrfswarm[{TOPPRA_EXTRA}]"')
 
 
 @dataclass(frozen=True)
