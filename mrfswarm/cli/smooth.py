@@ -1,13 +1,37 @@
 """``mrfswarm smooth``: waypoints (CSV) -> min-snap trajectory (uav_trajectories CSV).
 
 The job of the uav_trajectories tool, with the closed form or any QP backend. The
-trajectory is at rest at both ends; durations are given or derived from a constant
-speed. Bad input is a one-line error (exit 2) and nothing is written at ``--out``.
+trajectory is at rest at both ends; durations are given (``--durations``) or derived
+from a constant speed (``--speed``). Time can then be optimized:
+
+- ``--v-max``, ``--a-max``: limits on the speed and acceleration norms that the output
+  meets, by its exact maxima (not samples). Alone, they slow the trajectory down
+  uniformly if it exceeds one (never speed it up).
+- ``--refine-time``: the durations are refined by minimizing snap + ``k_T`` x total
+  time (Richter et al.; exact duration gradient of the closed form, L-BFGS-B; see
+  :mod:`mrfswarm.trajectory.time_allocation`). The weight only sets the time scale: the
+  optimal shares of the pieces do not depend on it. So without ``--time-weight``,
+  refinement keeps the total duration and redistributes it, and with limits it gives
+  the fastest refined trajectory within them (uniform scaling until a limit is tight,
+  which is the optimum for the largest weight that meets both). With ``--time-weight``
+  the total follows from the weight, and limits only ever slow it down.
+- ``--retime toppra`` (needs ``--v-max`` and ``--a-max``, and the ``toppra`` extra):
+  toppra's time-optimal traversal of the trajectory's path under the limits, refit as
+  a degree-``2q - 1`` min-snap trajectory through points of the path (10 pieces per
+  input piece) and scaled to meet the limits exactly, or, if that refit is slower, the
+  input scaled uniformly until a limit is tight (see
+  :mod:`mrfswarm.trajectory.retiming`); with ``--refine-time`` the path is that of the
+  refined durations. This is the shortest flight of the options: refinement trades
+  snap against time and does not see the limits.
+
+Bad input is a one-line error (exit 2) and nothing is written at ``--out``: every
+value is checked before any work, and the file is written last, atomically.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import time
 from pathlib import Path
@@ -16,12 +40,14 @@ import solvers.qp
 from mrfswarm.config import ScenarioConfig
 from mrfswarm.errors import ConfigError
 from mrfswarm.trajectory.min_snap import CLOSED_FORM, solve_min_snap
-from mrfswarm.trajectory.time_allocation import constant_speed_durations
+from mrfswarm.trajectory.retiming import require_toppra, retime_toppra, scale_to_limits
+from mrfswarm.trajectory.time_allocation import constant_speed_durations, refine_durations, scaled_time_weight
 from mrfswarm.trajectory.uav_csv import DEGREE as CSV_DEGREE
 from mrfswarm.trajectory.uav_csv import write_uav_csv
 from mrfswarm.trajectory.waypoints import check_waypoints, read_waypoints_csv
 
 DEFAULT_SPEED = 1.0
+RETIMERS = ("toppra",)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -37,6 +63,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--derivative", type=int, default=4, metavar="Q", help="minimized derivative (default 4, snap)")
     p.add_argument("--altitude", type=float, default=None, metavar="Z",
                    help=f"z of a 2-D trajectory (default {ScenarioConfig.altitude} m)")
+    p.add_argument("--v-max", type=float, default=None, metavar="V", help="speed limit the output meets (m/s)")
+    p.add_argument("--a-max", type=float, default=None, metavar="A", help="acceleration limit the output meets (m/s^2)")
+    p.add_argument("--refine-time", action="store_true",
+                   help="refine the durations (snap + time weight x total time), then meet the limits")
+    p.add_argument("--time-weight", type=float, default=None, metavar="K",
+                   help="with --refine-time: price of one second in cost units (default: keep the total "
+                        "duration, or with limits the fastest refined trajectory within them)")
+    p.add_argument("--retime", choices=RETIMERS, default=None,
+                   help="retime to the limits with toppra (needs --v-max, --a-max and the toppra extra)")
     p.set_defaults(func=run)
 
 
@@ -51,6 +86,35 @@ def _durations(text: str) -> list[float]:
             raise ConfigError(f"--durations: value {i + 1} ({tok.strip()}) must be a positive finite number of seconds")
         out.append(d)
     return out
+
+
+def _positive(flag: str, value: float | None, unit: str) -> None:
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"{flag} must be a positive finite number ({unit}), got {value}")
+
+
+def _check_time_options(args: argparse.Namespace, degree: int, q: int) -> None:
+    """Every time-optimization flag and combination, before any work."""
+    _positive("--v-max", args.v_max, "m/s")
+    _positive("--a-max", args.a_max, "m/s^2")
+    _positive("--time-weight", args.time_weight, "cost units per second")
+    if args.time_weight is not None and not args.refine_time:
+        raise ConfigError("--time-weight is the weight of --refine-time; add --refine-time or drop --time-weight")
+    if args.retime is not None:
+        if args.v_max is None or args.a_max is None:
+            missing = " and ".join(f for f, v in (("--v-max", args.v_max), ("--a-max", args.a_max)) if v is None)
+            raise ConfigError(f"--retime {args.retime} retimes to the limits: give {missing}")
+        if args.time_weight is not None:
+            raise ConfigError(f"--time-weight has no effect with --retime {args.retime}, which sets the time law "
+                              "(the refined path does not depend on the weight); drop --time-weight")
+    if args.refine_time and degree != 2 * q - 1:
+        raise ConfigError(f"--refine-time needs --degree 2q - 1 = {2 * q - 1} (the closed form's duration gradient), "
+                          f"got --degree {degree}")
+    if args.retime is not None and degree != 2 * q - 1:
+        raise ConfigError(f"--retime {args.retime} refits with degree 2q - 1 = {2 * q - 1}; give --degree {2 * q - 1}, "
+                          f"got --degree {degree}")
+    if args.retime == "toppra":
+        require_toppra()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -69,6 +133,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--speed must be a positive finite number, got {args.speed}")
     if args.altitude is not None and not math.isfinite(args.altitude):
         raise ConfigError(f"--altitude must be finite, got {args.altitude}")
+    _check_time_options(args, degree, q)
     if args.qp != CLOSED_FORM:
         solvers.qp.BACKENDS.get(args.qp)  # unknown or missing backend: SolverNotFound, before any work
     out = Path(args.out)
@@ -89,11 +154,36 @@ def run(args: argparse.Namespace) -> int:
     else:
         T = constant_speed_durations(W, speed)
 
+    notes = []
+    weight = None
+    if args.refine_time:
+        t0 = time.perf_counter()
+        ref = refine_durations(W, T, time_weight=args.time_weight, degree=degree, derivative=q)
+        T, weight = ref.durations, ref.time_weight
+        notes.append(f"durations refined in {(time.perf_counter() - t0) * 1e3:.1f} ms ({ref.iterations} iterations)")
     t0 = time.perf_counter()
     res = solve_min_snap(W, T, degree=degree, derivative=q, backend=args.qp)
     elapsed = time.perf_counter() - t0
+    traj = res.trajectory
+    if args.retime == "toppra":
+        if not getattr(args, "verbose", False):
+            # toppra logs its failures as warnings; the failure itself becomes our one-line error
+            logging.getLogger("toppra").setLevel(logging.ERROR)
+        rt = retime_toppra(traj, args.v_max, args.a_max, derivative=q, backend=args.qp)
+        traj, weight = rt.trajectory, None  # toppra's time law is no optimum of any weight
+        how = "toppra retimed" if rt.method == "toppra" else "scaled uniformly (toppra's refit was slower)"
+        notes.append(f"{how}, {rt.toppra_duration:.3f} s time-optimal, v {rt.v_peak:.3f} m/s, a {rt.a_peak:.3f} m/s^2")
+    elif args.v_max is not None or args.a_max is not None:
+        # without a weight of the user's, refinement chose only the shares: fly them as fast as the limits allow
+        sc = scale_to_limits(traj, args.v_max, args.a_max, allow_speedup=args.refine_time and args.time_weight is None)
+        traj = sc.trajectory
+        if weight is not None:
+            weight = scaled_time_weight(weight, sc.alpha, q)
+        notes.append(f"time x{sc.alpha:.4g} for the limits, v {sc.v_peak:.3f} m/s, a {sc.a_peak:.3f} m/s^2")
+    if weight is not None:
+        notes.append(f"time weight {weight:.4g}")
     altitude = ScenarioConfig.altitude if args.altitude is None else args.altitude
-    write_uav_csv(res.trajectory, out, altitude=altitude)
-    print(f"{M} pieces, {res.trajectory.duration:.3f} s, backend {res.backend}, "
-          f"solved in {elapsed * 1e3:.2f} ms -> {out}")
+    write_uav_csv(traj, out, altitude=altitude)
+    print(f"{traj.pieces} pieces, {traj.duration:.3f} s, backend {res.backend}, "
+          f"solved in {elapsed * 1e3:.2f} ms{''.join('; ' + n for n in notes)} -> {out}")
     return 0

@@ -23,6 +23,30 @@ L-BFGS-B (a projected quasi-Newton method) in :math:`\\log T`, where :math:`J^*
 For a rest-to-rest problem :math:`J^*(\\alpha T) = \\alpha^{1-2q} J^*(T)`, so by Euler's
 theorem :math:`\\sum_i T_i\\, \\partial J^*/\\partial T_i = (1-2q) J^*`; at a stationary point
 of :math:`F` this gives :math:`J^* = k_T \\sum_i T_i / (2q - 1)`.
+
+The same homogeneity (it holds whenever each end is at rest or free) makes the time
+weight a pure choice of time scale: :math:`F_{k}(\\alpha T) = \\alpha^{1-2q} F_{k'}(T)`
+with :math:`k' = k\\, \\alpha^{2q}`, so the minimizers for different weights are uniform
+time scalings of one another, and the optimal *shares* :math:`T_i / \\sum_j T_j` (those
+minimizing :math:`J^*(T) (\\sum_i T_i)^{2q-1}`) do not depend on :math:`k_T`. Hence:
+
+- :func:`stationary_time_weight` gives the weight for which the given durations' total is
+  optimal along their own scaling (:math:`k_T = (2q-1) J^*(T) / \\sum_i T_i`), a start at
+  which the optimizer only redistributes time;
+- ``refine_durations(..., time_weight=None)`` redistributes the given total duration
+  over the pieces (the least cost at that total) and reports the weight for which the
+  result is optimal;
+- a refined trajectory slowed down or sped up uniformly by :math:`\\alpha` (e.g. by
+  :func:`~mrfswarm.trajectory.retiming.scale_to_limits` to meet velocity and acceleration
+  limits) is the optimum for the weight :math:`k_T\\, \\alpha^{-2q}`
+  (:func:`scaled_time_weight`).
+
+The objective trades snap against time; it does not contain the limits. Scaled until a
+limit is tight, the refined durations still minimize :math:`J^* + k_T \\sum T` for the
+weight that scaling implies, so their objective is at most that of any uniform scaling of
+the initial durations; but they are not necessarily the shortest flight within the
+limits (measured: sometimes slower than the initial durations scaled to the same limits;
+for the shortest, retime the path: :func:`~mrfswarm.trajectory.retiming.retime_toppra`).
 """
 
 from __future__ import annotations
@@ -74,6 +98,43 @@ def trapezoidal_durations(waypoints: np.ndarray, v_max: float, a_max: float) -> 
     return np.where(cruise, d / v_max + v_max / a_max, 2.0 * np.sqrt(d / a_max))
 
 
+def stationary_time_weight(waypoints: np.ndarray, durations: np.ndarray, *, degree: int = 7,
+                           derivative: int = 4) -> float:
+    """The time weight for which ``durations`` have the optimal total: :math:`(2q-1) J^*(T) / \\sum_i T_i`.
+
+    At this weight :math:`F(\\alpha T)` is least at :math:`\\alpha = 1` (rest-to-rest ends;
+    see the module doc), so refinement from ``durations`` only redistributes time.
+
+    Raises
+    ------
+    InvalidProblem
+        As :class:`~mrfswarm.trajectory.problem.MinSnapProblem`, or a degree other than ``2q - 1``.
+    """
+    problem = MinSnapProblem(waypoints, durations, degree=degree, derivative=derivative)
+    J = cost_and_gradient(problem)[0]
+    return (2 * problem.derivative - 1) * J / float(problem.durations.sum())
+
+
+def scaled_time_weight(time_weight: float, alpha: float, derivative: int = 4) -> float:
+    """The weight :math:`k_T \\alpha^{-2q}` whose optimum is the ``k_T`` optimum slowed down by ``alpha``.
+
+    Parameters
+    ----------
+    time_weight
+        :math:`k_T` of the unscaled optimum.
+    alpha
+        Uniform time scale (durations multiplied by it; > 1 slows down).
+    derivative
+        ``q``.
+    """
+    return float(time_weight) * float(alpha) ** (-2 * int(derivative))
+
+
+def _homogeneous(problem: MinSnapProblem) -> bool:
+    """True when :math:`J^*(\\alpha T) = \\alpha^{1-2q} J^*(T)`: every given end derivative is zero."""
+    return not (np.any(problem.start != 0) or np.any(problem.end != 0))
+
+
 def cost_and_gradient(problem: MinSnapProblem) -> tuple[float, np.ndarray]:
     """:math:`J^*(T)` and the exact :math:`dJ^*/dT` (M,) of an equality-only problem.
 
@@ -96,9 +157,12 @@ class RefinedDurations:
     durations
         (M,) refined durations.
     objective, initial_objective
-        :math:`F = J^* + k_T \\sum T` at the end and at the start.
+        :math:`F = J^* + k_T \\sum T` at the end and at the start (with ``time_weight``).
     cost
         :math:`J^*` at the refined durations.
+    time_weight
+        :math:`k_T`: the one given, or (``time_weight=None``) the weight for which the
+        redistributed durations are optimal.
     iterations
         Optimizer iterations.
     converged
@@ -109,6 +173,7 @@ class RefinedDurations:
     objective: float
     initial_objective: float
     cost: float
+    time_weight: float
     iterations: int
     converged: bool
 
@@ -117,7 +182,7 @@ def refine_durations(
     waypoints: np.ndarray,
     durations: np.ndarray,
     *,
-    time_weight: float,
+    time_weight: float | None = None,
     degree: int = 7,
     derivative: int = 4,
     start: EndSpec = "rest",
@@ -136,6 +201,10 @@ def refine_durations(
         (M,) initial durations (e.g. from :func:`constant_speed_durations`).
     time_weight
         :math:`k_T > 0`, the price of one second in cost units (:math:`m^2/s^{2q-1}`).
+        ``None`` keeps the total of ``durations`` and redistributes it over the pieces:
+        the optimizer runs at :func:`stationary_time_weight` and its result is scaled
+        back to the initial total, which is the optimum for the weight then reported in
+        :attr:`RefinedDurations.time_weight` (needs ends at rest or free; see the module doc).
     degree, derivative, start, end
         As for :class:`~mrfswarm.trajectory.problem.MinSnapProblem` (degree must be ``2q - 1``).
     min_duration
@@ -146,32 +215,51 @@ def refine_durations(
     Returns
     -------
     RefinedDurations
+
+    Raises
+    ------
+    InvalidProblem
+        A non-positive or non-finite ``time_weight`` or ``min_duration``, ``time_weight=None``
+        with a non-zero end derivative, a degree other than ``2q - 1``, or malformed data.
     """
     from scipy.optimize import minimize
 
-    if not (np.isfinite(time_weight) and time_weight > 0):
+    if time_weight is not None and not (np.isfinite(time_weight) and time_weight > 0):
         raise InvalidProblem(f"time_weight must be positive and finite, got {time_weight}")
     base = MinSnapProblem(waypoints, durations, degree=degree, derivative=derivative, start=start, end=end)
     T0 = base.durations.copy()
     tmin = float(min_duration) if min_duration is not None else 1e-3 * float(T0.min())
     if not tmin > 0:
         raise InvalidProblem(f"min_duration must be positive, got {min_duration}")
-    # scale F so the optimizer sees numbers near 1
+    keep_total = time_weight is None
+    if keep_total and not _homogeneous(base):
+        raise InvalidProblem("time_weight=None (keep the total duration) needs ends at rest or free: "
+                             "with a given non-zero end derivative the optimal shares depend on the weight")
     J0, _ = cost_and_gradient(base)
-    F0 = J0 + time_weight * T0.sum()
-    scale = 1.0 / F0
+    q = base.derivative
+    if keep_total and J0 == 0.0:  # free ends through four points: one cubic, zero cost at any durations
+        return RefinedDurations(durations=T0, objective=0.0, initial_objective=0.0, cost=0.0, time_weight=0.0,
+                                iterations=0, converged=True)
+    weight = (2 * q - 1) * J0 / T0.sum() if keep_total else float(time_weight)
+    F0 = J0 + weight * T0.sum()
+    scale = 1.0 / F0  # the optimizer sees numbers near 1
 
     def fun(u: np.ndarray) -> tuple[float, np.ndarray]:
         T = np.exp(u)
         J, g = cost_and_gradient(base.with_data(durations=T))
-        F = J + time_weight * T.sum()
-        return F * scale, (g + time_weight) * T * scale
+        F = J + weight * T.sum()
+        return F * scale, (g + weight) * T * scale
 
     u0 = np.log(np.maximum(T0, tmin))
     res = minimize(fun, u0, jac=True, method="L-BFGS-B", bounds=[(np.log(tmin), None)] * T0.size,
                    options=dict(maxiter=max_iter, ftol=tol, gtol=1e-10))
     T = np.exp(res.x)
+    if keep_total:
+        alpha = T0.sum() / T.sum()
+        T = T * alpha
+        weight = scaled_time_weight(weight, alpha, q)
+        F0 = J0 + weight * T0.sum()
     J, _ = cost_and_gradient(base.with_data(durations=T))
-    log.info("duration refinement: F %.6g -> %.6g in %d iterations (%s)", F0, J + time_weight * T.sum(), res.nit, res.message)
-    return RefinedDurations(durations=T, objective=J + time_weight * T.sum(), initial_objective=F0, cost=J,
-                            iterations=int(res.nit), converged=bool(res.success))
+    log.info("duration refinement: F %.6g -> %.6g in %d iterations (%s)", F0, J + weight * T.sum(), res.nit, res.message)
+    return RefinedDurations(durations=T, objective=J + weight * T.sum(), initial_objective=F0, cost=J,
+                            time_weight=float(weight), iterations=int(res.nit), converged=bool(res.success))
