@@ -221,3 +221,22 @@ def test_a_discrete_move_that_cuts_a_corner_is_refused():
     paths = np.array([[[0, 0]], [[2, 1]], [[3, 1]]])  # (0,0) -> (2,1) passes 0.22 cell from cell (1, 0)
     with pytest.raises(UnsafeTrajectoryError, match=r"robot 0's safe region in step 0 comes 0.\d+ m from an obstacle"):
         RecedingHorizon(paths, OccupancyGrid.from_occupied(occ), SmoothingConfig(), 0.25)
+
+
+def test_plans_are_the_same_with_one_or_several_workers(monkeypatch):
+    """Chunks of robots are packed the same way whatever the worker count, so a plan does not depend on it."""
+    import mrfswarm.continuous.receding_horizon as rhm
+    from mrfswarm.maps import OccupancyGrid
+
+    monkeypatch.setattr(rhm, "PARALLEL_ROBOTS", 10)  # worker processes from 10 robots on (200 by default)
+    monkeypatch.setattr(rhm, "CHUNK_ROBOTS", 8)  # several chunks per window
+    block = np.array([[i, j] for i in range(6) for j in range(4)]) + 2
+    paths = [block]
+    for m in [(1, 0), (1, 1), (1, 0), (0, 1), (1, 1), (1, 0)]:
+        paths.append(paths[-1] + m)
+    grid = OccupancyGrid.from_occupied(np.zeros((16, 14), bool))
+    plans = [RecedingHorizon(np.array(paths), grid, SmoothingConfig(), 0.25, workers=w).run() for w in (1, 2)]
+    for a, b in zip(plans[0].trajectories, plans[1].trajectories):
+        np.testing.assert_array_equal(a.durations, b.durations)
+        np.testing.assert_allclose(a.coefficients, b.coefficients, rtol=0, atol=1e-9)
+    assert plans[0].certificate.ok and max(w.rounds for w in plans[0].windows) >= 1

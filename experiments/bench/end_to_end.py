@@ -11,7 +11,10 @@ Variants (all without the quadrotor simulation):
 - ``default``: safe regions, 8 steps planned, 50 % executed, continuous up to jerk;
 - ``refined``: the default with each window's step durations refined (Ipopt NLP).
 
-Per run, measured from the trajectories by the same code for every variant: makespan,
+Every variant plans with the paper's discrete rules (Euclidean goal field, contested cells to
+the nearer robot, patience on the swarm energy), the only ones the code before knew, so all
+variants fly the same discrete paths. Per run, measured from the trajectories by the same
+code for every variant: makespan,
 makespan over a lower bound (the longest robot path over v_max), full stops (speed below
 0.05 m/s and back up inside the flight; max and mean per robot), the integral of squared
 snap summed over robots, the smallest separation and obstacle clearance (sampled at
@@ -47,6 +50,10 @@ VARIANTS = {
     "default": ("default", []),
     "refined": ("refined", ["smoothing.time_refinement=true"]),
 }
+#: The paper's discrete rules, for every variant: the discrete paths are the same for the code
+#: before and now, so the table compares continuous stages only.
+PAPER_DISCRETE = {("goal_potential", "distance"): '"euclidean"', ("mrf", "contested"): '"nearest"',
+                  ("mrf", "progress"): '"energy"'}
 #: Speed under which a robot counts as stopped (m/s).
 STOP_SPEED = 0.05
 
@@ -88,7 +95,18 @@ def child(case: str, variant: str, code: str | None) -> None:
     import mrfswarm
     from mrfswarm.pipeline import plan
 
-    cfg = mrfswarm.load_config(EXP / f"{case}.toml", ["simulation.enabled=false", *VARIANTS[variant][1]])
+    import tomllib
+
+    from mrfswarm.config import from_dict
+
+    data = tomllib.loads((EXP / f"{case}.toml").read_text())
+    for section, key in PAPER_DISCRETE:  # the code before knew only the paper's rules: drop them there
+        data.get(section, {}).pop(key, None)
+    extra = [] if code else [f"{section}.{key}={value}" for (section, key), value in PAPER_DISCRETE.items()]
+    from mrfswarm.config import apply_overrides
+
+    data = apply_overrides(data, ["simulation.enabled=false", *extra, *VARIANTS[variant][1]])
+    cfg = from_dict(data, EXP)
     t0 = time.perf_counter()
     r = plan(cfg, progress=False)
     total = time.perf_counter() - t0
