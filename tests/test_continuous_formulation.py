@@ -87,21 +87,43 @@ def test_every_backend_solves_the_window_qp_to_the_reference(window_qp, backend)
     np.testing.assert_allclose(sol.x, ref.x, atol=1e-3 * np.abs(ref.x).max())
 
 
-def test_time_refinement_never_costs_more_than_the_qp():
-    """The NLP (durations free, Ipopt) from the QP's solution: snap + weight x time is no higher."""
+def test_duration_gradient_is_the_derivative_of_the_optimal_snap():
+    """Envelope theorem: the gradient from the QP's multipliers matches finite differences of the optimum."""
     rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(), 0.25)
     form, durations = first_window(rh)
-    sol = solvers.qp.solve(form.qp(durations), "piqp")
-    weight = 10.0
-    before = form.objective(sol.x, durations) + weight * rh.N * durations.sum()
-    x, refined, res = form.refine_time(sol.x, durations, np.ones(len(durations), bool), weight,
-                                       (0.2 * durations, 4 * durations), Options(eps_abs=1e-6, eps_rel=1e-6,
-                                                                                 max_iter=300))
-    assert np.all(refined > 0) and not np.allclose(refined, durations)
-    assert form.qp(refined).max_violation(x) < 1e-6  # the NLP's point is feasible at its durations
-    after = form.objective(x, refined) + weight * rh.N * refined.sum()
-    assert after <= before * (1 + 1e-9)
-    assert refined.sum() < durations.sum()  # a heavy weight on time makes the window shorter
+    tight = Options(eps_abs=1e-10, eps_rel=1e-10)
+
+    def optimum(d):
+        sol = solvers.qp.solve(form.qp(d), "piqp", tight)
+        return form.objective(sol.x, d), sol
+
+    _, sol = optimum(durations)
+    per_robot = form.duration_gradient(sol.x, sol.y, durations)
+    assert per_robot.shape == (2, len(durations))
+    grad = per_robot.sum(axis=0)
+    for j in (0, 3, 6):  # steps away from an active-set change
+        h = 1e-5 * durations[j]
+        up, down = durations.copy(), durations.copy()
+        up[j] += h
+        down[j] -= h
+        fd = (optimum(up)[0] - optimum(down)[0]) / (2 * h)
+        assert grad[j] == pytest.approx(fd, rel=2e-3)
+
+
+def test_time_refinement_never_costs_more_than_the_qp():
+    """The NLP over the durations (Ipopt), from the QP's: snap + weight x time no higher, and certified."""
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True), 0.25)
+    a, c, b = rh.windows()[0]
+    start = np.zeros((rh.N, 4, 2))
+    start[:, 0] = rh.X[0]
+    rec = WindowRecord(a, c, b)
+    sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec)
+    refined = rh._refine(sol, a, start, rec)
+    w = rh.cfg.time_weight * rh.N
+    assert rec.refined and not np.allclose(refined.durations, sol.durations)
+    assert refined.cost + w * refined.durations.sum() < sol.cost + w * sol.durations.sum()
+    assert refined.durations.sum() < sol.durations.sum()  # a heavy weight on time: a shorter window
+    assert rh._certify(refined, a).ok
 
 
 def test_the_relative_corridor_is_what_keeps_them_apart():

@@ -338,3 +338,18 @@ def test_ipopt_solve_nlp_general_nonlinear():
     assert np.allclose(grad + r2.lam_g[0] * np.array([2 * x1, 2 * y1]), 0.0, atol=1e-6)
     with pytest.raises(InvalidProblem):
         nlp.solve([0.0, 0.0], None)
+
+
+def test_piqp_stops_at_its_iteration_cap_not_at_a_first_order_methods():
+    """PIQP converges in tens of iterations: an ``Options.max_iter`` sized for ADMM is capped, so a
+    problem PIQP cannot finish fails quickly instead of running 50000 iterations."""
+    pytest.importorskip("piqp")
+    from solvers.qp import piqp_
+
+    assert piqp_._settings(qp.Options(max_iter=50000))["max_iter"] == piqp_.MAX_ITER
+    assert piqp_._settings(qp.Options(max_iter=30))["max_iter"] == 30
+    # the cap is reached and reported as such (a problem made to need more iterations than allowed)
+    problem = qp.QPProblem(P=sp.eye(2, format="csc"), q=np.array([1.0, -1.0]), A=sp.csc_matrix([[1.0, 1.0]]),
+                           l=np.array([1.0]), u=np.array([1.0]))
+    with pytest.raises(SolverError, match="MAX_ITER"):
+        qp.solve(problem, "piqp", qp.Options(eps_abs=1e-12, eps_rel=1e-12, max_iter=1))

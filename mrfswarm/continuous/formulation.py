@@ -37,11 +37,13 @@ All region, corridor and limit rows are tightened by ``margin`` (metres, or a re
 untightened constraints that the certificate checks.
 
 With the step durations fixed, ``k(T)`` is a number and the problem a QP for any backend
-of :mod:`solvers.qp` (:meth:`WindowFormulation.qp`). With the durations as variables,
-the same maps applied to CasADi symbols give an NLP (:meth:`WindowFormulation.refine_time`):
-snap plus a weight times the window's duration, solved by Ipopt. Durations are shared by
-all robots (one time grid) and every constraint is indexed by step, not by time, so the
-constraints stay valid whatever durations the NLP picks.
+of :mod:`solvers.qp` (:meth:`WindowFormulation.qp`). With the durations as variables it
+is an NLP: the optimal snap at durations T plus a weight times the window's duration,
+minimized over T by Ipopt, each evaluation a QP and its gradient exact from the QP's
+multipliers and the symbolic derivative ``dk/dT``
+(:meth:`WindowFormulation.duration_gradient`). Durations are shared by all robots (one
+time grid) and every constraint is indexed by step, not by time, so the constraints stay
+valid whatever durations the NLP picks.
 """
 
 from __future__ import annotations
@@ -130,8 +132,11 @@ class PieceMaps:
         blocks.append(ca.vec(Hc))
         self.h_offset = start
         self.size = start + self.nz * self.nz
-        self.function = ca.Function("bernstein_piece", [T], [ca.vertcat(*blocks)])
+        flat = ca.vertcat(*blocks)
+        self.function = ca.Function("bernstein_piece", [T], [flat])
+        self.derivative_function = ca.Function("bernstein_piece_dT", [T], [ca.jacobian(flat, T)])
         self._maps: dict[int, object] = {}
+        self._dmaps: dict[int, object] = {}
         self._lock = threading.Lock()
         # structural nonzeros: exact zeros at two unrelated durations are zeros for all
         k = np.asarray(self.function(0.73)).ravel() != 0
@@ -152,13 +157,15 @@ class PieceMaps:
         out = np.asarray(self.mapped(d.shape[1])(d))  # (size, M)
         return np.concatenate([out.ravel(order="F"), [1.0]])
 
-    def symbolic(self, durations):
-        """The same as :meth:`evaluate` for a CasADi column of durations."""
-        import casadi as ca
-
-        M = durations.numel()
-        out = self.mapped(M)(durations.T)
-        return ca.vertcat(ca.reshape(out, self.size * M, 1), 1)
+    def evaluate_derivative(self, durations: np.ndarray) -> np.ndarray:
+        """(M, size): d k / d T of each piece's coefficients at normalized ``durations``."""
+        d = np.asarray(durations, dtype=float).reshape(1, -1)
+        M = d.shape[1]
+        with self._lock:
+            if M not in self._dmaps:
+                self._dmaps[M] = self.derivative_function.map(M)
+            fn = self._dmaps[M]
+        return np.asarray(fn(d)).T
 
     def k_index(self, piece, order: int, m, a):
         """Index into ``k`` of control point m's coefficient of local variable a (order r)."""
@@ -211,9 +218,6 @@ class WindowSpec:
     limit_mask
         (M, G, 3) bool: which (step, robot, derivative order) get limit rows (None: all).
         The window loop adds them lazily, where a solution without them exceeds a limit.
-    limit_parts
-        Sub-intervals whose control points bear the limits (1: the whole piece's, more
-        conservative: they contain every sub-interval's).
     """
 
     degree: int
@@ -231,7 +235,6 @@ class WindowSpec:
     time_scale: float
     margin: float = 1e-6
     limit_mask: np.ndarray | None = None
-    limit_parts: int = LIMIT_PARTS
 
     @property
     def steps(self) -> int:
@@ -264,7 +267,7 @@ class WindowFormulation:
 
     def __init__(self, spec: WindowSpec) -> None:
         self.spec = spec
-        pm = self.maps = piece_maps(spec.degree, spec.derivative, spec.limit_parts)
+        pm = self.maps = piece_maps(spec.degree, spec.derivative)
         M, G, D, q, nz = spec.steps, spec.robots, spec.degree, spec.derivative, pm.nz
         self.per_dim = (M + 1) * pm.stride - (pm.stride - q)  # y_0, b_0, ..., y_M
         self.n = 2 * G * self.per_dim
@@ -381,6 +384,31 @@ class WindowFormulation:
         scale = self.spec.time_scale ** (1 - 2 * self.spec.derivative)
         return per_var.reshape(self.spec.robots, -1).sum(axis=1) * scale
 
+    def duration_gradient(self, x: np.ndarray, y: np.ndarray, durations: np.ndarray) -> np.ndarray:
+        """(G, M) each robot's share of d(snap integral at the optimum)/d(step duration), physical units.
+
+        The envelope theorem: with ``x`` optimal and ``y`` its multipliers (``P x + A' y =
+        0`` on the free directions), the optimal value's derivative in a duration is the
+        Lagrangian's, :math:`\tfrac12 x^\top P_T x + y^\top A_T x`; ``P_T`` and ``A_T``
+        come from the symbolic piece's derivative in its duration. Each nonzero is credited
+        to the robot of its column, so the shares add up to the window's gradient (exact
+        where the active set does not change).
+        """
+        spec, pm = self.spec, self.maps
+        M, G = spec.steps, spec.robots
+        dk = pm.evaluate_derivative(self.normalized(durations))  # (M, size)
+        # DK: column j holds d k / d T_j (only piece j's block is nonzero; the constant has none)
+        DK = sp.csc_matrix((dk.ravel(), np.arange(M * pm.size), np.arange(M + 1) * pm.size),
+                           shape=(M * pm.size + 1, M))
+        out = np.zeros((G, M))
+        for (idx, ptr, S), half in ((self._A, False), (self._P, True)):
+            cols = np.repeat(np.arange(len(ptr) - 1), np.diff(ptr))
+            w = (0.5 * x[idx] if half else y[idx]) * x[cols]  # the Lagrangian's weight of each nonzero
+            credit = sp.csr_matrix((w, (cols // (2 * self.per_dim), np.arange(len(w)))), shape=(G, len(w)))
+            out += (credit @ (S @ DK)).toarray()
+        # normalized -> physical: J = Ts^(1-2q) J~ and T~ = T / Ts
+        return out * spec.time_scale ** (-2 * spec.derivative)
+
     def exact_ends(self, x: np.ndarray) -> np.ndarray:
         """``x`` with its start state and end rest set exactly (a solver meets them only to tolerance)."""
         x = np.array(x, dtype=float)
@@ -410,70 +438,6 @@ class WindowFormulation:
         full[..., :q] = Yn.transpose(0, 3, 1, 2)
         full[:, :, :M, q:] = np.asarray(B, dtype=float).transpose(0, 3, 1, 2)
         return full.reshape(G, 2, -1)[:, :, :self.per_dim].reshape(-1)
-
-    # ------------------------------------------------------------------ NLP
-    def refine_time(self, x0: np.ndarray, durations: np.ndarray, free: np.ndarray, weight: float,
-                    bounds: tuple[np.ndarray, np.ndarray], options=None):
-        """Durations as variables: minimize snap + ``weight`` * (sum of the free durations) with Ipopt.
-
-        Parameters
-        ----------
-        x0
-            A feasible point at ``durations`` (the QP's solution), the warm start.
-        durations
-            (M,) seconds; those not ``free`` stay fixed.
-        free
-            (M,) bool.
-        weight
-            Cost per second of flight, per robot of the window (physical units of snap
-            per second).
-        bounds
-            (lower, upper) seconds for the free durations.
-
-        options
-            Ipopt's tolerances and iteration cap.
-
-        Returns
-        -------
-        tuple
-            ``(x, durations, result)`` with the NLP's last point and durations and the
-            :class:`~solvers.qp.ipopt_.NLPResult`. The problem is not convex (durations
-            multiply the coefficients), so Ipopt may stop at its iteration cap; its last
-            durations are still a candidate (the caller re-solves the QP there and keeps
-            what is cheaper).
-        """
-        import casadi as ca
-
-        from solvers.qp.ipopt_ import IpoptNLP
-
-        spec = self.spec
-        Ts, q = spec.time_scale, spec.derivative
-        M = spec.steps
-        free = np.asarray(free, dtype=bool)
-        nf = int(free.sum())
-        z = ca.MX.sym("z", self.n)
-        tf = ca.MX.sym("T", nf)
-        fixed = np.where(free, 0.0, self.normalized(durations))
-        sel = np.zeros((M, nf))
-        sel[np.flatnonzero(free), np.arange(nf)] = 1.0
-        t_all = ca.DM(fixed) + ca.mtimes(ca.DM(sel), tf)
-        k = self.maps.symbolic(t_all)
-        (ai, ap, SA), (pi, pp, SP) = self._A, self._P
-        sA = ca.Sparsity(self.m, self.n, ap.tolist(), ai.tolist())
-        sP = ca.Sparsity(self.n, self.n, pp.tolist(), pi.tolist())
-        A = ca.MX(sA, ca.mtimes(ca.DM(SA), k))
-        P = ca.MX(sP, ca.mtimes(ca.DM(SP), k))
-        # snap in the window's units is Ts^(1-2q) times smaller than in physical ones
-        w = weight * spec.robots * Ts ** (2 * q)
-        f = 0.5 * ca.bilin(P, z, z) + w * ca.sum1(tf)
-        nlp = IpoptNLP(ca.vertcat(z, tf), f, ca.mtimes(A, z), options=options, expand=True)
-        lo_t, hi_t = (self.normalized(b)[free] for b in bounds)
-        xinit = np.concatenate([x0, self.normalized(durations)[free]])
-        res = nlp.solve(xinit, lbx=np.concatenate([np.full(self.n, -np.inf), lo_t]),
-                        ubx=np.concatenate([np.full(self.n, np.inf), hi_t]), lbg=self.l, ubg=self.u)
-        out = np.array(durations, dtype=float)
-        out[free] = res.x[self.n:] * Ts
-        return res.x[:self.n], out, res
 
 
 def hermite_trajectory(Y: np.ndarray, B: np.ndarray, durations: np.ndarray, degree: int,

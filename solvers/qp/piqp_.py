@@ -17,7 +17,8 @@ are not used: the standard form has no separate bounds, and detecting singleton 
 would only pay off on problems we do not have (min-snap corridors are not singletons).
 
 Being an interior-point method, PIQP has no warm start: ``warm_start`` is accepted and
-ignored. It has no time limit either (``Options.time_limit`` is ignored with a warning).
+ignored. It has no time limit either (``Options.time_limit`` is ignored with a warning);
+``Options.max_iter`` is capped at :data:`MAX_ITER`.
 An update with the same sparsity pattern and the same split of rows reuses the solver
 (``SparseSolver.update``); otherwise the problem is set up again.
 """
@@ -38,6 +39,12 @@ from solvers.registry import Backend
 log = logging.getLogger(__name__)
 
 
+#: PIQP converges in tens of iterations; one that has not in this many will not (an infeasible
+#: problem it fails to detect would otherwise run ``Options.max_iter``, sized for first-order
+#: methods: 50000 iterations took 26 s on a 5-robot window).
+MAX_ITER = 1000
+
+
 def _settings(o: Options) -> dict:
     """``Options`` in PIQP's terms (the one place they are translated)."""
     if o.time_limit is not None:
@@ -48,7 +55,7 @@ def _settings(o: Options) -> dict:
         eps_rel=o.eps_rel,
         eps_duality_gap_abs=o.eps_abs,
         eps_duality_gap_rel=o.eps_rel,
-        max_iter=o.max_iter,
+        max_iter=min(o.max_iter, MAX_ITER),
         verbose=o.verbose,
     )
 
