@@ -127,7 +127,7 @@ def scenario_path(name: str) -> Path:
 
 def default_methods() -> list[str]:
     """Every installed method except the exhaustive ones."""
-    return [b.name for b in mrf.METHODS if b.name in mrf.available() and "optimal" not in b.capabilities]
+    return mrf.METHODS.available(lambda c: not c.optimal)
 
 
 def _recorder(problem: DiscreteProblem, records: list[StepRecord]):

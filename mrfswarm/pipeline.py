@@ -14,11 +14,12 @@ import numpy as np
 
 from mrfswarm.config import Config, load_config
 from mrfswarm.discrete import SEPARATION_FACTOR, DiscretePlan, plan_discrete
-from mrfswarm.errors import ConfigError, MrfswarmError, ScenarioError
+from mrfswarm.errors import ConfigError, PlanError, ScenarioError, SolversError
 from mrfswarm.metrics import DiscreteMetrics, discrete_metrics
 from mrfswarm.pruning import prune_paths
 from mrfswarm.robot_outcomes import RobotOutcome, robot_outcomes
 from mrfswarm.scenario import Scenario, build_scenario
+import solvers.qp
 from solvers import mrf as mrf_solvers
 
 log = logging.getLogger(__name__)
@@ -188,7 +189,10 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     Raises
     ------
     SolverNotFound
-        An unknown or missing MRF method.
+        An unknown or missing MRF method or QP backend.
+    ConfigError
+        A QP backend that cannot solve the continuous stage's problems (its capabilities
+        lack inequality rows: regions, corridors and limits are inequalities).
     """
     cfg = config if isinstance(config, Config) else load_config(config)
     if mrf is not None:
@@ -197,9 +201,12 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
         cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, backend=qp))
     mrf_solvers.METHODS.get(cfg.mrf.optimizer)  # fail now, not after the map is loaded
     if cfg.smoothing.enabled:
-        from mrfswarm.trajectory import MinSnapSolver
-
-        MinSnapSolver(cfg.smoothing.backend)  # an unknown or missing QP backend fails now too
+        record = solvers.qp.BACKENDS.get(cfg.smoothing.backend)  # an unknown or missing QP backend fails now too
+        if not record.capabilities.inequalities:
+            able = ", ".join(solvers.qp.BACKENDS.available(lambda c: c.inequalities)) or "none"
+            raise ConfigError(f"smoothing.backend = {record.name!r} solves equality-constrained problems only; the "
+                              f"continuous stage's regions, corridors and limits are inequalities (installed "
+                              f"backends that take them: {able})")
         if cfg.simulation.enabled:
             from mrfswarm.simulation import check_available
 
@@ -229,6 +236,13 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     ------
     ConfigError
         A bad config or seed (the message names it).
+    SolverNotFound
+        An unknown or missing MRF method or QP backend.
+    ScenarioError
+        A scenario that cannot be planned (before the discrete stage).
+    PlanError
+        Any error after the discrete stage (a swarm that cannot move, a continuous
+        stage or a simulation that fails); its ``result`` holds what was computed.
     """
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0):
         raise ConfigError(f"seed = {seed!r}: must be an integer >= 0")
@@ -259,11 +273,10 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
             _continuous(result, show, workers)
         if cfg.smoothing.enabled and cfg.simulation.enabled:
             _simulate(result, show, workers)
-    except MrfswarmError as e:
+    except SolversError as e:
         result.failure = str(e)
         _paper_pruning(result)
-        e.partial_result = result  # the CLI still writes what was computed
-        raise
+        raise PlanError(str(e), result) from e  # the CLI still writes what was computed
     _paper_pruning(result)
     return result
 

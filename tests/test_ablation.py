@@ -105,4 +105,4 @@ def test_default_methods_are_the_installed_heuristics():
     ablation = load_ablation()
     names = ablation.default_methods()
     assert "exact" not in names and "icm" in names
-    assert set(names) == {b.name for b in mrf.METHODS if "optimal" not in b.capabilities} & set(mrf.available())
+    assert set(names) == {b.name for b in mrf.METHODS if not b.capabilities.optimal} & set(mrf.available())

@@ -147,6 +147,18 @@ def test_limits_no_timing_can_meet_keep_the_discrete_outputs(tmp_path, capsys):
     assert (out / "discrete_paths.csv").exists() and (out / "figures" / "discrete_paths.png").exists()
 
 
+def test_a_failed_plan_carries_what_was_computed():
+    """After the discrete stage an error becomes a PlanError whose ``result`` holds the stages before."""
+    from mrfswarm.errors import PlanError, UnsafeTrajectoryError
+
+    with pytest.raises(PlanError, match="no timing meets v_max") as info:
+        plan(mrfswarm.load_config(EXP / "free5.toml", ["simulation.enabled=false", "smoothing.v_max=1e-5"]))
+    result = info.value.result
+    assert isinstance(info.value.__cause__, UnsafeTrajectoryError)
+    assert result.failure == str(info.value) and result.continuous is None and result.discrete.n_steps > 0
+    assert result.pruned and result.summary()["failure"] == result.failure
+
+
 def test_a_swarm_that_cannot_move(tmp_path, capsys):
     cfg = tmp_path / "boxed.toml"
     cfg.write_text('[scenario]\nmap = { kind = "ascii", rows = ["#####....", "#.#.#....", "#####...."] }\n'

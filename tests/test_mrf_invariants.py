@@ -35,7 +35,7 @@ from field_support import random_map_static
 
 METHODS = mrf.METHODS.names()
 #: Exhaustive methods: exponential in N, given tiny problems only.
-TINY_ONLY = {b.name for b in mrf.METHODS if "optimal" in b.capabilities}
+TINY_ONLY = {b.name for b in mrf.METHODS if b.capabilities.optimal}
 ORDERS = [1, 2, 4, 8]
 SAMPLES = 201  # per step and robot: a relative speed of <= 2 * sqrt(8) cells/step moves < 0.03 cell between samples
 

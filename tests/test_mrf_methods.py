@@ -23,10 +23,10 @@ from solvers.mrf.synthetic import random_mrf, swarm_mrf
 from solvers.registry import Backend, Registry
 
 ALL = mrf.METHODS.names()
-HEURISTIC = [b.name for b in mrf.METHODS if "optimal" not in b.capabilities]
-WITH_BOUND = [b.name for b in mrf.METHODS if "lower_bound" in b.capabilities]
-TREE_EXACT = [b.name for b in mrf.METHODS if {"exact_on_trees", "optimal"} & b.capabilities]
-MONOTONE = [b.name for b in mrf.METHODS if "monotone" in b.capabilities]
+HEURISTIC = [b.name for b in mrf.METHODS if not b.capabilities.optimal]
+WITH_BOUND = [b.name for b in mrf.METHODS if b.capabilities.lower_bound]
+TREE_EXACT = [b.name for b in mrf.METHODS if b.capabilities.exact_on_trees]
+MONOTONE = [b.name for b in mrf.METHODS if b.capabilities.monotone]
 
 
 def test_registry_has_the_ablation_methods():
@@ -222,7 +222,8 @@ def test_broken_method_output_is_repaired_and_counted(monkeypatch):
         return mrf.MRFResult(labels=bad, energy=mrf_.energy(bad), energy_trace=np.zeros(1), iterations=1,
                              time_s=0.0, method="broken")
 
-    reg = Registry("MRF", list(mrf.METHODS) + [Backend(name="broken", entry=broken)])
+    caps = mrf.MRFCapabilities(optimal=False, lower_bound=False, exact_on_trees=False, monotone=False, stochastic=False)
+    reg = Registry("MRF", [*mrf.METHODS, Backend(name="broken", entry=broken, capabilities=caps)])
     monkeypatch.setattr(mrf, "METHODS", reg)
     assert not m.is_feasible(bad)
     res = mrf.minimize(m, "broken")

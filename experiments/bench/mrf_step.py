@@ -238,8 +238,8 @@ def main() -> None:
     ap.add_argument("--methods-out", type=Path, default=RESULTS / "mrf_step_methods.csv")
     args = ap.parse_args()
     if args.methods is not None:
-        names = args.methods.split(",") if args.methods else [
-            b.name for b in mrf_solvers.METHODS if "optimal" not in b.capabilities and b.name in mrf_solvers.available()]
+        names = (args.methods.split(",") if args.methods
+                 else mrf_solvers.METHODS.available(lambda c: not c.optimal))
         for name in names:
             mrf_solvers.METHODS.get(name)
         methods_table(names, [int(v) for v in args.method_sizes.split(",")], args.steps, args.methods_out)

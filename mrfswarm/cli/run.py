@@ -38,7 +38,7 @@ def _positive_int(text: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from mrfswarm.errors import MrfswarmError
+    from mrfswarm.errors import PlanError
     from mrfswarm.outputs import write_outputs
     from mrfswarm.pipeline import plan
 
@@ -51,12 +51,9 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"default output folder {e}; give --out") from None
     try:
         result = plan(cfg, mrf=args.mrf, qp=args.qp, seed=args.seed, workers=args.workers)
-    except MrfswarmError as e:
-        partial = getattr(e, "partial_result", None)
-        if partial is not None:  # keep what was computed before the failure
-            write_outputs(partial, out)
-            raise type(e)(f"{e} (what was computed is in {out})") from e
-        raise
+    except PlanError as e:  # keep what was computed before the failure
+        write_outputs(e.result, out)
+        raise PlanError(f"{e} (what was computed is in {out})", e.result) from e
     write_outputs(result, out, animate=args.animate)
     s = result.summary()
     goal = "" if s["reached_goal"] is None else (

@@ -37,6 +37,7 @@ from solvers.mrf.incumbent import Incumbent
 from solvers.mrf.penalized import auto_penalty, penalized_pairs
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.registry import Backend
 
 
@@ -83,5 +84,5 @@ BACKEND = Backend(
     name="bp",
     entry=minimize,
     summary="damped min-sum loopy belief propagation, conflicts as finite penalties (Pearl 1988)",
-    capabilities=frozenset({"exact_on_trees"}),
+    capabilities=MRFCapabilities(optimal=False, lower_bound=False, exact_on_trees=True, monotone=False, stochastic=False),
 )

@@ -40,6 +40,7 @@ from solvers.mrf.incumbent import Incumbent
 from solvers.mrf.local_energy import LocalEnergy, colour_sweep
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.registry import Backend
 
 
@@ -104,5 +105,5 @@ BACKEND = Backend(
     name="gibbs",
     entry=minimize,
     summary="annealed Gibbs sampler (Geman & Geman 1984; Xi, Tan & Baras 2006), seeded",
-    capabilities=frozenset({"stochastic"}),
+    capabilities=MRFCapabilities(optimal=False, lower_bound=False, exact_on_trees=False, monotone=False, stochastic=True),
 )

@@ -35,6 +35,7 @@ import numpy as np
 from solvers.mrf.local_energy import LocalEnergy, colour_sweep, neighbours, union_adjacency
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.registry import Backend
 
 
@@ -128,5 +129,5 @@ BACKEND = Backend(
     name="icm",
     entry=minimize,
     summary="iterated conditional modes (Besag 1986), vectorized by colour classes; the paper's method",
-    capabilities=frozenset({"monotone"}),
+    capabilities=MRFCapabilities(optimal=False, lower_bound=False, exact_on_trees=False, monotone=True, stochastic=False),
 )

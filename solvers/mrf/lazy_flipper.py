@@ -40,6 +40,7 @@ from solvers.mrf.icm import descend
 from solvers.mrf.local_energy import LocalEnergy, colour_sweep, neighbours, union_adjacency
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.registry import Backend
 
 _CHUNK_ELEMENTS = 1 << 21
@@ -228,5 +229,5 @@ BACKEND = Backend(
     name="lazy_flipper",
     entry=minimize,
     summary="lazy flipper (Andres et al. 2012): ICM, then joint moves of connected node sets",
-    capabilities=frozenset({"monotone"}),
+    capabilities=MRFCapabilities(optimal=False, lower_bound=False, exact_on_trees=False, monotone=True, stochastic=False),
 )

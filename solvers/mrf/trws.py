@@ -59,6 +59,7 @@ from solvers.mrf.local_energy import colour_classes
 from solvers.mrf.penalized import auto_penalty, penalized_pairs
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.registry import Backend
 
 
@@ -219,5 +220,5 @@ BACKEND = Backend(
     name="trws",
     entry=minimize,
     summary="sequential tree-reweighted message passing with lower bound (Kolmogorov 2006)",
-    capabilities=frozenset({"lower_bound", "exact_on_trees"}),
+    capabilities=MRFCapabilities(optimal=False, lower_bound=True, exact_on_trees=True, monotone=False, stochastic=False),
 )

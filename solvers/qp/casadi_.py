@@ -49,6 +49,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from solvers.qp.base import PreparedQP
+from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
 from solvers.qp.solution import Options, Status
 from solvers.registry import Backend
@@ -165,5 +166,5 @@ BACKEND = Backend(
     requires=("casadi",),
     extra="casadi",
     summary=f"CasADi conic (qpsol) with {PLUGIN}: active set, hot-started re-solves, small/medium QPs",
-    capabilities=frozenset({"inequalities", "detects_infeasibility", "warm_start"}),
+    capabilities=QPCapabilities(inequalities=True, warm_start=True, detects_infeasibility=True, sparse=False),
 )
