@@ -9,7 +9,7 @@ and records:
 - the swarm energy trace (energy of x^t on its own interaction graph, per step) and the
   final swarm energy, also relative to ICM's in the same scenario;
 - per MRF step, on the very step MRF the method solved (rebuilt from the step's positions
-  with ``label_sets`` and ``step_mrf``; its energy of the method's labelling is checked
+  with ``mrfswarm.discrete.step_model``; its energy of the method's labelling is checked
   against the method's own): TRW-S's lower bound LB (TRW-S run to ``BOUND_ITER``
   iterations), ICM's energy on the same MRF and, where the step MRF has at most
   ``EXACT_LIMIT`` labellings, its exact optimum (``exact``). Reported: the relative gap
@@ -43,10 +43,9 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm.config import load_config
-from mrfswarm.discrete import DiscreteProblem, StepOutcome, plan_discrete, problem_label_sets
+from mrfswarm.discrete import DiscreteProblem, StepOutcome, plan_discrete, step_model
 from mrfswarm.metrics import discrete_metrics
 from mrfswarm.scenario import build_scenario
-from mrfswarm.swarm_mrf import step_mrf
 from solvers import mrf
 from solvers.errors import SolverNotFound
 
@@ -137,8 +136,7 @@ def _recorder(problem: DiscreteProblem, records: list[StepRecord]):
 
     def on_step(t: int, out: StepOutcome) -> None:
         pos = state["pos"]
-        labels = problem_label_sets(problem, pos)
-        model = step_mrf(labels, out.weights, problem.static, problem.morse, problem.resolution)
+        _, model = step_model(problem, pos, out.weights)
         e = model.energy(out.result.labels)
         if not math.isclose(e, out.energy_after, rel_tol=1e-9, abs_tol=1e-9):
             raise AssertionError(f"step {t}: the rebuilt step MRF gives {e}, the planner's {out.energy_after}")

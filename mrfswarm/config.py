@@ -276,6 +276,11 @@ def _validate(cfg: Config) -> None:
     need(s.robot_radius > 0, "scenario.robot_radius", s.robot_radius, "must be > 0 (metres)")
     i = cfg.interaction
     need(i.k >= 1, "interaction.k", i.k, "must be >= 1")
+    # the paper's Morse conditions and zeta, where the potential is defined (one place); imported
+    # here because the potentials module reads this one's dataclasses
+    from mrfswarm.potentials import Morse
+
+    Morse.from_config(i)
     g = cfg.goal_potential
     need(g.a > 0, "goal_potential.a", g.a, "must be > 0")
     need(g.k > 0, "goal_potential.k", g.k, "must be > 0")

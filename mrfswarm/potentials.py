@@ -31,6 +31,27 @@ from mrfswarm.goal_distance import GoalDistance, goal_distance
 ZETA_MARGIN = 1.01
 
 
+def morse_violation(a: float, b: float, k_a: float, k_r: float) -> tuple[str, str] | None:
+    """The first of the paper's conditions on the Morse parameters that fails, or None.
+
+    The conditions: a, b, k_a, k_r > 0 (finite), b >= a, k_a > k_r and
+    b k_r / (a k_a) < 1. Returns ``(short, message)``: a short name of the condition (for
+    tables and figures) and a message naming the config keys (for :class:`ConfigError`).
+    """
+    for name, v in (("a", a), ("b", b), ("k_a", k_a), ("k_r", k_r)):
+        if not (math.isfinite(v) and v > 0):
+            return f"{name} <= 0", f"interaction.{name} = {v!r}: must be > 0"
+    if b < a:
+        return "b_I < a_I", f"interaction.b = {b!r}: must be >= interaction.a = {a!r}"
+    if k_a <= k_r:
+        return "k_a <= k_r", f"interaction.k_a = {k_a!r}: must be > interaction.k_r = {k_r!r}"
+    ratio = b * k_r / (a * k_a)
+    if ratio >= 1:
+        return (f"b k_r / (a k_a) = {ratio:.2f} >= 1",
+                f"interaction: b * k_r / (a * k_a) = {ratio:.4g} must be < 1 (a={a}, b={b}, k_a={k_a}, k_r={k_r})")
+    return None
+
+
 @dataclass(frozen=True)
 class Morse:
     """The Morse interaction potential rho_I(d) = -a e^{-d/k_a} + b e^{-d/k_r} + zeta.
@@ -49,20 +70,9 @@ class Morse:
     zeta: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("a", "b", "k_a", "k_r"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ConfigError(f"interaction.{name} = {v!r}: must be > 0")
-        if self.b < self.a:
-            raise ConfigError(f"interaction.b = {self.b!r}: must be >= interaction.a = {self.a!r}")
-        if self.k_a <= self.k_r:
-            raise ConfigError(f"interaction.k_a = {self.k_a!r}: must be > interaction.k_r = {self.k_r!r}")
-        ratio = self.b * self.k_r / (self.a * self.k_a)
-        if ratio >= 1:
-            raise ConfigError(
-                f"interaction: b * k_r / (a * k_a) = {ratio:.4g} must be < 1 (a={self.a}, b={self.b}, "
-                f"k_a={self.k_a}, k_r={self.k_r})"
-            )
+        broken = morse_violation(self.a, self.b, self.k_a, self.k_r)
+        if broken is not None:
+            raise ConfigError(broken[1])
         depth = abs(self.raw(self.d_min))
         if self.zeta is None:
             object.__setattr__(self, "zeta", ZETA_MARGIN * depth)

@@ -456,8 +456,9 @@ def run_sweep(config: str | Path, grid: dict[str, Sequence], out_dir: str | Path
     SweepResult
         The rows, in the order of the points. A point that failed with a
         :class:`MrfswarmError` (a scenario the planner rejects, e.g. ``k >= N``, a goal in an
-        obstacle, Morse parameters with ``k_a <= k_r``) is a row with ``error`` set and
-        whatever the run computed before failing.
+        obstacle) is a row with ``error`` set and whatever the run computed before failing.
+        A point whose config is invalid (Morse parameters with ``k_a <= k_r`` included)
+        stops the sweep before anything runs.
 
     Raises
     ------

@@ -51,14 +51,11 @@ TIMING_REPEATS = 3
 
 
 def valid_morse(a: float, b: float, k_a: float, k_r: float) -> str | None:
-    """None if the paper's conditions hold, else which one fails."""
-    if not b >= a:
-        return "b_I < a_I"
-    if not k_a > k_r:
-        return "k_a <= k_r"
-    if not b * k_r / (a * k_a) < 1:
-        return f"b k_r / (a k_a) = {b * k_r / (a * k_a):.2f} >= 1"
-    return None
+    """None if the paper's conditions hold, else which one fails (:func:`~mrfswarm.potentials.morse_violation`)."""
+    from mrfswarm.potentials import morse_violation
+
+    broken = morse_violation(a, b, k_a, k_r)
+    return None if broken is None else broken[0]
 
 
 # --- running many configs: the sweep runner -----------------------------------------------------
