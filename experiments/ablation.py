@@ -2,14 +2,14 @@
 
 For each scenario (discrete stage only, ``smoothing.enabled = false``) and each method of
 ``solvers.mrf.METHODS`` (default: every installed one except the exhaustive ``exact``),
-plans the discrete paths with ``mrfswarm.discrete.plan_discrete`` (the config's
+plans the discrete paths with ``mrfswarm.discrete.planner.plan_discrete`` (the config's
 ``max_steps``, ``tol``, ``patience``; ``Options(seed=SEED)``, so Gibbs is reproducible)
 and records:
 
 - the swarm energy trace (energy of x^t on its own interaction graph, per step) and the
   final swarm energy, also relative to ICM's in the same scenario;
 - per MRF step, on the very step MRF the method solved (rebuilt from the step's positions
-  with ``mrfswarm.discrete.step_model``; its energy of the method's labelling is checked
+  with ``mrfswarm.discrete.planner.step_model``; its energy of the method's labelling is checked
   against the method's own): TRW-S's lower bound LB (TRW-S run to ``BOUND_ITER``
   iterations), ICM's energy on the same MRF and, where the step MRF has at most
   ``EXACT_LIMIT`` labellings, its exact optimum (``exact``). Reported: the relative gap
@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm.config import load_config
-from mrfswarm.discrete import DiscreteProblem, StepOutcome, plan_discrete, step_model
+from mrfswarm.discrete.planner import DiscreteProblem, StepOutcome, plan_discrete, step_model
 from mrfswarm.metrics import discrete_metrics
 from mrfswarm.scenario import build_scenario
 from solvers import mrf

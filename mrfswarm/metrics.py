@@ -21,7 +21,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mrfswarm.geometry import point_box_distance
-from mrfswarm.motion import step_min_separation
+from mrfswarm.discrete.motion import step_min_separation
 
 #: Samples per step when measuring obstacle clearance along straight moves.
 _CLEARANCE_SAMPLES = 16

@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm.config import Config, load_config
-from mrfswarm.discrete import SEPARATION_FACTOR, DiscretePlan, plan_discrete
+from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, plan_discrete
 from mrfswarm.errors import ConfigError, PlanError, ScenarioError, SolversError
 from mrfswarm.metrics import DiscreteMetrics, discrete_metrics
-from mrfswarm.pruning import prune_paths
-from mrfswarm.robot_outcomes import RobotOutcome, robot_outcomes
+from mrfswarm.discrete.pruning import prune_paths
+from mrfswarm.discrete.robot_outcomes import RobotOutcome, robot_outcomes
 from mrfswarm.scenario import Scenario, build_scenario
 import solvers.qp
 from solvers import mrf as mrf_solvers
@@ -75,7 +75,7 @@ class Result:
         return self.config.smoothing.backend if self.config.smoothing.enabled else None
 
     def robots(self) -> list[RobotOutcome]:
-        """Where each robot ended and, if short of the goal region, why (:mod:`mrfswarm.robot_outcomes`)."""
+        """Where each robot ended and, if short of the goal region, why (:mod:`mrfswarm.discrete.robot_outcomes`)."""
         scn = self.scenario
         d = scn.distances
         return robot_outcomes(self.discrete.paths[-1], scn.grid.free, scn.static, self.config.mrf.order,

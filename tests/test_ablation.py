@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from mrfswarm.config import load_config
-from mrfswarm.discrete import plan_discrete
+from mrfswarm.discrete.planner import plan_discrete
 from mrfswarm.scenario import build_scenario
 from solvers import mrf
 

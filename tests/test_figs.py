@@ -18,9 +18,9 @@ from scipy import ndimage
 from mrfswarm.cli import main
 from mrfswarm.figures import FIGURES, MEASURED, expected_files, select
 from mrfswarm.figures import graphs, potentials, snapshots, studies, trajectories
-from mrfswarm.interaction_graph import swarm_energy_from_cliques
-from mrfswarm.motion import WALL_CLEARANCE
-from mrfswarm.safety import discrete_violations
+from mrfswarm.discrete.interaction_graph import swarm_energy_from_cliques
+from mrfswarm.discrete.motion import WALL_CLEARANCE
+from mrfswarm.discrete.safety import discrete_violations
 
 
 def _png_size(path) -> tuple[int, int]:
@@ -90,7 +90,7 @@ def test_fig2_example_has_the_papers_structure():
     assert sorted(sorted(c) for c in nx.find_cliques(G)) == [c.tolist() for c in g.graph.cliques]
     assert len(g.graph.cliques) == 4
     scn = graphs.example_scenario()
-    from mrfswarm.discrete import swarm_energy
+    from mrfswarm.discrete.planner import swarm_energy
 
     direct = swarm_energy_from_cliques(g.graph.cliques, scn.start, scn.static, scn.morse)
     assert direct == pytest.approx(swarm_energy(scn.discrete_problem(), scn.start), rel=1e-12)

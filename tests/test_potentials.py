@@ -10,7 +10,7 @@ from scipy.optimize import minimize_scalar
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig, load_config
 from mrfswarm.errors import ConfigError
-from mrfswarm.potentials import Morse, goal_distances, goal_field, obstacle_field, static_field
+from mrfswarm.discrete.potentials import Morse, goal_distances, goal_field, obstacle_field, static_field
 
 
 def test_paper_values():

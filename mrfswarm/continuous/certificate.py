@@ -23,7 +23,7 @@ and computes the hull's distance from the origin exactly (the origin is outside 
 hull iff the points' directions leave an angular gap wider than pi; the distance is then
 the smallest distance to a segment between two of the points). Each check costs a fixed
 amount per piece or near pair, so certifying is near-linear in the number of robots.
-Dense sampling remains the independent check (:mod:`mrfswarm.continuous_check`).
+Dense sampling remains the independent check (:mod:`mrfswarm.continuous.sampled_check`).
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ import numpy as np
 
 from mrfswarm import plots
 from mrfswarm.figures.runs import experiment_config
-from mrfswarm.interaction_graph import CliqueWeights, interaction_graph
+from mrfswarm.discrete.interaction_graph import CliqueWeights, interaction_graph
 from mrfswarm.scenario import Scenario, build_scenario
 
 #: The experiment config of the 5-robot example (Figs. 2 and 3a/b).

@@ -21,7 +21,7 @@ import numpy as np
 from mrfswarm import plots
 from mrfswarm.figures.runs import experiment_config
 from mrfswarm.maps import OccupancyGrid
-from mrfswarm.potentials import Morse, obstacle_field
+from mrfswarm.discrete.potentials import Morse, obstacle_field
 from mrfswarm.scenario import build_scenario
 
 #: The scenario whose map Fig. 3c/d show.

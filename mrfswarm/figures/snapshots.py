@@ -15,7 +15,7 @@ import numpy as np
 
 from mrfswarm import plots
 from mrfswarm.figures.runs import discrete_run
-from mrfswarm.interaction_graph import knn_edges
+from mrfswarm.discrete.interaction_graph import knn_edges
 from mrfswarm.metrics import obstacle_clearance
 from mrfswarm.pipeline import Result
 

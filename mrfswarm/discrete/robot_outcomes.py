@@ -38,8 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mrfswarm.discrete import nearest_neighbour_cells
-from mrfswarm.motion import moves_clear, stencil
+from mrfswarm.discrete.planner import nearest_neighbour_cells
+from mrfswarm.discrete.motion import moves_clear, stencil
 
 #: Free cells per robot in the goal region (besides scenario.goal_radius).
 GOAL_CELLS_PER_ROBOT = 4

@@ -4,9 +4,9 @@ For the interaction graph G_t and label sets X^t, the swarm energy of a labellin
 
     eps(x) = sum_c E_c(x_c) = sum_i w_i rho_S(x_i) + sum_{(i,j) in G_t} w_ij rho_I(|x_i - x_j|)
 
-(pairwise reduction, :mod:`mrfswarm.interaction_graph`). Hard conflicts are the robot
+(pairwise reduction, :mod:`mrfswarm.discrete.interaction_graph`). Hard conflicts are the robot
 pairs, neighbours in G_t or not, whose straight moves would bring them closer than one
-cell (:mod:`mrfswarm.motion`).
+cell (:mod:`mrfswarm.discrete.motion`).
 """
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from mrfswarm.interaction_graph import CliqueWeights
-from mrfswarm.label_sets import LabelSets
-from mrfswarm.motion import MIN_SEPARATION, interaction_radius, min_distance_during_move, nearby_pairs, stencil
-from mrfswarm.potentials import Morse
+from mrfswarm.discrete.interaction_graph import CliqueWeights
+from mrfswarm.discrete.label_sets import LabelSets
+from mrfswarm.discrete.motion import MIN_SEPARATION, interaction_radius, min_distance_during_move, nearby_pairs, stencil
+from mrfswarm.discrete.potentials import Morse
 from solvers.mrf import PairwiseMRF
 
 

@@ -31,11 +31,11 @@ from scipy.spatial import cKDTree
 
 from mrfswarm.config import PROGRESS_RULES
 from mrfswarm.errors import ScenarioError
-from mrfswarm.interaction_graph import CliqueWeights, clique_weights_of_graph, knn_edges, update_clique_weights
-from mrfswarm.label_sets import LabelSets, label_sets
-from mrfswarm.potentials import Morse
-from mrfswarm.safety import discrete_violations
-from mrfswarm.swarm_mrf import step_mrf
+from mrfswarm.discrete.interaction_graph import CliqueWeights, clique_weights_of_graph, knn_edges, update_clique_weights
+from mrfswarm.discrete.label_sets import LabelSets, label_sets
+from mrfswarm.discrete.potentials import Morse
+from mrfswarm.discrete.safety import discrete_violations
+from mrfswarm.discrete.step_mrf import step_mrf
 from solvers import mrf as mrf_solvers
 from solvers.mrf import PairwiseMRF
 
@@ -70,7 +70,7 @@ class DiscreteProblem:
     k, order
         Neighbours in the interaction graph; label-set order n.
     trim_backward, contested
-        Label-set rules (:func:`mrfswarm.label_sets.label_sets`).
+        Label-set rules (:func:`mrfswarm.discrete.label_sets.label_sets`).
     goal_distance
         (W, H) the distance the goal field uses when it is not the straight line (the
         geodesic one); ``trim_backward`` then drops moves that increase it.
@@ -156,7 +156,7 @@ def graph_weights(positions: np.ndarray, k: int, timings: dict[str, float] | Non
     """G(x): k-NN edges, maximal cliques and their counts, timed into ``timings``.
 
     ``previous``: the graph of the step before, whose cliques away from the robots that
-    changed neighbours are kept (:func:`~mrfswarm.interaction_graph.update_clique_weights`).
+    changed neighbours are kept (:func:`~mrfswarm.discrete.interaction_graph.update_clique_weights`).
     """
     t0 = time.perf_counter()
     edges = knn_edges(positions.astype(float), k)
@@ -205,7 +205,7 @@ def step_model(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueW
     """The MRF of one step from ``positions`` (N, 2) cells on the graph ``weights`` = G(positions).
 
     The label sets X^t (:func:`problem_label_sets`) and the step's pairwise MRF over them
-    (:func:`~mrfswarm.swarm_mrf.step_mrf`: unary and pairwise terms of the clique
+    (:func:`~mrfswarm.discrete.step_mrf.step_mrf`: unary and pairwise terms of the clique
     energies, hard conflicts, "everybody stays" as the initial labelling). Their build
     times go into ``timings`` (``"labels"``, ``"energy"``) when it is given.
     """

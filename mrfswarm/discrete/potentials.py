@@ -6,7 +6,7 @@
   upside down); zeta > |rho'_I(d_min)| makes rho_I positive.
 - Goal: rho_G(p) = a_G exp(d(p) / k_G), with d the distance to the goal: the paper's
   straight-line |p - p_g| (``goal_potential.distance = "euclidean"``) or the distance
-  over free paths (``"geodesic"``, the default; :mod:`mrfswarm.goal_distance`), which
+  over free paths (``"geodesic"``, the default; :mod:`mrfswarm.discrete.goal_distance`), which
   leaves the static field no local minimum but the goal.
 - Obstacle: m_hat = Gamma where P(occupied) >= 0.5 else 0, convolved with a Gaussian of
   sigma_hat cells.
@@ -25,7 +25,7 @@ from scipy import ndimage
 
 from mrfswarm.config import GoalPotentialConfig, InteractionConfig, ObstaclePotentialConfig
 from mrfswarm.errors import ConfigError, ScenarioError
-from mrfswarm.goal_distance import GoalDistance, goal_distance
+from mrfswarm.discrete.goal_distance import GoalDistance, goal_distance
 
 #: zeta = ZETA_MARGIN * |rho'_I(d_min)| when the config leaves zeta unset.
 ZETA_MARGIN = 1.01
@@ -141,7 +141,7 @@ def goal_distances(prob: np.ndarray, goal_cell: np.ndarray, resolution: float, g
     """The free-path distances to the goal, and the distance rho_G uses (``goal_cfg.distance``).
 
     ``"geodesic"``: the free-path distance with the obstacle potential climbed counted at
-    k_G / a_G metres per unit (:func:`mrfswarm.goal_distance.goal_distance`), which
+    k_G / a_G metres per unit (:func:`mrfswarm.discrete.goal_distance.goal_distance`), which
     leaves rho_S no local minimum but the goal; ``"euclidean"``: the straight-line
     distance of the paper (``path`` is still the free-path length, for reporting).
     """
