@@ -82,6 +82,7 @@ def test_rest_seams_stop_at_every_execution_point():
         assert np.abs(seam_jumps(tr, 3)).max() < 1e-6
 
 
+@pytest.mark.slow
 def test_time_refinement_flies_faster():
     base = run("corridor").continuous
     fast = run("corridor", "smoothing.time_refinement=true").continuous

@@ -39,6 +39,7 @@ def quick_figs(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_quick_run_writes_every_registered_figure(quick_figs):
     names = expected_files(quick=True)
     assert names and not any(n.endswith(".gif") for n in names)  # no animations in quick mode

@@ -31,7 +31,7 @@ from solvers import mrf
 from solvers.mrf.exact import MAX_LABELLINGS
 from solvers.mrf.synthetic import random_mrf, swarm_mrf
 
-from field_support import random_map_static
+from support.fields import random_map_static
 
 METHODS = mrf.METHODS.names()
 #: Exhaustive methods: exponential in N, given tiny problems only.

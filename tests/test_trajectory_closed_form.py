@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from test_trajectory_support import exact_banded_coefficients, kkt_trajectory, random_walk
+from support.trajectories import exact_banded_coefficients, kkt_trajectory, random_walk
 
 from mrfswarm.trajectory import (
     MinSnapProblem,

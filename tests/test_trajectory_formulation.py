@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from test_trajectory_support import random_walk
+from support.trajectories import random_walk
 
 import solvers.qp
 from mrfswarm.trajectory import (

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from test_trajectory_support import random_walk
+from support.trajectories import random_walk
 
 from mrfswarm.errors import ScenarioError
 from mrfswarm.trajectory import PiecewisePolynomial, read_uav_csv, solve_min_snap, write_uav_csv
