@@ -107,8 +107,8 @@ def run_case(args: tuple) -> tuple[dict, np.ndarray | None]:
     """One run; returns its row (and the paths when asked, for the figure)."""
     from mrfswarm.config import load_config
     from mrfswarm.discrete.planner import SEPARATION_FACTOR, plan_discrete
-    from mrfswarm.metrics import min_separation
     from mrfswarm.discrete.robot_outcomes import robot_outcomes
+    from mrfswarm.metrics import min_separation
     from mrfswarm.scenario import build_scenario
 
     variant, overrides, method, name, kind, seed, n, start_seed, path, keep_paths = args

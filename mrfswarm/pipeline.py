@@ -9,18 +9,23 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+import solvers.qp
 from mrfswarm.config import Config, load_config
 from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, plan_discrete
-from mrfswarm.errors import ConfigError, PlanError, ScenarioError, SolversError
-from mrfswarm.metrics import DiscreteMetrics, discrete_metrics
 from mrfswarm.discrete.pruning import prune_paths
 from mrfswarm.discrete.robot_outcomes import RobotOutcome, robot_outcomes
+from mrfswarm.errors import ConfigError, PlanError, ScenarioError, SolversError
+from mrfswarm.metrics import DiscreteMetrics, discrete_metrics
 from mrfswarm.scenario import Scenario, build_scenario
-import solvers.qp
 from solvers import mrf as mrf_solvers
+
+if TYPE_CHECKING:  # the continuous stage and the simulation are imported when they run
+    from mrfswarm.continuous import ContinuousPlan
+    from mrfswarm.simulation import SwarmFlight
 
 log = logging.getLogger(__name__)
 
@@ -61,10 +66,34 @@ class Result:
     discrete: DiscretePlan
     metrics: DiscreteMetrics
     pruned: list[np.ndarray]
-    continuous: object | None = None
-    flight: object | None = None
+    continuous: ContinuousPlan | None = None
+    flight: SwarmFlight | None = None
     timings_s: dict[str, float] = field(default_factory=dict)
     failure: str | None = None
+
+    def smoothed(self) -> ContinuousPlan:
+        """The continuous plan of a run that has one.
+
+        Raises
+        ------
+        ValueError
+            When smoothing was disabled or failed.
+        """
+        if self.continuous is None:
+            raise ValueError("this run has no continuous plan (smoothing disabled or failed)")
+        return self.continuous
+
+    def flown(self) -> SwarmFlight:
+        """The simulated flight of a run that has one.
+
+        Raises
+        ------
+        ValueError
+            When the simulation was disabled or failed.
+        """
+        if self.flight is None:
+            raise ValueError("this run has no simulated flight (simulation disabled or failed)")
+        return self.flight
 
     @property
     def mrf(self) -> str:
@@ -298,8 +327,9 @@ def _continuous(result: Result, show: bool, workers: int | None = None) -> None:
     rh = RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
                          cfg.smoothing.backend, workers=workers)
     with tqdm(total=len(rh.windows()), desc="smoothing", unit="window", disable=not show, leave=False) as bar:
-        result.continuous = rh.run(on_window=lambda w: bar.update(1))
-    result.timings_s.update(result.continuous.timings)
+        plan = rh.run(on_window=lambda w: bar.update(1))
+    result.continuous = plan
+    result.timings_s.update(plan.timings)
 
 
 def _simulate(result: Result, show: bool, workers: int | None = None) -> None:
@@ -307,8 +337,9 @@ def _simulate(result: Result, show: bool, workers: int | None = None) -> None:
 
     cfg = result.config
     t0 = time.perf_counter()
-    result.flight = fly_swarm(result.continuous.trajectories, cfg.scenario.altitude, result.scenario.grid,
-                              cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=result.continuous.j_max,
-                              workers=workers, speed=result.continuous.v_max, progress=show,
+    c = result.smoothed()
+    result.flight = fly_swarm(c.trajectories, cfg.scenario.altitude, result.scenario.grid,
+                              cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=c.j_max,
+                              workers=workers, speed=c.v_max, progress=show,
                               backend=cfg.simulation.backend)
     result.timings_s["simulation"] = time.perf_counter() - t0

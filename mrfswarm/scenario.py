@@ -7,14 +7,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from mrfswarm.config import Config
-from mrfswarm.discrete.planner import DiscreteProblem
-from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.discrete.goal_distance import GoalDistance
 from mrfswarm.discrete.interaction_graph import check_k
-from mrfswarm.maps import OccupancyGrid, load_map
+from mrfswarm.discrete.planner import DiscreteProblem
 from mrfswarm.discrete.potentials import Morse, goal_distances, static_field
 from mrfswarm.discrete.robot_outcomes import goal_region_radius
 from mrfswarm.discrete.start import start_cells
+from mrfswarm.errors import ConfigError, ScenarioError
+from mrfswarm.maps import OccupancyGrid, load_map
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ import signal
 import sys
 import time
 import uuid
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -202,7 +202,7 @@ def _toml_string(s: str) -> str:
     return '"' + "".join(out) + '"'
 
 
-def grid_points(grid: dict[str, Sequence]) -> list[dict[str, Any]]:
+def grid_points(grid: Mapping[str, Sequence]) -> list[dict[str, Any]]:
     """The Cartesian product of ``grid``, row-major in the order of its keys (last key fastest).
 
     Raises
@@ -416,7 +416,7 @@ def _write_table(out_dir: Path, rows: list[dict], columns: list[str], meta: dict
 # --- the sweep -----------------------------------------------------------------------------
 
 
-def run_sweep(config: str | Path, grid: dict[str, Sequence], out_dir: str | Path, *, scheduler: Any = None,
+def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | Path, *, scheduler: Any = None,
               workers: int | None = None, progress: bool | None = None, seeds: Sequence[int] | None = None,
               overrides: Sequence[str] = (), figures: bool = False, connect_timeout: float = 10.0) -> SweepResult:
     """Plan every point of ``grid`` (and every seed) and tabulate the results.

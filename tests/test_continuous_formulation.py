@@ -8,8 +8,8 @@ from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous import RecedingHorizon, WindowFormulation
 from mrfswarm.continuous.formulation import LIMIT_PARTS, hermite_trajectory, piece_maps
 from mrfswarm.continuous.receding_horizon import WindowRecord, exact_min_separation
-from mrfswarm.maps import OccupancyGrid
 from mrfswarm.discrete.safety import discrete_violations
+from mrfswarm.maps import OccupancyGrid
 from mrfswarm.trajectory import integral_squared_derivative
 from mrfswarm.trajectory.bernstein import control_points
 from solvers.qp import Options

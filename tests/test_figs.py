@@ -16,11 +16,20 @@ import pytest
 from scipy import ndimage
 
 from mrfswarm.cli import main
-from mrfswarm.figures import FIGURES, MEASURED, expected_files, select
-from mrfswarm.figures import graphs, potentials, snapshots, studies, trajectories
 from mrfswarm.discrete.interaction_graph import swarm_energy_from_cliques
 from mrfswarm.discrete.motion import WALL_CLEARANCE
 from mrfswarm.discrete.safety import discrete_violations
+from mrfswarm.figures import (
+    FIGURES,
+    MEASURED,
+    expected_files,
+    graphs,
+    potentials,
+    select,
+    snapshots,
+    studies,
+    trajectories,
+)
 
 
 def _png_size(path) -> tuple[int, int]:
@@ -148,7 +157,7 @@ def test_fig5_paths_are_collision_free_and_pruning_shortens_them():
     before, after = snap.waypoints()
     assert after < before / 2
     assert snap.pruned_clearance() >= WALL_CLEARANCE * r.scenario.grid.resolution - 1e-9
-    for i, kept in enumerate(r.pruned):  # pruning keeps each robot's ends
+    for kept in r.pruned:  # pruning keeps each robot's ends
         assert kept[0] == 0 and kept[-1] == r.discrete.n_steps
 
 

@@ -8,7 +8,7 @@ import solvers
 from mrfswarm.cli import main
 from solvers import mrf, qp
 from solvers.errors import InvalidProblem, SolverNotFound
-from solvers.registry import Backend, Registry
+from solvers.registry import Registry
 
 
 def test_unknown_backend_names_installed_ones():

@@ -21,16 +21,15 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
-from mrfswarm.discrete.planner import DiscreteProblem, graph_weights, plan_discrete
 from mrfswarm.discrete.label_sets import LabelSets
 from mrfswarm.discrete.motion import moves_clear, stencil
+from mrfswarm.discrete.planner import DiscreteProblem, graph_weights, plan_discrete
 from mrfswarm.discrete.potentials import Morse, static_field
 from mrfswarm.discrete.safety import discrete_violations
 from mrfswarm.discrete.step_mrf import step_mrf
 from solvers import mrf
 from solvers.mrf.exact import MAX_LABELLINGS
 from solvers.mrf.synthetic import random_mrf, swarm_mrf
-
 from support.fields import random_map_static
 
 METHODS = mrf.METHODS.names()

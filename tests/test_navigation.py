@@ -15,17 +15,23 @@ from hypothesis import strategies as st
 
 from mrfswarm.cli import main as cli_main
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig, load_config
-from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, DiscreteProblem, plan_discrete
-from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.discrete.goal_distance import goal_distance, graph_moves
+from mrfswarm.discrete.motion import moves_clear, stencil
+from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, DiscreteProblem, plan_discrete
+from mrfswarm.discrete.potentials import Morse, goal_distances, goal_field, obstacle_field, static_field
+from mrfswarm.discrete.robot_outcomes import (
+    GOAL_CELLS_PER_ROBOT,
+    RobotOutcome,
+    descent_ends,
+    goal_region_radius,
+    robot_outcomes,
+)
+from mrfswarm.discrete.safety import discrete_violations
+from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.maps import read_movingai
 from mrfswarm.maps.synthetic import GENERATORS, generate
-from mrfswarm.discrete.motion import moves_clear, stencil
-from mrfswarm.pipeline import plan
-from mrfswarm.discrete.potentials import Morse, goal_distances, goal_field, obstacle_field, static_field
 from mrfswarm.metrics import min_separation
-from mrfswarm.discrete.robot_outcomes import GOAL_CELLS_PER_ROBOT, RobotOutcome, descent_ends, goal_region_radius, robot_outcomes
-from mrfswarm.discrete.safety import discrete_violations
+from mrfswarm.pipeline import plan
 from mrfswarm.scenario import Scenario, build_scenario
 
 ROOT = Path(__file__).resolve().parents[1]

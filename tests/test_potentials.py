@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig, load_config
-from mrfswarm.errors import ConfigError
 from mrfswarm.discrete.potentials import Morse, goal_distances, goal_field, obstacle_field, static_field
+from mrfswarm.errors import ConfigError
 
 
 def test_paper_values():

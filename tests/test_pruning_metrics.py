@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from mrfswarm.discrete.pruning import horizon_bounds, prune_paths
 from mrfswarm.geometry import segment_clear
 from mrfswarm.metrics import discrete_metrics, min_separation, obstacle_clearance
-from mrfswarm.discrete.pruning import horizon_bounds, prune_paths
 
 
 def test_horizon_bounds():

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from support import qp_reference as ref_problems
 from solvers import qp
 from solvers.errors import InfeasibleError, InvalidProblem, SolverError, SolverNotFound
-from solvers.registry import Backend, Registry
+from solvers.registry import Registry
+from support import qp_reference as ref_problems
 
 NAMES = qp.BACKENDS.names()
 REFERENCES = ref_problems.all_references()

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from mrfswarm.discrete.planner import DiscreteProblem, plan_discrete
 from mrfswarm.discrete.motion import stencil
+from mrfswarm.discrete.planner import DiscreteProblem, plan_discrete
 from mrfswarm.discrete.potentials import Morse
 from mrfswarm.discrete.pruning import horizon_bounds, prune_paths, prune_paths_brute_force, prune_robot
 

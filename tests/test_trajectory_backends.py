@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from support.trajectories import random_walk
 
 import solvers.qp
 from mrfswarm.trajectory import (
@@ -17,6 +16,7 @@ from mrfswarm.trajectory import (
 )
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial, tau_to_time
 from solvers.errors import InfeasibleError, InvalidProblem
+from support.trajectories import random_walk
 
 NAMES = solvers.qp.BACKENDS.names()
 

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from support.trajectories import random_walk
 
 import solvers.qp
 from mrfswarm.trajectory import (
@@ -19,6 +18,7 @@ from mrfswarm.trajectory import (
 from mrfswarm.trajectory.formulation import compiled_min_snap, hermite_basis
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial, derivative_row, tau_to_time
 from solvers.errors import InvalidProblem
+from support.trajectories import random_walk
 
 
 def problem_with_everything(rng, degree=9, continuity=None):

@@ -1,10 +1,10 @@
 """The trajectory tests' references (:mod:`support.trajectories`) agree with the banded solver."""
 
 import numpy as np
-from support.trajectories import exact_banded_coefficients, kkt_trajectory, random_walk
 
 from mrfswarm.trajectory import MinSnapProblem
 from mrfswarm.trajectory.banded import solve_banded
+from support.trajectories import exact_banded_coefficients, kkt_trajectory, random_walk
 
 
 def test_exact_reference_matches_banded_on_a_tame_problem():

@@ -44,8 +44,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
-from mrfswarm.discrete.planner import STAGES, DiscreteProblem, graph_weights, mrf_step, step_model
 from mrfswarm.discrete.motion import MIN_SEPARATION, min_distance_during_move, stencil
+from mrfswarm.discrete.planner import STAGES, DiscreteProblem, graph_weights, mrf_step, step_model
 from mrfswarm.discrete.potentials import Morse, static_field
 from solvers import mrf as mrf_solvers
 

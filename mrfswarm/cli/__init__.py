@@ -14,12 +14,13 @@ import importlib
 import logging
 import pkgutil
 import sys
+from typing import NoReturn
 
 from mrfswarm.errors import SolversError
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # argparse's default prints usage; one line is enough
+    def error(self, message: str) -> NoReturn:  # argparse's default prints usage; one line is enough
         self.exit(2, f"mrfswarm: error: {message}\n")
 
 

@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
         f", reached goal: {s['reached_goal']}, robots at goal: {s['robots_at_goal']}/{s['n_robots']}")
     short = [r for r in s["robots"] if r["stop_reason"] is not None]
     if short:
-        why = {}
+        why: dict[str, list[str]] = {}
         for r in short:
             why.setdefault(r["stop_reason"], []).append(str(r["robot"]))
         goal += " (" + "; ".join(f"{k}: robot{'s' * (len(v) > 1)} {', '.join(v[:8])}{' ...' if len(v) > 8 else ''}"

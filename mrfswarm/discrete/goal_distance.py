@@ -152,6 +152,8 @@ def goal_distance(free: np.ndarray, goal_cell: np.ndarray, resolution: float = 1
     gi = int(g[0] * H + g[1])
     path = _search(a, b, length, n, gi)[0].reshape(W, H)
     if climb_weight > 0:
+        if obstacle is None:
+            raise ValueError("climb_weight > 0 needs the obstacle field")
         rise = np.maximum(0.0, obstacle[dst[:, 0], dst[:, 1]] - obstacle[src[:, 0], src[:, 1]])
         field, pred = _search(a, b, length + climb_weight * rise, n, gi)
         field = field.reshape(W, H)

@@ -137,6 +137,7 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     cell_id = cand[r, s, 0] * H + cand[r, s, 1]
     dist2 = (off[s] ** 2).sum(axis=1)
     if contested == "downhill":
+        assert static is not None  # checked above
         rise = static[cand[r, s, 0], cand[r, s, 1]] - static[starts[r, 0], starts[r, 1]]
         order_idx = np.lexsort((r, rise, dist2, cell_id))
     else:

@@ -30,12 +30,12 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mrfswarm.config import PROGRESS_RULES
-from mrfswarm.errors import ScenarioError
 from mrfswarm.discrete.interaction_graph import CliqueWeights, clique_weights_of_graph, knn_edges, update_clique_weights
 from mrfswarm.discrete.label_sets import LabelSets, label_sets
 from mrfswarm.discrete.potentials import Morse
 from mrfswarm.discrete.safety import discrete_violations
 from mrfswarm.discrete.step_mrf import step_mrf
+from mrfswarm.errors import ScenarioError
 from solvers import mrf as mrf_solvers
 from solvers.mrf import PairwiseMRF
 

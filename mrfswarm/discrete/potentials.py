@@ -24,8 +24,8 @@ import numpy as np
 from scipy import ndimage
 
 from mrfswarm.config import GoalPotentialConfig, InteractionConfig, ObstaclePotentialConfig
-from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.discrete.goal_distance import GoalDistance, goal_distance
+from mrfswarm.errors import ConfigError, ScenarioError
 
 #: zeta = ZETA_MARGIN * |rho'_I(d_min)| when the config leaves zeta unset.
 ZETA_MARGIN = 1.01
@@ -73,7 +73,7 @@ class Morse:
         broken = morse_violation(self.a, self.b, self.k_a, self.k_r)
         if broken is not None:
             raise ConfigError(broken[1])
-        depth = abs(self.raw(self.d_min))
+        depth = abs(float(self.raw(self.d_min)))
         if self.zeta is None:
             object.__setattr__(self, "zeta", ZETA_MARGIN * depth)
         elif not self.zeta > depth:
@@ -95,7 +95,9 @@ class Morse:
 
     def __call__(self, d: np.ndarray | float) -> np.ndarray | float:
         """rho_I(d) = rho'_I(d) + zeta (positive)."""
-        return self.raw(d) + self.zeta
+        zeta = self.zeta
+        assert zeta is not None  # set by __post_init__
+        return self.raw(d) + zeta
 
 
 #: exp(x) overflows float64 above ~709.8; a goal distance beyond this many k_G is refused.

@@ -19,8 +19,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from mrfswarm.discrete.motion import (
+    MIN_SEPARATION,
+    WALL_CLEARANCE,
+    min_distance_during_move,
+    nearby_pairs,
+    segments_clear,
+)
 from mrfswarm.geometry import segment_clear
-from mrfswarm.discrete.motion import MIN_SEPARATION, WALL_CLEARANCE, min_distance_during_move, nearby_pairs, segments_clear
 
 _TOL = 1e-9
 

@@ -85,7 +85,7 @@ def conflict_tables(labels: LabelSets) -> tuple[np.ndarray, np.ndarray]:
         return pairs, np.zeros((0, L, L), dtype=bool)
     d0 = starts[pairs[:, 0]] - starts[pairs[:, 1]]
     g = (d0[:, 0] + R) * (2 * R + 1) + (d0[:, 1] + R)
-    possible = table.reshape(len(table), -1).any(axis=1)[g]
+    possible = np.asarray(table.reshape(len(table), -1).any(axis=1))[g]
     pairs, g = pairs[possible], g[possible]
     if len(pairs) and table.shape[1] <= 64:
         # Before the (C, L, L) tables, keep the pairs with a colliding pair of *their* moves:
@@ -122,7 +122,7 @@ class _MorseBySquaredDistance:
         need = int(d2.max(initial=0)) + 1
         if need > len(self.table):
             size = max(need, 2 * len(self.table), 1024)
-            self.table = self.morse(np.sqrt(np.arange(size, dtype=float)) * self.resolution)
+            self.table = np.asarray(self.morse(np.sqrt(np.arange(size, dtype=float)) * self.resolution))
         return self.table[d2]
 
 

@@ -79,15 +79,16 @@ def _row_terms(q: int, ks: int, ke: int):
     ``(terms, rhs)`` with rhs ``("w", offset)`` (waypoint), ``("g0", r)``, ``("g1", r)``
     or ``None`` (zero).
     """
-    start = [([(0, 0.0, 0, 1.0)], ("w", 0))]
+    Row = tuple[list[tuple[int, float, int, float]], tuple[str, int] | None]
+    start: list[Row] = [([(0, 0.0, 0, 1.0)], ("w", 0))]
     start += [([(0, 0.0, r, 1.0)], ("g0", r)) for r in range(1, ks + 1)]
     start += [([(0, 0.0, 2 * q - 1 - r, 1.0)], None) for r in range(ks + 1, q)]
-    end = [([(0, 1.0, 0, 1.0)], ("w", 1))]
+    end: list[Row] = [([(0, 1.0, 0, 1.0)], ("w", 1))]
     end += [([(0, 1.0, r, 1.0)], ("g1", r)) for r in range(1, ke + 1)]
     end += [([(0, 1.0, 2 * q - 1 - r, 1.0)], None) for r in range(ke + 1, q)]
     cont = range(1, 2 * q - 1)  # c >= q - 1: the optimum is C^(2q-2) whatever c is
     # left-only row, rows coupling both pieces, right-only row (keeps the band tight)
-    knot = [([(0, 1.0, 0, 1.0)], ("w", 1))]
+    knot: list[Row] = [([(0, 1.0, 0, 1.0)], ("w", 1))]
     knot += [([(0, 1.0, m, 1.0), (1, 0.0, m, -1.0)], None) for m in cont]
     knot += [([(1, 0.0, 0, 1.0)], ("w", 1))]
     assert len(start) == q and len(end) == q and len(knot) == 2 * q

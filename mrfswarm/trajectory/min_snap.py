@@ -212,12 +212,13 @@ class MinSnapSolver:
         solver = self._solvers.get(name)
         if solver is None:
             solver = self._solvers[name] = QPSolver(name, self.options, reuse=self.warm)
-        sol = solver.solve(qp)
-        c_tau = norm.tau_coefficients(problem, sol.x)
+        qp_sol = solver.solve(qp)
+        c_tau = norm.tau_coefficients(problem, qp_sol.x)
         traj = PiecewisePolynomial(T, tau_to_time(c_tau, T))
-        log.debug("min-snap %s via %s: %d iterations, status %s", problem.shape, name, sol.iterations, sol.status)
-        return MinSnapResult(traj, float(piece_costs(c_tau, T, q).sum()), name, "qp", t_form, sol.setup_time_s,
-                             sol.solve_time_s, sol)
+        log.debug("min-snap %s via %s: %d iterations, status %s", problem.shape, name, qp_sol.iterations,
+                  qp_sol.status)
+        return MinSnapResult(traj, float(piece_costs(c_tau, T, q).sum()), name, "qp", t_form, qp_sol.setup_time_s,
+                             qp_sol.solve_time_s, qp_sol)
 
 
 class MinSnapBatchSolver:

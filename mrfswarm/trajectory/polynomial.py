@@ -18,7 +18,7 @@ every coefficient in position units whatever the duration.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -112,6 +112,7 @@ class PiecewisePolynomial:
 
     durations: np.ndarray
     coefficients: np.ndarray
+    _knots: np.ndarray = field(init=False, repr=False)  # 0 and the cumulative durations, set in __post_init__
 
     def __post_init__(self) -> None:
         T = np.array(self.durations, dtype=float).reshape(-1)

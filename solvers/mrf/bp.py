@@ -33,11 +33,11 @@ import time
 
 import numpy as np
 
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.incumbent import Incumbent
 from solvers.mrf.penalized import auto_penalty, penalized_pairs
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
-from solvers.mrf.capabilities import MRFCapabilities
 from solvers.registry import Backend
 
 
@@ -59,7 +59,7 @@ def minimize(mrf: PairwiseMRF, options: Options) -> MRFResult:
     trace, decoded = [], []
     delta = np.inf
     it = 0
-    for it in range(1, options.max_iter + 1):
+    for it in range(1, options.max_iter + 1):  # noqa: B007 (the count of iterations run, read after the loop)
         belief = mrf.unary + np.bincount(scatter, weights=msg.ravel(), minlength=N * L).reshape(N, L)
         h = belief[src] - msg[rev]  # inf on the sender's padding labels
         new = np.empty_like(msg)

@@ -12,9 +12,9 @@ import time
 import numpy as np
 
 from solvers.errors import InvalidProblem
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
-from solvers.mrf.capabilities import MRFCapabilities
 from solvers.registry import Backend
 
 MAX_LABELLINGS = 5_000_000

@@ -36,11 +36,11 @@ import time
 
 import numpy as np
 
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.icm import descend
 from solvers.mrf.local_energy import LocalEnergy, colour_sweep, neighbours, union_adjacency
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
-from solvers.mrf.capabilities import MRFCapabilities
 from solvers.registry import Backend
 
 _CHUNK_ELEMENTS = 1 << 21

@@ -76,7 +76,7 @@ def _settings(o: Options, has_rows: bool) -> dict:
         "verbose": False,
     }
     if o.time_limit is not None:
-        opts["CPUtime"] = float(o.time_limit)
+        opts["CPUtime"] = float(o.time_limit)  # type: ignore[assignment]  # qpOASES takes seconds as a float
     return opts
 
 

@@ -10,7 +10,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from mrfswarm.trajectory import MinSnapProblem, PiecewisePolynomial, min_snap_qp
-from mrfswarm.trajectory.banded import _pattern, solve_banded
+from mrfswarm.trajectory.banded import _pattern
 from mrfswarm.trajectory.polynomial import tau_to_time
 
 
