@@ -2,14 +2,14 @@
 
 For each scenario (discrete stage only, ``smoothing.enabled = false``) and each method of
 ``solvers.mrf.METHODS`` (default: every installed one except the exhaustive ``exact``),
-plans the discrete paths with ``mrfswarm.discrete.plan_discrete`` (the config's
+plans the discrete paths with ``mrfswarm.discrete.planner.plan_discrete`` (the config's
 ``max_steps``, ``tol``, ``patience``; ``Options(seed=SEED)``, so Gibbs is reproducible)
 and records:
 
 - the swarm energy trace (energy of x^t on its own interaction graph, per step) and the
   final swarm energy, also relative to ICM's in the same scenario;
 - per MRF step, on the very step MRF the method solved (rebuilt from the step's positions
-  with ``label_sets`` and ``step_mrf``; its energy of the method's labelling is checked
+  with ``mrfswarm.discrete.planner.step_model``; its energy of the method's labelling is checked
   against the method's own): TRW-S's lower bound LB (TRW-S run to ``BOUND_ITER``
   iterations), ICM's energy on the same MRF and, where the step MRF has at most
   ``EXACT_LIMIT`` labellings, its exact optimum (``exact``). Reported: the relative gap
@@ -43,10 +43,9 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm.config import load_config
-from mrfswarm.discrete import DiscreteProblem, StepOutcome, plan_discrete, problem_label_sets
+from mrfswarm.discrete.planner import DiscreteProblem, StepOutcome, plan_discrete, step_model
 from mrfswarm.metrics import discrete_metrics
 from mrfswarm.scenario import build_scenario
-from mrfswarm.swarm_mrf import step_mrf
 from solvers import mrf
 from solvers.errors import SolverNotFound
 
@@ -127,7 +126,7 @@ def scenario_path(name: str) -> Path:
 
 def default_methods() -> list[str]:
     """Every installed method except the exhaustive ones."""
-    return [b.name for b in mrf.METHODS if b.name in mrf.available() and "optimal" not in b.capabilities]
+    return mrf.METHODS.available(lambda c: not c.optimal)
 
 
 def _recorder(problem: DiscreteProblem, records: list[StepRecord]):
@@ -137,8 +136,7 @@ def _recorder(problem: DiscreteProblem, records: list[StepRecord]):
 
     def on_step(t: int, out: StepOutcome) -> None:
         pos = state["pos"]
-        labels = problem_label_sets(problem, pos)
-        model = step_mrf(labels, out.weights, problem.static, problem.morse, problem.resolution)
+        _, model = step_model(problem, pos, out.weights)
         e = model.energy(out.result.labels)
         if not math.isclose(e, out.energy_after, rel_tol=1e-9, abs_tol=1e-9):
             raise AssertionError(f"step {t}: the rebuilt step MRF gives {e}, the planner's {out.energy_after}")

@@ -106,9 +106,9 @@ def write_configs(folder: Path, seeds, robots) -> list[tuple[str, str, int, int,
 def run_case(args: tuple) -> tuple[dict, np.ndarray | None]:
     """One run; returns its row (and the paths when asked, for the figure)."""
     from mrfswarm.config import load_config
-    from mrfswarm.discrete import SEPARATION_FACTOR, plan_discrete
+    from mrfswarm.discrete.planner import SEPARATION_FACTOR, plan_discrete
+    from mrfswarm.discrete.robot_outcomes import robot_outcomes
     from mrfswarm.metrics import min_separation
-    from mrfswarm.robot_outcomes import robot_outcomes
     from mrfswarm.scenario import build_scenario
 
     variant, overrides, method, name, kind, seed, n, start_seed, path, keep_paths = args

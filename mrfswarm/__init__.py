@@ -1,9 +1,11 @@
 """mrfswarm: swarms of aerial robots planned by Markov random field optimization.
 
 After Fernando & Liu, "Swarming of Aerial Robots with Markov Random Field Optimization".
-The discrete stage moves the swarm over an occupancy grid with an MRF optimizer per
-step; the continuous stage smooths the paths into min-snap trajectories solved by any
-QP backend of :mod:`solvers.qp`, certified collision-free, and flown in simulation.
+The discrete stage (:mod:`mrfswarm.discrete`) moves the swarm over an occupancy grid with
+an MRF optimizer per step; the continuous stage (:mod:`mrfswarm.continuous`) flies every
+robot through safe regions derived from those moves, on QPs solved by any backend of
+:mod:`solvers.qp`, certified exactly, then flown in simulation (:mod:`mrfswarm.simulation`).
+:func:`plan` runs both (:mod:`mrfswarm.pipeline`); the repository's ``docs/`` describe it.
 
 >>> import mrfswarm
 >>> result = mrfswarm.plan(mrfswarm.load_config("experiments/corridor.toml"))  # doctest: +SKIP
@@ -11,17 +13,26 @@ QP backend of :mod:`solvers.qp`, certified collision-free, and flown in simulati
 """
 
 from mrfswarm.config import Config, load_config
-from mrfswarm.discrete import DiscreteProblem, mrf_step, plan_discrete
-from mrfswarm.errors import ConfigError, MrfswarmError, ScenarioError, SolverNotFound, UnsafeTrajectoryError
-from mrfswarm.goal_distance import GoalDistance, goal_distance
-from mrfswarm.interaction_graph import interaction_graph, knn_edges, maximal_cliques
+from mrfswarm.continuous import RecedingHorizon
+from mrfswarm.discrete import (
+    DiscreteProblem,
+    GoalDistance,
+    Morse,
+    RobotOutcome,
+    discrete_violations,
+    goal_distance,
+    interaction_graph,
+    knn_edges,
+    maximal_cliques,
+    mrf_step,
+    plan_discrete,
+    prune_paths,
+    robot_outcomes,
+    static_field,
+)
+from mrfswarm.errors import ConfigError, MrfswarmError, PlanError, ScenarioError, SolverNotFound, UnsafeTrajectoryError
 from mrfswarm.maps import OccupancyGrid, load_map
 from mrfswarm.pipeline import Result, plan
-from mrfswarm.potentials import Morse, static_field
-from mrfswarm.pruning import prune_paths
-from mrfswarm.continuous import RecedingHorizon
-from mrfswarm.robot_outcomes import RobotOutcome, robot_outcomes
-from mrfswarm.safety import discrete_violations
 from mrfswarm.scenario import Scenario, build_scenario
 
 __version__ = "0.1.0"
@@ -34,6 +45,7 @@ __all__ = [
     "Morse",
     "MrfswarmError",
     "OccupancyGrid",
+    "PlanError",
     "RecedingHorizon",
     "Result",
     "RobotOutcome",

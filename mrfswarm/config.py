@@ -15,14 +15,15 @@ from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
 from mrfswarm.errors import ConfigError
-from mrfswarm.label_sets import CONTESTED_RULES
 from mrfswarm.maps import LOADERS
 
 SEAM_MODES = ("rest", "continuous")
-#: What resets the discrete stage's patience (see :func:`mrfswarm.discrete.plan_discrete`).
+#: What resets the discrete stage's patience (see :func:`mrfswarm.discrete.planner.plan_discrete`).
 PROGRESS_RULES = ("static", "energy")
-#: How the goal potential measures the distance to the goal (see :mod:`mrfswarm.potentials`).
+#: How the goal potential measures the distance to the goal (see :mod:`mrfswarm.discrete.potentials`).
 GOAL_DISTANCES = ("geodesic", "euclidean")
+#: Who gets a cell several robots could move to (see :func:`mrfswarm.discrete.label_sets.label_sets`).
+CONTESTED_RULES = ("downhill", "nearest")
 
 #: Keys of earlier versions, and what replaced them.
 REMOVED_KEYS = {
@@ -37,12 +38,12 @@ class ScenarioConfig:
     """The map, the start swarm, the goal (metres, map frame) and the flight altitude.
 
     ``map`` and ``start`` are tables checked by :func:`mrfswarm.maps.load_map` and
-    :func:`mrfswarm.start.start_cells`; ``robot_radius`` (metres, below half a cell) is
+    :func:`mrfswarm.discrete.start.start_cells`; ``robot_radius`` (metres, below half a cell) is
     each robot's size: trajectories keep it from obstacles and twice it (the safety
     distance) from each other; ``goal_radius`` defines "reached the goal":
     the swarm's centroid within this many metres of the goal. A robot is *at the goal*
     within ``goal_radius`` plus the free-path radius that holds 4 free cells per robot
-    (:mod:`mrfswarm.robot_outcomes`). Without a goal there is no
+    (:mod:`mrfswarm.discrete.robot_outcomes`). Without a goal there is no
     goal potential (the paper's free-space formation experiments, rho_S = 0 there).
     """
 
@@ -108,7 +109,7 @@ class MrfConfig:
     gets a cell they could all move to (label sets are disjoint; the nearest robot gets
     it): ``"downhill"`` (default), the one whose static field it lowers most;
     ``"nearest"``, the lower index (the paper's scenario configs), which can lock a crowd
-    up in a corridor (:mod:`mrfswarm.label_sets`).
+    up in a corridor (:mod:`mrfswarm.discrete.label_sets`).
     ``progress`` says what resets the patience: ``"static"`` (default), a new minimum of
     the swarm energy or of the robots' static field sum; ``"energy"``, of the swarm
     energy only (the paper's scenario configs), which jumps whenever the k-NN graph's
@@ -276,6 +277,11 @@ def _validate(cfg: Config) -> None:
     need(s.robot_radius > 0, "scenario.robot_radius", s.robot_radius, "must be > 0 (metres)")
     i = cfg.interaction
     need(i.k >= 1, "interaction.k", i.k, "must be >= 1")
+    # the paper's Morse conditions and zeta, where the potential is defined (one place); imported
+    # here because the potentials module reads this one's dataclasses
+    from mrfswarm.discrete.potentials import Morse
+
+    Morse.from_config(i)
     g = cfg.goal_potential
     need(g.a > 0, "goal_potential.a", g.a, "must be > 0")
     need(g.k > 0, "goal_potential.k", g.k, "must be > 0")

@@ -1,8 +1,20 @@
-"""Errors of the domain package; the root and solver errors come from ``solvers``."""
+"""Errors of the domain package, under its root :class:`MrfswarmError`.
+
+``MrfswarmError`` derives from the numerical layer's root :class:`solvers.errors.SolversError`
+(``solvers`` knows no robots and never names this package), so ``except SolversError``
+catches every error the toolkit raises on purpose, and ``except MrfswarmError`` every
+error of the domain. The layer's own errors are re-exported here.
+"""
 
 from __future__ import annotations
 
-from solvers.errors import InfeasibleError, InvalidProblem, MrfswarmError, SolverError, SolverNotFound
+from typing import Any
+
+from solvers.errors import InfeasibleError, InvalidProblem, SolverError, SolverNotFound, SolversError
+
+
+class MrfswarmError(SolversError):
+    """Root of every error raised on purpose by the domain package."""
 
 
 class ConfigError(MrfswarmError, ValueError):
@@ -17,13 +29,28 @@ class UnsafeTrajectoryError(MrfswarmError, RuntimeError):
     """A trajectory failed the continuous safety check and could not be repaired."""
 
 
+class PlanError(MrfswarmError):
+    """A plan stopped after its discrete stage; ``result`` holds what was computed.
+
+    The message is that of the error that stopped it (its ``__cause__``); ``result`` is
+    the :class:`~mrfswarm.pipeline.Result` of the stages before, with ``result.failure``
+    set to that message, so that a caller can still write it out.
+    """
+
+    def __init__(self, message: str, result: Any) -> None:
+        super().__init__(message)
+        self.result = result
+
+
 __all__ = [
     "ConfigError",
     "InfeasibleError",
     "InvalidProblem",
     "MrfswarmError",
+    "PlanError",
     "ScenarioError",
     "SolverError",
     "SolverNotFound",
+    "SolversError",
     "UnsafeTrajectoryError",
 ]

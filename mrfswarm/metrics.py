@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from mrfswarm.discrete.motion import step_min_separation
 from mrfswarm.geometry import point_box_distance
-from mrfswarm.motion import step_min_separation
 
 #: Samples per step when measuring obstacle clearance along straight moves.
 _CLEARANCE_SAMPLES = 16
@@ -247,6 +247,8 @@ def path_clearance(paths: np.ndarray, occupied: np.ndarray, samples: int = _CLEA
     index = ObstacleIndex(occupied)
     paths = np.asarray(paths)
     upper = index.clearance(paths)
+    if upper is None:  # not reached: the grid has obstacles
+        return None
     if len(paths) == 1:
         return upper
     from scipy.ndimage import distance_transform_edt
@@ -263,7 +265,8 @@ def path_clearance(paths: np.ndarray, occupied: np.ndarray, samples: int = _CLEA
         return upper
     s = np.linspace(0.0, 1.0, samples, endpoint=False)[:, None, None]
     a, b = p[near].astype(float)[None], q[near].astype(float)[None]
-    return min(upper, index.clearance(a + s * (b - a)))
+    sampled = index.clearance(a + s * (b - a))
+    return upper if sampled is None else min(upper, sampled)
 
 
 def discrete_metrics(paths: np.ndarray, occupied: np.ndarray, resolution: float = 1.0,

@@ -10,6 +10,7 @@ import json
 import os
 import tempfile
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -18,8 +19,8 @@ from mrfswarm import plots
 from mrfswarm.pipeline import Result
 
 
-def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
-    """Call ``write(tmp)`` then rename ``tmp`` to ``path`` (same folder, same suffix)."""
+def atomic_write(path: Path, write: Callable[[Path], object]) -> Path:
+    """Call ``write(tmp)`` (its return value is ignored) then rename ``tmp`` to ``path`` (same folder, same suffix)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
@@ -67,12 +68,12 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
     """trajectories/robot_<i>.csv (uav_trajectories format) and the continuous figures."""
     from mrfswarm.trajectory import write_uav_csv
 
-    c = result.continuous
+    c = result.smoothed()
     cfg = result.config
     written = []
     for i, tr in enumerate(c.trajectories):
         written.append(atomic_write(out / "trajectories" / f"robot_{i}.csv",
-                                    lambda p, tr=tr: write_uav_csv(tr, p, altitude=cfg.scenario.altitude)))
+                                    partial(write_uav_csv, tr, altitude=cfg.scenario.altitude)))
     figs = out / "figures"
     grid = result.scenario.grid
     goal = result.scenario.goal_world

@@ -9,17 +9,23 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+import solvers.qp
 from mrfswarm.config import Config, load_config
-from mrfswarm.discrete import SEPARATION_FACTOR, DiscretePlan, plan_discrete
-from mrfswarm.errors import ConfigError, MrfswarmError, ScenarioError
+from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, plan_discrete
+from mrfswarm.discrete.pruning import prune_paths
+from mrfswarm.discrete.robot_outcomes import RobotOutcome, robot_outcomes
+from mrfswarm.errors import ConfigError, PlanError, ScenarioError, SolversError
 from mrfswarm.metrics import DiscreteMetrics, discrete_metrics
-from mrfswarm.pruning import prune_paths
-from mrfswarm.robot_outcomes import RobotOutcome, robot_outcomes
 from mrfswarm.scenario import Scenario, build_scenario
 from solvers import mrf as mrf_solvers
+
+if TYPE_CHECKING:  # the continuous stage and the simulation are imported when they run
+    from mrfswarm.continuous import ContinuousPlan
+    from mrfswarm.simulation import SwarmFlight
 
 log = logging.getLogger(__name__)
 
@@ -60,10 +66,34 @@ class Result:
     discrete: DiscretePlan
     metrics: DiscreteMetrics
     pruned: list[np.ndarray]
-    continuous: object | None = None
-    flight: object | None = None
+    continuous: ContinuousPlan | None = None
+    flight: SwarmFlight | None = None
     timings_s: dict[str, float] = field(default_factory=dict)
     failure: str | None = None
+
+    def smoothed(self) -> ContinuousPlan:
+        """The continuous plan of a run that has one.
+
+        Raises
+        ------
+        ValueError
+            When smoothing was disabled or failed.
+        """
+        if self.continuous is None:
+            raise ValueError("this run has no continuous plan (smoothing disabled or failed)")
+        return self.continuous
+
+    def flown(self) -> SwarmFlight:
+        """The simulated flight of a run that has one.
+
+        Raises
+        ------
+        ValueError
+            When the simulation was disabled or failed.
+        """
+        if self.flight is None:
+            raise ValueError("this run has no simulated flight (simulation disabled or failed)")
+        return self.flight
 
     @property
     def mrf(self) -> str:
@@ -74,7 +104,7 @@ class Result:
         return self.config.smoothing.backend if self.config.smoothing.enabled else None
 
     def robots(self) -> list[RobotOutcome]:
-        """Where each robot ended and, if short of the goal region, why (:mod:`mrfswarm.robot_outcomes`)."""
+        """Where each robot ended and, if short of the goal region, why (:mod:`mrfswarm.discrete.robot_outcomes`)."""
         scn = self.scenario
         d = scn.distances
         return robot_outcomes(self.discrete.paths[-1], scn.grid.free, scn.static, self.config.mrf.order,
@@ -188,7 +218,10 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     Raises
     ------
     SolverNotFound
-        An unknown or missing MRF method.
+        An unknown or missing MRF method or QP backend.
+    ConfigError
+        A QP backend that cannot solve the continuous stage's problems (its capabilities
+        lack inequality rows: regions, corridors and limits are inequalities).
     """
     cfg = config if isinstance(config, Config) else load_config(config)
     if mrf is not None:
@@ -197,9 +230,12 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
         cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, backend=qp))
     mrf_solvers.METHODS.get(cfg.mrf.optimizer)  # fail now, not after the map is loaded
     if cfg.smoothing.enabled:
-        from mrfswarm.trajectory import MinSnapSolver
-
-        MinSnapSolver(cfg.smoothing.backend)  # an unknown or missing QP backend fails now too
+        record = solvers.qp.BACKENDS.get(cfg.smoothing.backend)  # an unknown or missing QP backend fails now too
+        if not record.capabilities.inequalities:
+            able = ", ".join(solvers.qp.BACKENDS.available(lambda c: c.inequalities)) or "none"
+            raise ConfigError(f"smoothing.backend = {record.name!r} solves equality-constrained problems only; the "
+                              f"continuous stage's regions, corridors and limits are inequalities (installed "
+                              f"backends that take them: {able})")
         if cfg.simulation.enabled:
             from mrfswarm.simulation import check_available
 
@@ -229,6 +265,13 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     ------
     ConfigError
         A bad config or seed (the message names it).
+    SolverNotFound
+        An unknown or missing MRF method or QP backend.
+    ScenarioError
+        A scenario that cannot be planned (before the discrete stage).
+    PlanError
+        Any error after the discrete stage (a swarm that cannot move, a continuous
+        stage or a simulation that fails); its ``result`` holds what was computed.
     """
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0):
         raise ConfigError(f"seed = {seed!r}: must be an integer >= 0")
@@ -259,11 +302,10 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
             _continuous(result, show, workers)
         if cfg.smoothing.enabled and cfg.simulation.enabled:
             _simulate(result, show, workers)
-    except MrfswarmError as e:
+    except SolversError as e:
         result.failure = str(e)
         _paper_pruning(result)
-        e.partial_result = result  # the CLI still writes what was computed
-        raise
+        raise PlanError(str(e), result) from e  # the CLI still writes what was computed
     _paper_pruning(result)
     return result
 
@@ -285,8 +327,9 @@ def _continuous(result: Result, show: bool, workers: int | None = None) -> None:
     rh = RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
                          cfg.smoothing.backend, workers=workers)
     with tqdm(total=len(rh.windows()), desc="smoothing", unit="window", disable=not show, leave=False) as bar:
-        result.continuous = rh.run(on_window=lambda w: bar.update(1))
-    result.timings_s.update(result.continuous.timings)
+        plan = rh.run(on_window=lambda w: bar.update(1))
+    result.continuous = plan
+    result.timings_s.update(plan.timings)
 
 
 def _simulate(result: Result, show: bool, workers: int | None = None) -> None:
@@ -294,8 +337,9 @@ def _simulate(result: Result, show: bool, workers: int | None = None) -> None:
 
     cfg = result.config
     t0 = time.perf_counter()
-    result.flight = fly_swarm(result.continuous.trajectories, cfg.scenario.altitude, result.scenario.grid,
-                              cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=result.continuous.j_max,
-                              workers=workers, speed=result.continuous.v_max, progress=show,
+    c = result.smoothed()
+    result.flight = fly_swarm(c.trajectories, cfg.scenario.altitude, result.scenario.grid,
+                              cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=c.j_max,
+                              workers=workers, speed=c.v_max, progress=show,
                               backend=cfg.simulation.backend)
     result.timings_s["simulation"] = time.perf_counter() - t0

@@ -7,14 +7,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from mrfswarm.config import Config
-from mrfswarm.discrete import DiscreteProblem
+from mrfswarm.discrete.goal_distance import GoalDistance
+from mrfswarm.discrete.interaction_graph import check_k
+from mrfswarm.discrete.planner import DiscreteProblem
+from mrfswarm.discrete.potentials import Morse, goal_distances, static_field
+from mrfswarm.discrete.robot_outcomes import goal_region_radius
+from mrfswarm.discrete.start import start_cells
 from mrfswarm.errors import ConfigError, ScenarioError
-from mrfswarm.goal_distance import GoalDistance
-from mrfswarm.interaction_graph import check_k
 from mrfswarm.maps import OccupancyGrid, load_map
-from mrfswarm.potentials import Morse, goal_distances, static_field
-from mrfswarm.robot_outcomes import goal_region_radius
-from mrfswarm.start import start_cells
 
 
 @dataclass(frozen=True)
@@ -39,7 +39,7 @@ class Scenario:
         Distances from every cell to the goal over free paths (None without a goal).
     goal_region_radius
         Robots within this free-path distance (metres) of the goal are at the goal
-        (:func:`mrfswarm.robot_outcomes.goal_region_radius`); None without a goal.
+        (:func:`mrfswarm.discrete.robot_outcomes.goal_region_radius`); None without a goal.
     """
 
     grid: OccupancyGrid

@@ -6,8 +6,9 @@ optionally once per seed, in local processes (:class:`concurrent.futures.Process
 or on a Dask distributed cluster. Every point's config is built and validated before
 anything runs, so a typo fails at once. Each point's ``result.json`` is written as the
 point finishes, under ``OUT/points/<index>_<key=value slug>/``; ``OUT/sweep.csv`` and
-``OUT/sweep.json`` hold one row per point (per seed). A point that fails with a
-:class:`MrfswarmError` is a row whose ``error`` column holds the message; any other
+``OUT/sweep.json`` hold one row per point (per seed). A point that fails with an error
+of the toolkit (:class:`~mrfswarm.errors.SolversError`, the root of the domain's and the
+numerical layer's) is a row whose ``error`` column holds the message; any other
 exception is a bug and stops the sweep.
 
 Rows are computed in the workers and written by the caller, so a remote cluster needs
@@ -27,13 +28,13 @@ import signal
 import sys
 import time
 import uuid
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from mrfswarm.config import Config, load_config, parse_override
-from mrfswarm.errors import ConfigError, MrfswarmError
+from mrfswarm.errors import ConfigError, MrfswarmError, PlanError, SolversError
 
 log = logging.getLogger(__name__)
 
@@ -201,7 +202,7 @@ def _toml_string(s: str) -> str:
     return '"' + "".join(out) + '"'
 
 
-def grid_points(grid: dict[str, Sequence]) -> list[dict[str, Any]]:
+def grid_points(grid: Mapping[str, Sequence]) -> list[dict[str, Any]]:
     """The Cartesian product of ``grid``, row-major in the order of its keys (last key fastest).
 
     Raises
@@ -238,8 +239,9 @@ def _ignore_sigint() -> None:
 def _run_point(task: _Task) -> dict:
     """Plan one point in a worker; return ``{"summary", "error", "wall_s"}`` (JSON-able).
 
-    A :class:`MrfswarmError` is the point's result (its message, and what was computed
-    before it); anything else propagates: it is a bug.
+    An error of the toolkit (:class:`~mrfswarm.errors.SolversError`, the root of every
+    one) is the point's result (its message, and what a :class:`PlanError` carries);
+    anything else propagates: it is a bug.
     """
     from mrfswarm.pipeline import plan
 
@@ -247,9 +249,9 @@ def _run_point(task: _Task) -> dict:
     summary, error, result = None, None, None
     try:
         result = plan(task.config, seed=task.seed, progress=False)
-    except MrfswarmError as e:
+    except SolversError as e:
         error = str(e).splitlines()[0] if str(e) else type(e).__name__
-        result = getattr(e, "partial_result", None)
+        result = e.result if isinstance(e, PlanError) else None
     wall = time.perf_counter() - t0
     if result is not None:
         summary = result.summary()
@@ -414,7 +416,7 @@ def _write_table(out_dir: Path, rows: list[dict], columns: list[str], meta: dict
 # --- the sweep -----------------------------------------------------------------------------
 
 
-def run_sweep(config: str | Path, grid: dict[str, Sequence], out_dir: str | Path, *, scheduler: Any = None,
+def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | Path, *, scheduler: Any = None,
               workers: int | None = None, progress: bool | None = None, seeds: Sequence[int] | None = None,
               overrides: Sequence[str] = (), figures: bool = False, connect_timeout: float = 10.0) -> SweepResult:
     """Plan every point of ``grid`` (and every seed) and tabulate the results.
@@ -454,8 +456,9 @@ def run_sweep(config: str | Path, grid: dict[str, Sequence], out_dir: str | Path
     SweepResult
         The rows, in the order of the points. A point that failed with a
         :class:`MrfswarmError` (a scenario the planner rejects, e.g. ``k >= N``, a goal in an
-        obstacle, Morse parameters with ``k_a <= k_r``) is a row with ``error`` set and
-        whatever the run computed before failing.
+        obstacle) is a row with ``error`` set and whatever the run computed before failing.
+        A point whose config is invalid (Morse parameters with ``k_a <= k_r`` included)
+        stops the sweep before anything runs.
 
     Raises
     ------
@@ -493,7 +496,7 @@ def run_sweep(config: str | Path, grid: dict[str, Sequence], out_dir: str | Path
         items = overrides + [f"{k}={toml_literal(v)}" for k, v in values.items()]
         try:
             cfg = resolve_config(load_config(config, items))  # checks the optimizer and backends too
-        except MrfswarmError as e:
+        except SolversError as e:
             where = ", ".join(f"{k}={_cell(v)}" for k, v in values.items())
             raise type(e)(f"sweep point {p} ({where}): {e}") from e
         for s in [None] if seeds is None else seeds:

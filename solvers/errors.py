@@ -1,25 +1,26 @@
-"""The error hierarchy shared by the numerical layer and the domain package.
+"""The errors of the numerical layer, under one root named for it.
 
-`solvers` never imports `mrfswarm`, so the root of every error the toolkit raises lives
-here; `mrfswarm.errors` re-exports it and adds the domain's own errors.
+``solvers`` knows no robots, so its root is :class:`SolversError`, named for the layer.
+A package built on it derives its own root from this one, so that one
+``except SolversError`` catches every error raised on purpose, in either layer.
 """
 
 from __future__ import annotations
 
 
-class MrfswarmError(Exception):
-    """Root of every error raised on purpose by mrfswarm and solvers."""
+class SolversError(Exception):
+    """Root of every error raised on purpose by the numerical layer (and, below it, the domain's)."""
 
 
-class SolverNotFound(MrfswarmError, LookupError):
+class SolverNotFound(SolversError, LookupError):
     """A backend name that is unknown or whose native package is not installed."""
 
 
-class InvalidProblem(MrfswarmError, ValueError):
-    """A problem handed to a solver that is malformed (shapes, NaN, bounds)."""
+class InvalidProblem(SolversError, ValueError):
+    """A problem handed to a solver that is malformed (shapes, NaN, bounds) or beyond the backend."""
 
 
-class SolverError(MrfswarmError, RuntimeError):
+class SolverError(SolversError, RuntimeError):
     """A backend failed; ``status`` carries the backend's own status text."""
 
     def __init__(self, message: str, *, backend: str = "", status: str = "") -> None:

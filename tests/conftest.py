@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 
 from mrfswarm.geometry import point_box_distance
+from solvers.qp import QPCapabilities
+from solvers.registry import Backend
 
 
 def _dense_check(trajectories, grid, rate_hz: float = 500.0):
@@ -40,3 +42,11 @@ def _dense_check(trajectories, grid, rate_hz: float = 500.0):
 def dense_check():
     """``dense_check(trajectories, grid, rate_hz=500)``: brute-force sampled separation and clearance."""
     return _dense_check
+
+
+@pytest.fixture
+def missing_qp_backend():
+    """A QP backend record named ``ghost`` whose module is not installed (extra ``ghost``)."""
+    return Backend(name="ghost", entry=lambda *a: None, requires=("no_such_module_xyz",), extra="ghost",
+                   capabilities=QPCapabilities(inequalities=True, warm_start=False, detects_infeasibility=False,
+                                               sparse=True))

@@ -10,6 +10,7 @@ from mrfswarm.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 FREE5 = str(ROOT / "experiments" / "free5.toml")
+CORRIDOR = str(ROOT / "experiments" / "corridor.toml")
 
 # (argv after the program name, a pattern of the one-line message); FILE is a regular file,
 # OUT a fresh folder, WP a waypoints CSV
@@ -20,6 +21,9 @@ BAD = {
     "run --out under a file": (["run", FREE5, "--out", "FILE/sub"], "argument --out: .* lies under the file"),
     "run --mrf unknown": (["run", FREE5, "--mrf", "nope", "--out", "OUT"], "unknown MRF backend 'nope'"),
     "run --qp unknown": (["run", FREE5, "--qp", "nope", "--out", "OUT"], "unknown QP backend 'nope'"),
+    "run --qp equality-only": (["run", CORRIDOR, "--qp", "closed_form", "--out", "OUT"],
+                               r"smoothing.backend = 'closed_form' solves equality-constrained problems only; .* "
+                               r"\(installed backends that take them: osqp, piqp"),
     "run --set no value": (["run", FREE5, "--set", "mrf.order", "--out", "OUT"], "expected KEY=VALUE"),
     "run --set bad distance": (["run", FREE5, "--set", "goal_potential.distance=manhattan", "--out", "OUT"],
                                "goal_potential.distance = 'manhattan': must be one of geodesic, euclidean"),
@@ -98,3 +102,20 @@ def test_plan_refuses_a_negative_seed():
 
     with pytest.raises(ConfigError, match="seed = -1: must be an integer >= 0"):
         mrfswarm.plan(FREE5, seed=-1)
+
+
+def test_an_equality_only_backend_fails_when_the_config_is_resolved(monkeypatch):
+    """The capability record is read at config resolution: no map is loaded, nothing is planned."""
+    from mrfswarm import pipeline
+    from mrfswarm.config import load_config
+    from mrfswarm.errors import ConfigError
+
+    def no_scenario(*args, **kwargs):
+        raise AssertionError("the scenario was built before the backend was checked")
+
+    monkeypatch.setattr(pipeline, "build_scenario", no_scenario)
+    with pytest.raises(ConfigError, match="smoothing.backend = 'closed_form'"):
+        pipeline.plan(CORRIDOR, qp="closed_form")
+    # without the continuous stage the backend is not used, so it is not refused
+    cfg = load_config(CORRIDOR, ["smoothing.enabled=false"])
+    assert pipeline.resolve_config(cfg, qp="closed_form").smoothing.backend == "closed_form"

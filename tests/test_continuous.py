@@ -82,6 +82,7 @@ def test_rest_seams_stop_at_every_execution_point():
         assert np.abs(seam_jumps(tr, 3)).max() < 1e-6
 
 
+@pytest.mark.slow
 def test_time_refinement_flies_faster():
     base = run("corridor").continuous
     fast = run("corridor", "smoothing.time_refinement=true").continuous
@@ -145,6 +146,18 @@ def test_limits_no_timing_can_meet_keep_the_discrete_outputs(tmp_path, capsys):
     res = json.loads((out / "result.json").read_text())
     assert res["failure"] and res["mrf_steps"] > 0 and res["min_separation_continuous"] is None
     assert (out / "discrete_paths.csv").exists() and (out / "figures" / "discrete_paths.png").exists()
+
+
+def test_a_failed_plan_carries_what_was_computed():
+    """After the discrete stage an error becomes a PlanError whose ``result`` holds the stages before."""
+    from mrfswarm.errors import PlanError, UnsafeTrajectoryError
+
+    with pytest.raises(PlanError, match="no timing meets v_max") as info:
+        plan(mrfswarm.load_config(EXP / "free5.toml", ["simulation.enabled=false", "smoothing.v_max=1e-5"]))
+    result = info.value.result
+    assert isinstance(info.value.__cause__, UnsafeTrajectoryError)
+    assert result.failure == str(info.value) and result.continuous is None and result.discrete.n_steps > 0
+    assert result.pruned and result.summary()["failure"] == result.failure
 
 
 def test_a_swarm_that_cannot_move(tmp_path, capsys):

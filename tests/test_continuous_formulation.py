@@ -8,8 +8,8 @@ from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous import RecedingHorizon, WindowFormulation
 from mrfswarm.continuous.formulation import LIMIT_PARTS, hermite_trajectory, piece_maps
 from mrfswarm.continuous.receding_horizon import WindowRecord, exact_min_separation
+from mrfswarm.discrete.safety import discrete_violations
 from mrfswarm.maps import OccupancyGrid
-from mrfswarm.safety import discrete_violations
 from mrfswarm.trajectory import integral_squared_derivative
 from mrfswarm.trajectory.bernstein import control_points
 from solvers.qp import Options
@@ -65,7 +65,9 @@ def test_pack_and_unpack_are_inverse():
 
 
 REFERENCE = "cvxpy"
-BACKENDS = [b for b in solvers.qp.available() if b not in ("closed_form", REFERENCE)]
+#: Every installed backend that takes inequality rows (cvxpy, the reference, solves with Clarabel:
+#: the direct clarabel backend is compared with it through a different formulation path).
+BACKENDS = [b for b in solvers.qp.BACKENDS.available(lambda c: c.inequalities) if b != REFERENCE]
 
 
 @pytest.fixture(scope="module")

@@ -12,11 +12,11 @@ from hypothesis import strategies as st
 
 from mrfswarm.config import SmoothingConfig, from_dict
 from mrfswarm.continuous import RecedingHorizon
-from mrfswarm.continuous_check import min_pair_distance
+from mrfswarm.continuous.sampled_check import min_pair_distance
+from mrfswarm.discrete.safety import discrete_violations
 from mrfswarm.errors import ScenarioError
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.pipeline import plan
-from mrfswarm.safety import discrete_violations
 from mrfswarm.trajectory import max_derivative_norms
 from mrfswarm.trajectory.bernstein import control_points
 

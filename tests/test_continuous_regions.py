@@ -76,7 +76,7 @@ def test_regions_keep_the_radius_from_obstacles(seed, res, growth):
     occ = rng.random((12, 10)) < 0.25
     grid = OccupancyGrid.from_occupied(occ, resolution=res, origin=(rng.normal(), rng.normal()))
     free = np.argwhere(~occ)
-    from mrfswarm.motion import moves_clear, stencil
+    from mrfswarm.discrete.motion import moves_clear, stencil
 
     order = int(rng.choice([2, 5, 8]))
     start = free[rng.choice(len(free), size=min(6, len(free)), replace=False)]

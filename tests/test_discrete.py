@@ -5,11 +5,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mrfswarm.discrete import DiscreteProblem, mrf_step, plan_discrete
-from mrfswarm.potentials import Morse
-from mrfswarm.safety import discrete_violations
+from mrfswarm.discrete.planner import DiscreteProblem, mrf_step, plan_discrete
+from mrfswarm.discrete.potentials import Morse
+from mrfswarm.discrete.safety import discrete_violations
 from solvers.errors import SolverNotFound
-from field_support import random_map_static
+from support.fields import random_map_static
 
 
 def brute_invariants(paths, free):

@@ -16,11 +16,20 @@ import pytest
 from scipy import ndimage
 
 from mrfswarm.cli import main
-from mrfswarm.figures import FIGURES, MEASURED, expected_files, select
-from mrfswarm.figures import graphs, potentials, snapshots, studies, trajectories
-from mrfswarm.interaction_graph import swarm_energy_from_cliques
-from mrfswarm.motion import WALL_CLEARANCE
-from mrfswarm.safety import discrete_violations
+from mrfswarm.discrete.interaction_graph import swarm_energy_from_cliques
+from mrfswarm.discrete.motion import WALL_CLEARANCE
+from mrfswarm.discrete.safety import discrete_violations
+from mrfswarm.figures import (
+    FIGURES,
+    MEASURED,
+    expected_files,
+    graphs,
+    potentials,
+    select,
+    snapshots,
+    studies,
+    trajectories,
+)
 
 
 def _png_size(path) -> tuple[int, int]:
@@ -39,6 +48,7 @@ def quick_figs(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_quick_run_writes_every_registered_figure(quick_figs):
     names = expected_files(quick=True)
     assert names and not any(n.endswith(".gif") for n in names)  # no animations in quick mode
@@ -90,7 +100,7 @@ def test_fig2_example_has_the_papers_structure():
     assert sorted(sorted(c) for c in nx.find_cliques(G)) == [c.tolist() for c in g.graph.cliques]
     assert len(g.graph.cliques) == 4
     scn = graphs.example_scenario()
-    from mrfswarm.discrete import swarm_energy
+    from mrfswarm.discrete.planner import swarm_energy
 
     direct = swarm_energy_from_cliques(g.graph.cliques, scn.start, scn.static, scn.morse)
     assert direct == pytest.approx(swarm_energy(scn.discrete_problem(), scn.start), rel=1e-12)
@@ -147,7 +157,7 @@ def test_fig5_paths_are_collision_free_and_pruning_shortens_them():
     before, after = snap.waypoints()
     assert after < before / 2
     assert snap.pruned_clearance() >= WALL_CLEARANCE * r.scenario.grid.resolution - 1e-9
-    for i, kept in enumerate(r.pruned):  # pruning keeps each robot's ends
+    for kept in r.pruned:  # pruning keeps each robot's ends
         assert kept[0] == 0 and kept[-1] == r.discrete.n_steps
 
 

@@ -8,19 +8,12 @@ import solvers
 from mrfswarm.cli import main
 from solvers import mrf, qp
 from solvers.errors import InvalidProblem, SolverNotFound
-from solvers.registry import Backend, Registry
+from solvers.registry import Registry
 
 
 def test_unknown_backend_names_installed_ones():
     with pytest.raises(SolverNotFound, match="installed: .*osqp"):
         qp.BACKENDS.get("nope")
-
-
-def test_missing_backend_names_extra():
-    reg = Registry("QP", [Backend(name="ghost", entry=lambda: None, requires=("no_such_module_xyz",), extra="ghost")])
-    with pytest.raises(SolverNotFound, match=r'mrfswarm\[ghost\]'):
-        reg.get("ghost")
-    assert reg.available() == []
 
 
 def test_qp_problem_validation():
@@ -62,14 +55,41 @@ def test_solvers_command_lists_every_registered_backend(capsys):
     out = capsys.readouterr().out
     for b in list(solvers.qp.BACKENDS) + list(solvers.mrf.METHODS):
         assert b.name in out
+        assert f"[{', '.join(b.capabilities.flags()) or 'none'}]" in out  # what the record says it can do
 
 
-def test_solvers_never_imports_mrfswarm():
+def test_the_two_roots_of_the_errors():
+    """The numerical layer's root is its own; the domain's derives from it; the CLI catches both."""
+    from mrfswarm.errors import ConfigError, MrfswarmError, PlanError
+
+    assert solvers.SolversError.__name__ == "SolversError" and not issubclass(solvers.SolversError, MrfswarmError)
+    for cls in (SolverNotFound, InvalidProblem, solvers.SolverError, solvers.InfeasibleError):
+        assert issubclass(cls, solvers.SolversError) and not issubclass(cls, MrfswarmError)
+    for cls in (MrfswarmError, ConfigError, PlanError):
+        assert issubclass(cls, solvers.SolversError)
+
+
+def test_install_hint_is_read_from_the_installed_metadata(monkeypatch, missing_qp_backend):
+    """The layer does not name the distribution that installs it: the hint comes from the metadata,
+    and without any (the package run from a source tree) it names the extra only."""
+    from solvers import registry
+
+    assert missing_qp_backend.install_hint == 'pip install "mrfswarm[ghost]"'
+    monkeypatch.setattr(registry, "_distribution", lambda: None)
+    assert missing_qp_backend.install_hint == "install the 'ghost' extra"
+    with pytest.raises(SolverNotFound, match="install the 'ghost' extra"):
+        Registry("QP", [missing_qp_backend]).get("ghost")
+
+
+def test_solvers_never_imports_or_names_mrfswarm():
+    """Neither an import nor a string of the numerical layer names the domain package."""
     import pathlib
     root = pathlib.Path(solvers.__file__).parent
     offenders = [str(p) for p in root.rglob("*.py") if "mrfswarm" in "".join(
         line for line in p.read_text().splitlines() if line.lstrip().startswith(("import ", "from ")))]
     assert offenders == []
+    named = [str(p) for p in root.rglob("*.py") if "mrfswarm[" in p.read_text() or "MrfswarmError" in p.read_text()]
+    assert named == []
 
 
 def test_public_api_and_a_quiet_import():

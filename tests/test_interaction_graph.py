@@ -8,13 +8,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mrfswarm.errors import ConfigError
-from mrfswarm.interaction_graph import (
-    check_k, clique_weights, interaction_graph, knn_edges, maximal_cliques, swarm_energy_from_cliques,
+from mrfswarm.discrete.interaction_graph import (
+    check_k,
+    clique_weights,
+    interaction_graph,
+    knn_edges,
+    maximal_cliques,
+    swarm_energy_from_cliques,
 )
-from mrfswarm.label_sets import label_sets
-from mrfswarm.potentials import Morse
-from mrfswarm.swarm_mrf import step_mrf
+from mrfswarm.discrete.label_sets import label_sets
+from mrfswarm.discrete.potentials import Morse
+from mrfswarm.discrete.step_mrf import step_mrf
+from mrfswarm.errors import ConfigError
 
 
 def random_cells(rng, n, span):

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
+from mrfswarm.discrete.label_sets import LabelSets, label_sets
+from mrfswarm.discrete.motion import min_distance_during_move, moves_clear, stencil, step_min_separation, swept_cells
+from mrfswarm.discrete.step_mrf import conflict_tables
 from mrfswarm.geometry import segment_box_distance, segment_clear
-from mrfswarm.label_sets import LabelSets, label_sets
-from mrfswarm.motion import min_distance_during_move, moves_clear, stencil, step_min_separation, swept_cells
-from mrfswarm.swarm_mrf import conflict_tables
 
 
 @pytest.mark.parametrize("n, size", [(1, 5), (2, 9), (4, 13), (5, 21), (8, 25)])

@@ -3,7 +3,7 @@
 Every method of ``solvers.mrf.METHODS`` (the registry, never a list of names) plans a few
 steps on hypothesis-generated maps and swarms, and the paths are checked by dense
 sampling of the straight moves, independently of the planner's geometry, and by
-:func:`mrfswarm.safety.discrete_violations`.
+:func:`mrfswarm.discrete.safety.discrete_violations`.
 
 The paper's label-set heuristics (disjoint label sets, cells of other robots removed)
 leave real swarm MRFs with almost no conflict pairs, so the conflict handling of the
@@ -21,21 +21,20 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
-from mrfswarm.discrete import DiscreteProblem, graph_weights, plan_discrete
-from mrfswarm.label_sets import LabelSets
-from mrfswarm.motion import moves_clear, stencil
-from mrfswarm.potentials import Morse, static_field
-from mrfswarm.safety import discrete_violations
-from mrfswarm.swarm_mrf import step_mrf
+from mrfswarm.discrete.label_sets import LabelSets
+from mrfswarm.discrete.motion import moves_clear, stencil
+from mrfswarm.discrete.planner import DiscreteProblem, graph_weights, plan_discrete
+from mrfswarm.discrete.potentials import Morse, static_field
+from mrfswarm.discrete.safety import discrete_violations
+from mrfswarm.discrete.step_mrf import step_mrf
 from solvers import mrf
 from solvers.mrf.exact import MAX_LABELLINGS
 from solvers.mrf.synthetic import random_mrf, swarm_mrf
-
-from field_support import random_map_static
+from support.fields import random_map_static
 
 METHODS = mrf.METHODS.names()
 #: Exhaustive methods: exponential in N, given tiny problems only.
-TINY_ONLY = {b.name for b in mrf.METHODS if "optimal" in b.capabilities}
+TINY_ONLY = {b.name for b in mrf.METHODS if b.capabilities.optimal}
 ORDERS = [1, 2, 4, 8]
 SAMPLES = 201  # per step and robot: a relative speed of <= 2 * sqrt(8) cells/step moves < 0.03 cell between samples
 

@@ -23,10 +23,10 @@ from solvers.mrf.synthetic import random_mrf, swarm_mrf
 from solvers.registry import Backend, Registry
 
 ALL = mrf.METHODS.names()
-HEURISTIC = [b.name for b in mrf.METHODS if "optimal" not in b.capabilities]
-WITH_BOUND = [b.name for b in mrf.METHODS if "lower_bound" in b.capabilities]
-TREE_EXACT = [b.name for b in mrf.METHODS if {"exact_on_trees", "optimal"} & b.capabilities]
-MONOTONE = [b.name for b in mrf.METHODS if "monotone" in b.capabilities]
+HEURISTIC = [b.name for b in mrf.METHODS if not b.capabilities.optimal]
+WITH_BOUND = [b.name for b in mrf.METHODS if b.capabilities.lower_bound]
+TREE_EXACT = [b.name for b in mrf.METHODS if b.capabilities.exact_on_trees]
+MONOTONE = [b.name for b in mrf.METHODS if b.capabilities.monotone]
 
 
 def test_registry_has_the_ablation_methods():
@@ -35,13 +35,15 @@ def test_registry_has_the_ablation_methods():
     assert all(not b.requires for b in mrf.METHODS)
 
 
-def check_result(m: mrf.PairwiseMRF, res: mrf.MRFResult, method: str) -> None:
+def check_result(m: mrf.PairwiseMRF, res: mrf.MRFResult, method: str, max_iter: int = mrf.Options().max_iter) -> None:
     assert res.method == method
     assert m.is_feasible(res.labels)
     assert res.energy == pytest.approx(m.energy(res.labels), abs=1e-9)
     assert res.energy <= m.energy(m.initial) + 1e-9  # no method returns worse than staying put
     assert res.energy_trace.size >= 1 and res.energy_trace[-1] == pytest.approx(res.energy, abs=1e-9)
-    assert res.iterations >= 0 and res.time_s >= 0 and res.repaired >= 0
+    assert 0 <= res.iterations <= max_iter  # the cap holds
+    assert res.time_s > 0  # measured
+    assert 0 <= res.repaired <= m.n_nodes
 
 
 @pytest.mark.parametrize("method", ALL)
@@ -189,7 +191,7 @@ def test_swarm_problem_every_heuristic_is_feasible_and_above_the_bound(seed):
     m = swarm_mrf(120, seed=seed)
     results = {name: mrf.minimize(m, name, mrf.Options(max_iter=30)) for name in HEURISTIC}
     for name, res in results.items():
-        check_result(m, res, name)
+        check_result(m, res, name, max_iter=30)
     bound = max(results[n].lower_bound for n in WITH_BOUND if n in results)
     assert all(res.energy >= bound - 1e-9 for res in results.values())
     assert results["lazy_flipper"].energy <= results["icm"].energy + 1e-12
@@ -222,7 +224,8 @@ def test_broken_method_output_is_repaired_and_counted(monkeypatch):
         return mrf.MRFResult(labels=bad, energy=mrf_.energy(bad), energy_trace=np.zeros(1), iterations=1,
                              time_s=0.0, method="broken")
 
-    reg = Registry("MRF", list(mrf.METHODS) + [Backend(name="broken", entry=broken)])
+    caps = mrf.MRFCapabilities(optimal=False, lower_bound=False, exact_on_trees=False, monotone=False, stochastic=False)
+    reg = Registry("MRF", [*mrf.METHODS, Backend(name="broken", entry=broken, capabilities=caps)])
     monkeypatch.setattr(mrf, "METHODS", reg)
     assert not m.is_feasible(bad)
     res = mrf.minimize(m, "broken")
@@ -237,7 +240,7 @@ def test_message_passing_counts_its_repairs(method):
     for seed in range(20):
         m = random_mrf(np.random.default_rng(seed), 6, 3, p_conf=1.0, p_forbid=0.5)
         res = mrf.minimize(m, method, mrf.Options(conflict_penalty=0.0, max_iter=10))
-        check_result(m, res, method)
+        check_result(m, res, method, max_iter=10)
         assert res.stats["repairs"] >= (res.repaired > 0)
         found |= res.stats["repairs"] > 0
     assert found
@@ -247,7 +250,7 @@ def test_message_passing_counts_its_repairs(method):
 def test_time_limit_stops_early(method):
     m = swarm_mrf(100, seed=2)
     res = mrf.minimize(m, method, mrf.Options(time_limit=1e-9, max_iter=1000))
-    check_result(m, res, method)
+    check_result(m, res, method, max_iter=1000)
     assert res.iterations <= 1
 
 
@@ -272,12 +275,12 @@ def test_gibbs_schedules_cool(schedule):
     m = swarm_mrf(30, seed=4)
     res = mrf.minimize(m, "gibbs", mrf.Options(schedule=schedule, max_iter=20))
     assert res.stats["t_final"] < res.stats["t0"]
-    check_result(m, res, "gibbs")
+    check_result(m, res, "gibbs", max_iter=20)
 
 
 def test_gibbs_survives_a_temperature_that_underflows_to_zero():
     m = random_mrf(np.random.default_rng(7), 5, 3)
     res = mrf.minimize(m, "gibbs", mrf.Options(max_iter=1200, cooling=0.5, temperature=1e3))
     assert res.stats["t_final"] == 0.0
-    check_result(m, res, "gibbs")
+    check_result(m, res, "gibbs", max_iter=1200)
     assert res.stats["chain_energy"][-1] >= mrf.minimize(m, "exact").energy - 1e-9

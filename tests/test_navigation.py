@@ -15,17 +15,23 @@ from hypothesis import strategies as st
 
 from mrfswarm.cli import main as cli_main
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig, load_config
-from mrfswarm.discrete import SEPARATION_FACTOR, DiscretePlan, DiscreteProblem, plan_discrete
+from mrfswarm.discrete.goal_distance import goal_distance, graph_moves
+from mrfswarm.discrete.motion import moves_clear, stencil
+from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, DiscreteProblem, plan_discrete
+from mrfswarm.discrete.potentials import Morse, goal_distances, goal_field, obstacle_field, static_field
+from mrfswarm.discrete.robot_outcomes import (
+    GOAL_CELLS_PER_ROBOT,
+    RobotOutcome,
+    descent_ends,
+    goal_region_radius,
+    robot_outcomes,
+)
+from mrfswarm.discrete.safety import discrete_violations
 from mrfswarm.errors import ConfigError, ScenarioError
-from mrfswarm.goal_distance import goal_distance, graph_moves
 from mrfswarm.maps import read_movingai
 from mrfswarm.maps.synthetic import GENERATORS, generate
-from mrfswarm.motion import moves_clear, stencil
-from mrfswarm.pipeline import plan
-from mrfswarm.potentials import Morse, goal_distances, goal_field, obstacle_field, static_field
 from mrfswarm.metrics import min_separation
-from mrfswarm.robot_outcomes import GOAL_CELLS_PER_ROBOT, RobotOutcome, descent_ends, goal_region_radius, robot_outcomes
-from mrfswarm.safety import discrete_violations
+from mrfswarm.pipeline import plan
 from mrfswarm.scenario import Scenario, build_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -407,7 +413,7 @@ def test_defaults_navigate_and_paper_configs_pin_the_papers_rules():
 def test_trim_backward_follows_the_free_path_with_the_geodesic_field():
     """Trimming by the straight direction to the goal cuts the way around a wall; with the
     geodesic field the trim drops the moves that lengthen the way along free paths instead."""
-    from mrfswarm.label_sets import label_sets
+    from mrfswarm.discrete.label_sets import label_sets
 
     m = generate("trap", 1)
     free = ~m.occupied

@@ -8,9 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
 
-from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
+from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig, load_config
+from mrfswarm.discrete.potentials import Morse, goal_distances, goal_field, obstacle_field, static_field
 from mrfswarm.errors import ConfigError
-from mrfswarm.potentials import Morse, goal_distances, goal_field, obstacle_field, static_field
 
 
 def test_paper_values():
@@ -54,6 +54,9 @@ def test_d_min_formula_is_the_numeric_minimum(p):
 def test_parameter_conditions_are_enforced(kw, key):
     with pytest.raises(ConfigError, match=key):
         Morse(**kw)
+    # the same conditions when the config is loaded, before any planning
+    with pytest.raises(ConfigError, match=key):
+        load_config(None, [f"interaction.{k}={v}" for k, v in kw.items()])
 
 
 def test_goal_field_values():

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from mrfswarm.discrete.pruning import horizon_bounds, prune_paths
 from mrfswarm.geometry import segment_clear
 from mrfswarm.metrics import discrete_metrics, min_separation, obstacle_clearance
-from mrfswarm.pruning import horizon_bounds, prune_paths
 
 
 def test_horizon_bounds():
@@ -81,7 +81,7 @@ def test_discrete_metrics_summary():
 
 
 def test_segments_clear_is_segment_clear_for_every_segment():
-    from mrfswarm.motion import segments_clear
+    from mrfswarm.discrete.motion import segments_clear
 
     rng = np.random.default_rng(7)
     for density in (0.05, 0.3):

@@ -1,12 +1,13 @@
 """Every registered QP backend against known optima, against each other, and on its errors.
 
 The backends come from the one registry (``solvers.qp.BACKENDS``); a backend that is not
-installed is skipped. References are in ``qp_reference.py`` (analytic, or constructed from
+installed is skipped. References are in ``support/qp_reference.py`` (analytic, or constructed from
 a chosen KKT point, or a dense numpy KKT solve); no backend makes a reference.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
 import tomllib
@@ -16,10 +17,10 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-import qp_reference as ref_problems
 from solvers import qp
 from solvers.errors import InfeasibleError, InvalidProblem, SolverError, SolverNotFound
-from solvers.registry import Backend, Registry
+from solvers.registry import Registry
+from support import qp_reference as ref_problems
 
 NAMES = qp.BACKENDS.names()
 REFERENCES = ref_problems.all_references()
@@ -36,7 +37,7 @@ def installed(name: str) -> None:
 
 
 def equality_only(name: str) -> bool:
-    return not qp.BACKENDS.get(name).entry.supports_inequalities
+    return not qp.BACKENDS.get(name).capabilities.inequalities
 
 
 def assert_agrees(sol: qp.Solution, x_ref: np.ndarray, f_ref: float, what: str = "") -> None:
@@ -88,7 +89,9 @@ def test_known_optimum(name, ref):
     if sol.y is not None and ref.y is not None:  # these references have unique multipliers
         dy = np.abs(sol.y - ref.y).max(initial=0.0)
         assert dy <= 1e-4 * max(1.0, np.abs(ref.y).max(initial=0.0)), f"{name}: |y - y_ref|_inf = {dy:.2e}"
-    assert sol.iterations >= 0 and sol.setup_time_s >= 0 and sol.solve_time_s >= 0
+    assert sol.setup_time_s > 0 and sol.solve_time_s > 0  # both measured, kept apart
+    if ref.has_inequalities:  # no direct solve: every backend that takes inequalities iterates
+        assert sol.iterations >= 1, f"{name}: {sol.iterations} iterations"
 
 
 def test_references_are_what_they_claim():
@@ -122,7 +125,7 @@ def test_infeasible_raises(name):
         with pytest.raises(InvalidProblem, match="singular"):
             qp.solve(qp.QPProblem(P=sp.eye(2), q=np.zeros(2), A=A, l=np.array([1.0, 2.0]), u=np.array([1.0, 2.0])), name)
         return
-    expected = InfeasibleError if "detects_infeasibility" in backend.capabilities else SolverError
+    expected = InfeasibleError if backend.capabilities.detects_infeasibility else SolverError
     with pytest.raises(expected) as info:
         qp.solve(problem, name, qp.Options(max_iter=1000))
     assert info.value.backend == name and info.value.status
@@ -165,6 +168,20 @@ def test_update_and_warm_start_match_fresh_solve(name, matrices):
         s1 = warm
 
 
+@pytest.mark.parametrize("name", NAMES, ids=str)
+def test_a_solution_outlives_the_next_solve(name):
+    """A returned solution owns its arrays: re-solving the prepared problem leaves it alone
+    (piqp and proxsuite hand out views of buffers they overwrite)."""
+    installed(name)
+    base = (ref_problems.random_equality() if equality_only(name) else ref_problems.random_inequality()).problem
+    prepared = qp.prepare(base, name)
+    first = prepared.solve()
+    x, y = first.x.copy(), None if first.y is None else first.y.copy()
+    prepared.update(_perturbed(base, seed=5, matrices=False))
+    prepared.solve()
+    assert np.array_equal(first.x, x) and (y is None or np.array_equal(first.y, y))
+
+
 def test_updated_solutions_agree_across_backends():
     """The updated problems themselves: every backend on one, against a high-accuracy solve
     (piqp with tight tolerances, checked by the KKT test above) - guards against backends that
@@ -191,6 +208,135 @@ def test_update_rejects_another_pattern(name):
         prepared.solve(warm_start=np.zeros(base.n + 1))
 
 
+def _other_row_kinds(problem: qp.QPProblem) -> qp.QPProblem:
+    """Same sparsity pattern, but the first inequality row made an equality (at its value now)."""
+    row = int(np.flatnonzero(~problem.equality_rows & np.isfinite(problem.l))[0])
+    l, u = problem.l.copy(), problem.u.copy()
+    l[row] = u[row] = l[row] + 0.05
+    return qp.QPProblem(P=problem.P, q=problem.q, A=problem.A, l=l, u=u)
+
+
+@pytest.mark.parametrize("name", qp.BACKENDS.available(lambda c: c.inequalities), ids=str)
+def test_update_that_changes_row_kinds_matches_fresh_solve(name):
+    """An update may turn an inequality into an equality (same pattern): backends that split
+    rows by kind must notice and set up again rather than reuse the old split."""
+    first = ref_problems.random_inequality().problem
+    prepared = qp.prepare(first, name)
+    prepared.solve()
+    nxt = _other_row_kinds(first)
+    prepared.update(nxt)
+    fresh = qp.solve(nxt, "piqp")
+    assert_agrees(prepared.solve(), fresh.x, fresh.objective, " (row kinds changed)")
+
+
+def test_clarabel_updates_in_place():
+    """Same pattern and row kinds: Clarabel's own data update, no new solver (its factorization's
+    symbolic part is kept); the updated solve matches a fresh one."""
+    installed("clarabel")
+    base = ref_problems.random_inequality().problem
+    prepared = qp.prepare(base, "clarabel")
+    prepared.solve()
+    solver = prepared._solver
+    nxt = _perturbed(base, seed=3, matrices=True)
+    prepared.update(nxt)
+    assert prepared._solver is solver
+    fresh = qp.solve(nxt, "piqp")
+    assert_agrees(prepared.solve(), fresh.x, fresh.objective, " (in place)")
+    prepared.update(_other_row_kinds(nxt))  # another partition of the rows: a new solver
+    assert prepared._solver is not solver
+
+
+def test_dispatch_refuses_inequalities_for_an_equality_only_backend():
+    """The record, not the backend, decides: an equality-only backend never sets the problem up."""
+    problem = ref_problems.random_inequality().problem
+    with pytest.raises(InvalidProblem, match=r"'closed_form' solves equality-constrained problems only.*piqp"):
+        qp.prepare(problem, "closed_form")
+    with pytest.raises(InvalidProblem, match="equality-constrained"):
+        qp.QPSolver("closed_form").solve(problem)
+    with pytest.raises(InvalidProblem, match="equality-constrained"):  # the backend's own guard, called directly
+        qp.BACKENDS.get("closed_form").entry(problem)
+
+
+# ------------------------------------------------------------------ the reusable handle
+
+
+class _Spy:
+    """Wraps a prepared backend and records how it was used."""
+
+    def __init__(self, inner):
+        self.inner, self.updates, self.starts = inner, 0, []
+
+    def same_pattern(self, problem):
+        return self.inner.same_pattern(problem)
+
+    def update(self, problem):
+        self.updates += 1
+        self.inner.update(problem)
+
+    def solve(self, warm_start=None):
+        self.starts.append(warm_start)
+        return self.inner.solve(warm_start=warm_start)
+
+    @property
+    def setup_time_s(self):
+        return self.inner.setup_time_s
+
+
+@pytest.mark.parametrize("name", ["osqp", "piqp"], ids=str)
+def test_qp_solver_prepares_once_and_warm_starts_only_what_can(name, monkeypatch):
+    installed(name)
+    solver = qp.QPSolver(name)
+    record = solver.record
+    spies: list[_Spy] = []
+
+    def entry(problem, options):
+        spies.append(_Spy(record.entry(problem, options)))
+        return spies[-1]
+
+    monkeypatch.setattr(solver, "record", dataclasses.replace(record, entry=entry))
+    base = ref_problems.random_inequality().problem
+    problems = [base, _perturbed(base, 1, True), _perturbed(base, 2, False)]
+    sols = [solver.solve(p) for p in problems]
+    assert len(spies) == 1 and spies[0].updates == 2  # set up once, then updated
+    assert spies[0].starts[0] is None
+    if record.capabilities.warm_start:
+        assert all(np.array_equal(s, prev.x) for s, prev in zip(spies[0].starts[1:], sols[:-1], strict=True))
+    else:
+        assert spies[0].starts[1:] == [None, None]  # the record says the backend ignores a start: none passed
+    for p, s in zip(problems, sols, strict=True):
+        fresh = qp.solve(p, name)
+        assert_agrees(s, fresh.x, fresh.objective)
+    solver.solve(ref_problems.random_inequality(seed=8, n=20, m=30).problem)  # another pattern: set up again
+    assert len(spies) == 2
+
+
+def test_qp_solver_resets_after_a_failure(monkeypatch):
+    """A failed solve leaves no prepared backend and no warm start behind: the next one sets up afresh."""
+    solver = qp.QPSolver("osqp")
+    base = ref_problems.random_inequality().problem
+    solver.solve(base)
+    prepared = solver._prepared
+    assert prepared is not None and solver._x is not None
+
+    def fail(warm_start=None):
+        raise SolverError("osqp: solve failed (status 'test')", backend="osqp", status="test")
+
+    monkeypatch.setattr(prepared, "solve", fail)
+    with pytest.raises(SolverError, match="test"):
+        solver.solve(_perturbed(base, 1, False))
+    assert solver._prepared is None and solver._x is None
+    fresh = qp.solve(base, "osqp")
+    assert_agrees(solver.solve(base), fresh.x, fresh.objective)
+    assert solver._prepared is not prepared
+
+
+def test_qp_solver_without_reuse_sets_up_every_time():
+    solver = qp.QPSolver("osqp", reuse=False)
+    base = ref_problems.random_inequality().problem
+    solver.solve(base)
+    assert solver._prepared is None
+
+
 def test_proxsuite_sparse_api(monkeypatch):
     """proxsuite switches to its sparse API above ``DENSE_MAX_N`` variables; force it here."""
     installed("proxsuite")
@@ -212,9 +358,8 @@ def test_proxsuite_sparse_api(monkeypatch):
 # ------------------------------------------------------------------ registry, records, availability
 
 
-def test_missing_backend_is_reported_with_its_extra():
-    reg = Registry("QP", [qp.BACKENDS.get("osqp"),
-                          Backend(name="ghost", entry=lambda *a: None, requires=("no_such_module_xyz",), extra="ghost")])
+def test_missing_backend_is_reported_with_its_extra(missing_qp_backend):
+    reg = Registry("QP", [qp.BACKENDS.get("osqp"), missing_qp_backend])
     assert reg.available() == ["osqp"]
     with pytest.raises(SolverNotFound, match=r'not installed.*no_such_module_xyz.*mrfswarm\[ghost\].*installed: osqp'):
         reg.get("ghost")

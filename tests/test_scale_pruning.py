@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from mrfswarm.discrete import DiscreteProblem, plan_discrete
-from mrfswarm.motion import stencil
-from mrfswarm.potentials import Morse
-from mrfswarm.pruning import horizon_bounds, prune_paths, prune_paths_brute_force, prune_robot
+from mrfswarm.discrete.motion import stencil
+from mrfswarm.discrete.planner import DiscreteProblem, plan_discrete
+from mrfswarm.discrete.potentials import Morse
+from mrfswarm.discrete.pruning import horizon_bounds, prune_paths, prune_paths_brute_force, prune_robot
 
 
 def wandering(rng, n, steps, W=25, H=25, order=2):

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from mrfswarm.discrete.motion import min_distance_during_move, segments_clear, stencil, step_min_separation
+from mrfswarm.discrete.safety import discrete_violations, discrete_violations_brute_force
 from mrfswarm.geometry import segment_clear
-from mrfswarm.motion import min_distance_during_move, segments_clear, stencil, step_min_separation
-from mrfswarm.safety import discrete_violations, discrete_violations_brute_force
 
 
 def random_plan(rng, n, steps, W=30, H=30, order=2, p_bad=0.0):

@@ -7,8 +7,8 @@ import pytest
 from scipy.spatial import ConvexHull
 
 import mrfswarm
+from mrfswarm.discrete.safety import discrete_violations
 from mrfswarm.pipeline import plan
-from mrfswarm.safety import discrete_violations
 
 EXP = Path(__file__).resolve().parents[1] / "experiments"
 DISCRETE = ["smoothing.enabled=false"]

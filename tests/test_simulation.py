@@ -64,6 +64,7 @@ def test_the_linear_model_explains_rotorpys_tracking_error():
     assert np.abs(e_j).max() < 0.6 * np.abs(e_sim).max()
 
 
+@pytest.mark.slow
 def test_flown_corridor_keeps_the_separation_within_the_bound():
     r = plan(mrfswarm.load_config(EXP / "corridor.toml"))
     f, c = r.flight, r.continuous

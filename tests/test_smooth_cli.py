@@ -131,12 +131,11 @@ def test_bad_input_is_one_line_exit_2_and_no_output(tmp_path, capsys, case):
     assert [p.name for p in tmp_path.iterdir() if p.name != wp.name] == []  # no temp file left either
 
 
-def test_missing_backend_module_is_one_line(tmp_path, capsys, monkeypatch):
+def test_missing_backend_module_is_one_line(tmp_path, capsys, monkeypatch, missing_qp_backend):
     # a registered backend whose module is not installed: SolverNotFound names the extra
-    from solvers.registry import Backend, Registry
+    from solvers.registry import Registry
 
-    fake = Registry("QP", list(solvers.qp.BACKENDS) + [Backend(name="ghost", entry=None, requires=("no_such_mod_xyz",),
-                                                               extra="ghost")])
+    fake = Registry("QP", [*solvers.qp.BACKENDS, missing_qp_backend])
     monkeypatch.setattr(solvers.qp, "BACKENDS", fake)
     wp = write(tmp_path, "x,y\n0,0\n1,1\n")
     out = tmp_path / "o.csv"

@@ -184,6 +184,8 @@ BAD = {
     "wrong type": (["--grid", "interaction.k=two"], "interaction.k must be an integer"),
     "wrong type at the last point": (["--grid", "interaction.k=2,3,3.5"], "sweep point 2 (interaction.k=3.5)"),
     "out of range": (["--grid", "mrf.order=2,0"], "mrf.order = 0: must be >= 1"),
+    "Morse conditions": (["--grid", "interaction.k_a=14,3"],
+                         "sweep point 1 (interaction.k_a=3): interaction.k_a = 3.0: must be > interaction.k_r = 4.0"),
     "unknown optimizer": (["--grid", "mrf.optimizer=icm,nosuch"], "nosuch"),
     "bad seeds": (["--grid", "interaction.k=2", "--seeds", "0,x"], "--seeds"),
     "empty scheduler address": (["--grid", "interaction.k=2", "--scheduler", " "], "--scheduler: empty address"),

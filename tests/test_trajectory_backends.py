@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from test_trajectory_support import random_walk
 
 import solvers.qp
 from mrfswarm.trajectory import (
@@ -17,6 +16,7 @@ from mrfswarm.trajectory import (
 )
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial, tau_to_time
 from solvers.errors import InfeasibleError, InvalidProblem
+from support.trajectories import random_walk
 
 NAMES = solvers.qp.BACKENDS.names()
 
@@ -25,7 +25,7 @@ def backend_or_skip(name, need_inequalities=False):
     b = solvers.qp.BACKENDS.get(name) if name in solvers.qp.available() else None
     if b is None:
         pytest.skip(f"{name} not installed")
-    if need_inequalities and "inequalities" not in b.capabilities:
+    if need_inequalities and not b.capabilities.inequalities:
         pytest.skip(f"{name} solves equality-only problems")
     return b
 
@@ -117,7 +117,7 @@ def test_corridor_active_and_optimal(name):
 
 
 def test_qp_backends_agree_with_each_other_under_a_corridor():
-    names = [n for n in solvers.qp.available() if "inequalities" in solvers.qp.BACKENDS.get(n).capabilities]
+    names = solvers.qp.BACKENDS.available(lambda c: c.inequalities)
     if not names:
         pytest.skip("no QP backend with inequalities installed")
     problem = corridor_problem()

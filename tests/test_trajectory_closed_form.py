@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from test_trajectory_support import exact_banded_coefficients, kkt_trajectory, random_walk
 
 from mrfswarm.trajectory import (
     MinSnapProblem,
@@ -12,6 +11,7 @@ from mrfswarm.trajectory import (
     solve_min_snap,
 )
 from solvers.errors import InvalidProblem
+from support.trajectories import exact_banded_coefficients, kkt_trajectory, random_walk
 
 
 def test_one_piece_min_snap_is_the_septic_smoothstep():

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from test_trajectory_support import random_walk
 
 import solvers.qp
 from mrfswarm.trajectory import (
@@ -19,6 +18,7 @@ from mrfswarm.trajectory import (
 from mrfswarm.trajectory.formulation import compiled_min_snap, hermite_basis
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial, derivative_row, tau_to_time
 from solvers.errors import InvalidProblem
+from support.trajectories import random_walk
 
 
 def problem_with_everything(rng, degree=9, continuity=None):
@@ -96,8 +96,7 @@ def test_constraint_rows_are_positions_derivatives_and_corridor_samples():
     assert np.abs(seam_jumps(traj, 3)).max() < 1e-8 * np.abs(traj.coefficients).max()
 
 
-@pytest.mark.parametrize("name", [n for n in solvers.qp.available()
-                                  if "inequalities" in solvers.qp.BACKENDS.get(n).capabilities], ids=str)
+@pytest.mark.parametrize("name", solvers.qp.BACKENDS.available(lambda c: c.inequalities), ids=str)
 def test_continuity_above_q_minus_1_is_enforced_under_a_corridor(name):
     rng = np.random.default_rng(3)
     p4 = problem_with_everything(rng, degree=9, continuity=5)

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from test_trajectory_support import random_walk
 
 from mrfswarm.trajectory import (
     MinSnapProblem,
@@ -17,6 +16,7 @@ from mrfswarm.trajectory import (
 )
 from mrfswarm.trajectory.time_allocation import scaled_time_weight, stationary_time_weight
 from solvers.errors import InvalidProblem
+from support.trajectories import random_walk
 
 
 def dense_max(traj, order, rate=5000):

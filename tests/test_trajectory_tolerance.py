@@ -38,7 +38,7 @@ def test_tolerance_validation_and_routing():
     with pytest.raises(InvalidProblem, match="need a QP backend"):
         MinSnapSolver(CLOSED_FORM).solve(MinSnapProblem(W, T, waypoint_tolerance=np.full(5, 0.1)))
     p = MinSnapProblem(W, T, waypoint_tolerance=np.full(5, 0.1))
-    assert p.with_data(durations=2 * T).waypoint_tolerance is not None
+    np.testing.assert_array_equal(p.with_data(durations=2 * T).waypoint_tolerance, np.full((5, 2), 0.1))  # kept, per axis
 
 
 @pytest.mark.parametrize("backend", [b for b in ("osqp", "piqp") if b in solvers.qp.available()])

@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
-from test_trajectory_support import random_walk
 
 from mrfswarm.errors import ScenarioError
 from mrfswarm.trajectory import PiecewisePolynomial, read_uav_csv, solve_min_snap, write_uav_csv
 from mrfswarm.trajectory.uav_csv import HEADER, format_csv
 from solvers.errors import InvalidProblem
+from support.trajectories import random_walk
 
 
 def test_header_is_the_uav_trajectories_one():

@@ -35,6 +35,7 @@ import multiprocessing as mp
 import pathlib
 import statistics
 import time
+from functools import partial
 
 import numpy as np
 
@@ -185,7 +186,7 @@ def main() -> None:
         compiled_min_snap(MinSnapProblem(W, T).shape)  # once, in the parent: the children inherit it
         compile_ms = ms(time.perf_counter() - t0)
         for name in names:
-            out, note = in_child(lambda: bench_backend(name, W, T, args.budget, rng, ref.trajectory), args.timeout)
+            out, note = in_child(partial(bench_backend, name, W, T, args.budget, rng, ref.trajectory), args.timeout)
             if out is None:
                 ours.append(dict(pieces=M, method=name, compile_ms=compile_ms, note=note))
                 continue

@@ -57,26 +57,27 @@ def plain_icm(m: mrf.PairwiseMRF, order: np.ndarray, tol: float = 1e-9, max_swee
         inc_c[v].append((c, u, 1))
     x = m.initial.tolist()
     n_labels = m.n_labels.tolist()
+
+    def local(i: int, a: int) -> float:
+        s = m.unary[i, a]
+        for e, j, end in inc_e[i]:
+            s += m.pairwise[e, a, x[j]] if end == 0 else m.pairwise[e, x[j], a]
+        return s
+
+    def allowed(i: int, a: int) -> bool:
+        for c, j, end in inc_c[i]:
+            if (m.conflict_mask[c, a, x[j]] if end == 0 else m.conflict_mask[c, x[j], a]):
+                return False
+        return True
+
     for _ in range(max_sweeps):
         moved = 0
         for i in order.tolist():
-            def local(a: int) -> float:
-                s = m.unary[i, a]
-                for e, j, end in inc_e[i]:
-                    s += m.pairwise[e, a, x[j]] if end == 0 else m.pairwise[e, x[j], a]
-                return s
-
-            def allowed(a: int) -> bool:
-                for c, j, end in inc_c[i]:
-                    if (m.conflict_mask[c, a, x[j]] if end == 0 else m.conflict_mask[c, x[j], a]):
-                        return False
-                return True
-
-            cur = local(x[i])
+            cur = local(i, x[i])
             best_a, best_v = x[i], cur
             for a in range(n_labels[i]):
-                if allowed(a):
-                    v = local(a)
+                if allowed(i, a):
+                    v = local(i, a)
                     if v < best_v:
                         best_a, best_v = a, v
             if best_v < cur - tol:

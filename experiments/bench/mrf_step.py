@@ -44,10 +44,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
-from mrfswarm.discrete import STAGES, DiscreteProblem, graph_weights, mrf_step, problem_label_sets
-from mrfswarm.motion import MIN_SEPARATION, min_distance_during_move, stencil
-from mrfswarm.potentials import Morse, static_field
-from mrfswarm.swarm_mrf import step_mrf
+from mrfswarm.discrete.motion import MIN_SEPARATION, min_distance_during_move, stencil
+from mrfswarm.discrete.planner import STAGES, DiscreteProblem, graph_weights, mrf_step, step_model
+from mrfswarm.discrete.potentials import Morse, static_field
 from solvers import mrf as mrf_solvers
 
 RESULTS = Path(__file__).parent / "results"
@@ -184,8 +183,7 @@ def methods_table(methods: list[str], sizes: list[int], steps: int, out: Path, o
         for _ in range(steps):
             t0 = time.perf_counter()
             weights = graph_weights(pos, problem.k)
-            labels = problem_label_sets(problem, pos)
-            model = step_mrf(labels, weights, problem.static, problem.morse, problem.resolution)
+            labels, model = step_model(problem, pos, weights)
             shared_t.append(time.perf_counter() - t0)
             stay_e.append(model.energy(model.initial))
             sizes_ec.append((len(model.edges), len(model.conflicts)))
@@ -238,8 +236,8 @@ def main() -> None:
     ap.add_argument("--methods-out", type=Path, default=RESULTS / "mrf_step_methods.csv")
     args = ap.parse_args()
     if args.methods is not None:
-        names = args.methods.split(",") if args.methods else [
-            b.name for b in mrf_solvers.METHODS if "optimal" not in b.capabilities and b.name in mrf_solvers.available()]
+        names = (args.methods.split(",") if args.methods
+                 else mrf_solvers.METHODS.available(lambda c: not c.optimal))
         for name in names:
             mrf_solvers.METHODS.get(name)
         methods_table(names, [int(v) for v in args.method_sizes.split(",")], args.steps, args.methods_out)

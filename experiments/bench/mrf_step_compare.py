@@ -42,7 +42,7 @@ def child(n: int, k: int, order: int, warmup: int, steps: int, code: str | None)
 
     from mrf_step import swarm
 
-    from mrfswarm.discrete import DiscreteProblem, graph_weights, mrf_step
+    from mrfswarm.discrete.planner import DiscreteProblem, graph_weights, mrf_step
 
     base = swarm(n)
     problem = DiscreteProblem(**{**base.__dict__, "order": order, "k": min(k, n - 1)})

@@ -66,9 +66,9 @@ def child(n: int, code: str | None, continuous: bool = False, workers: int | Non
     import resource
 
     import mrfswarm
+    from mrfswarm.discrete.safety import discrete_violations
     from mrfswarm.outputs import write_outputs
     from mrfswarm.pipeline import plan
-    from mrfswarm.safety import discrete_violations
 
     cfg = mrfswarm.load_config(None, overrides(n, continuous))
     t0 = time.perf_counter()

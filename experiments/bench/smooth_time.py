@@ -42,6 +42,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from functools import partial
 
 import numpy as np
 from min_snap import in_child, repeat, waypoints
@@ -147,11 +148,11 @@ def main() -> None:
     for n in args.sizes:
         W = waypoints(n - 1, args.seed + n)
         T0 = constant_speed_durations(W, 1.0)
-        solve_s = statistics.median(t for t, _ in repeat(lambda: _timed(solve_min_snap, W, T0), args.budget / 4))
-        runs = repeat(lambda: _timed(refine_durations, W, T0), args.budget)
+        solve_s = statistics.median(t for t, _ in repeat(partial(_timed, solve_min_snap, W, T0), args.budget / 4))
+        runs = repeat(partial(_timed, refine_durations, W, T0), args.budget)
         adj_s = statistics.median(t for t, _ in runs)
         ref = runs[-1][1]
-        fd, note = in_child(lambda: _timed(refine_finite_differences, W, T0), args.timeout)
+        fd, note = in_child(partial(_timed, refine_finite_differences, W, T0), args.timeout)
         base = dict(waypoints=n, pieces=n - 1)
         rows.append(dict(base, method="unrefined", time_s=solve_s, iterations=0,
                          **flight(W, T0, args.v_max, args.a_max)))

@@ -1,8 +1,10 @@
 """The ``mrfswarm`` command: one module per subcommand, errors turned into one line.
 
 Every module of this package that defines ``add_parser(subparsers)`` (which sets
-``func``) is a subcommand; they are found, not listed. A :class:`MrfswarmError` (bad config, bad input, missing
-backend) becomes one line on stderr and exit code 2; no traceback.
+``func``) is a subcommand; they are found, not listed. Every error the toolkit raises on purpose
+(:class:`~mrfswarm.errors.MrfswarmError` of the domain, and the numerical layer's, under their common root
+:class:`~solvers.errors.SolversError`: bad config, bad input, missing backend) becomes one line on stderr and
+exit code 2; no traceback.
 """
 
 from __future__ import annotations
@@ -12,12 +14,13 @@ import importlib
 import logging
 import pkgutil
 import sys
+from typing import NoReturn
 
-from mrfswarm.errors import MrfswarmError
+from mrfswarm.errors import SolversError
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # argparse's default prints usage; one line is enough
+    def error(self, message: str) -> NoReturn:  # argparse's default prints usage; one line is enough
         self.exit(2, f"mrfswarm: error: {message}\n")
 
 
@@ -40,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         rc = args.func(args)
-    except MrfswarmError as e:
+    except SolversError as e:  # MrfswarmError and the solvers layer's errors
         msg = str(e).splitlines()[0] if str(e) else type(e).__name__
         print(f"mrfswarm: error: {msg}", file=sys.stderr)
         return 2

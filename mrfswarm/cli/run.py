@@ -38,7 +38,7 @@ def _positive_int(text: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from mrfswarm.errors import MrfswarmError
+    from mrfswarm.errors import PlanError
     from mrfswarm.outputs import write_outputs
     from mrfswarm.pipeline import plan
 
@@ -51,19 +51,16 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"default output folder {e}; give --out") from None
     try:
         result = plan(cfg, mrf=args.mrf, qp=args.qp, seed=args.seed, workers=args.workers)
-    except MrfswarmError as e:
-        partial = getattr(e, "partial_result", None)
-        if partial is not None:  # keep what was computed before the failure
-            write_outputs(partial, out)
-            raise type(e)(f"{e} (what was computed is in {out})") from e
-        raise
+    except PlanError as e:  # keep what was computed before the failure
+        write_outputs(e.result, out)
+        raise PlanError(f"{e} (what was computed is in {out})", e.result) from e
     write_outputs(result, out, animate=args.animate)
     s = result.summary()
     goal = "" if s["reached_goal"] is None else (
         f", reached goal: {s['reached_goal']}, robots at goal: {s['robots_at_goal']}/{s['n_robots']}")
     short = [r for r in s["robots"] if r["stop_reason"] is not None]
     if short:
-        why = {}
+        why: dict[str, list[str]] = {}
         for r in short:
             why.setdefault(r["stop_reason"], []).append(str(r["robot"]))
         goal += " (" + "; ".join(f"{k}: robot{'s' * (len(v) > 1)} {', '.join(v[:8])}{' ...' if len(v) > 8 else ''}"

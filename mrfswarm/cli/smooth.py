@@ -36,6 +36,8 @@ import math
 import time
 from pathlib import Path
 
+import numpy as np
+
 import solvers.qp
 from mrfswarm.config import ScenarioConfig
 from mrfswarm.errors import ConfigError
@@ -148,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--altitude applies to 2-D waypoints only; the waypoints have a z column")
     M = W.shape[0] - 1
     if args.durations is not None:
-        T = _durations(args.durations)
+        T = np.asarray(_durations(args.durations))
         if len(T) != M:
             raise ConfigError(f"--durations has {len(T)} value{'s' * (len(T) != 1)}; {M + 1} waypoints need {M}")
     else:

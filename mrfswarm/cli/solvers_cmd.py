@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 import solvers
+from solvers.registry import Registry
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -13,14 +15,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def table() -> str:
-    """The listing, one row per backend of each registry."""
+    """The listing, one row per backend of each registry: state, summary and capabilities."""
     lines = []
-    for title, registry in (("QP backends (--qp)", solvers.qp.BACKENDS), ("MRF methods (--mrf)", solvers.mrf.METHODS)):
+    registries: tuple[tuple[str, Registry[Any]], ...] = (
+        ("QP backends (--qp)", solvers.qp.BACKENDS), ("MRF methods (--mrf)", solvers.mrf.METHODS))
+    for title, registry in registries:
         lines.append(title)
         width = max(len(b.name) for b in registry)
         for b in registry:
             state = "installed" if b.is_available() else f"missing: {b.install_hint}"
             lines.append(f"  {b.name:<{width}}  {state:<40}  {b.summary}")
+            lines.append(f"  {'':<{width}}  {'':<40}  [{', '.join(b.capabilities.flags()) or 'none'}]")
         lines.append("")
     return "\n".join(lines).rstrip() + "\n"
 

@@ -9,7 +9,9 @@ Modules, one part each:
   CasADi, as a QP (fixed durations) or an NLP (durations as variables);
 - :mod:`~mrfswarm.continuous.time_grid`: nominal and witness step durations;
 - :mod:`~mrfswarm.continuous.certificate`: the exact certificate of a flight;
-- :mod:`~mrfswarm.continuous.receding_horizon`: the window loop.
+- :mod:`~mrfswarm.continuous.receding_horizon`: the window loop;
+- :mod:`~mrfswarm.continuous.sampled_check`: the optional dense sampled check (independent
+  of the certificate).
 """
 
 from mrfswarm.continuous.certificate import Certificate, certify, hull_distance_from_origin

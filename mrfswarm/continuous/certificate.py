@@ -23,7 +23,7 @@ and computes the hull's distance from the origin exactly (the origin is outside 
 hull iff the points' directions leave an angular gap wider than pi; the distance is then
 the smallest distance to a segment between two of the points). Each check costs a fixed
 amount per piece or near pair, so certifying is near-linear in the number of robots.
-Dense sampling remains the independent check (:mod:`mrfswarm.continuous_check`).
+Dense sampling remains the independent check (:mod:`mrfswarm.continuous.sampled_check`).
 """
 
 from __future__ import annotations
@@ -32,9 +32,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mrfswarm.continuous.formulation import LIMIT_PARTS
 from mrfswarm.continuous.regions import Regions, near_pairs
 from mrfswarm.geometry import point_segment_distance
-from mrfswarm.continuous.formulation import LIMIT_PARTS
 from mrfswarm.trajectory.bernstein import tau_control_points
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial
 
@@ -113,7 +113,7 @@ def certify_pieces(cps: list[np.ndarray], regions: Regions, distance: float,
     viol = regions.violation(P.transpose(1, 0, 2, 3))  # (M, N)
     worst = float(viol.max(initial=0.0))
     if worst > 0:
-        j, i = np.unravel_index(int(np.argmax(viol)), viol.shape)
+        j, i = (int(v) for v in np.unravel_index(int(np.argmax(viol)), viol.shape))
         problems.append(f"robot {i} leaves its region in step {j} by {worst:.3g} m")
     bounds = []
     for r, lim, name in zip((1, 2, 3), limits, ("speed", "acceleration", "jerk")):
@@ -121,7 +121,7 @@ def certify_pieces(cps: list[np.ndarray], regions: Regions, distance: float,
         top = float(norms.max(initial=0.0))
         bounds.append(top)
         if top > lim:
-            i, j = np.unravel_index(int(np.argmax(norms)), norms.shape)
+            i, j = (int(v) for v in np.unravel_index(int(np.argmax(norms)), norms.shape))
             problems.append(f"robot {i}'s {name} control points reach {top:.4g} > {lim:g} in step {j}")
     lo, hi = P.min(axis=2), P.max(axis=2)  # (N, M, 2)
     sep, checked = np.inf, 0

@@ -67,8 +67,9 @@ from mrfswarm.continuous.regions import (
     region_clearance,
     separations,
 )
+from mrfswarm.continuous.sampled_check import SampledCheck, check_positions
+from mrfswarm.continuous.sampled_check import uniform_times as sample_times
 from mrfswarm.continuous.time_grid import nominal_durations, witness_durations
-from mrfswarm.continuous_check import SampledCheck, check_positions, sample_times
 from mrfswarm.errors import UnsafeTrajectoryError
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.maps.obstacles import ObstacleIndex

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm import plots
+from mrfswarm.discrete.interaction_graph import CliqueWeights, interaction_graph
 from mrfswarm.figures.runs import experiment_config
-from mrfswarm.interaction_graph import CliqueWeights, interaction_graph
 from mrfswarm.scenario import Scenario, build_scenario
 
 #: The experiment config of the 5-robot example (Figs. 2 and 3a/b).
@@ -98,6 +98,7 @@ def factor_graph_layout(n: int, cliques: list[np.ndarray]) -> tuple[list[int], l
             c = _crossings(var_slot, list(fp), cliques)
             if best is None or c < best[0]:
                 best = (c, [var_slot[i] for i in range(n)], list(fp))
+    assert best is not None  # at least one permutation
     return best[1], best[2]
 
 

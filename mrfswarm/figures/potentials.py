@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm import plots
+from mrfswarm.discrete.potentials import Morse, obstacle_field
 from mrfswarm.figures.runs import experiment_config
 from mrfswarm.maps import OccupancyGrid
-from mrfswarm.potentials import Morse, obstacle_field
 from mrfswarm.scenario import build_scenario
 
 #: The scenario whose map Fig. 3c/d show.
@@ -37,7 +37,7 @@ INTERACTION_STEP = 0.25
 def interaction_field(points: np.ndarray, robots: np.ndarray, morse: Morse) -> np.ndarray:
     """I(p) = sum_j rho_I(|p - x_j|) at each point of ``points`` (..., 2), metres."""
     d = np.linalg.norm(np.asarray(points, float)[..., None, :] - np.asarray(robots, float), axis=-1)
-    return morse(d).sum(axis=-1)
+    return np.asarray(morse(d)).sum(axis=-1)
 
 
 @dataclass(frozen=True)
@@ -155,6 +155,7 @@ def combined_field(name: str = COMBINED) -> CombinedField:
     cells = np.stack(np.meshgrid(np.arange(W), np.arange(H), indexing="ij"), axis=-1)
     world = scn.grid.cell_to_world(cells.reshape(-1, 2)).reshape(W, H, 2)
     robots = scn.grid.cell_to_world(scn.start)
+    assert scn.goal_world is not None  # the combined-field scenario has a goal
     return CombinedField(grid=scn.grid, static=scn.static, interaction=interaction_field(world, robots, scn.morse),
                          robots=robots, goal=scn.goal_world)
 

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm import plots
+from mrfswarm.discrete.interaction_graph import knn_edges
 from mrfswarm.figures.runs import discrete_run
-from mrfswarm.interaction_graph import knn_edges
 from mrfswarm.metrics import obstacle_clearance
 from mrfswarm.pipeline import Result
 
@@ -81,6 +81,7 @@ def make_fig5(out: Path, quick: bool = False) -> list[Path]:
     r = snap.result
     grid = r.scenario.grid
     goal = r.scenario.goal_world
+    assert goal is not None  # the scenario has a goal
     world = snap.world
     k = r.config.interaction.k
     n = world.shape[1]

@@ -51,14 +51,11 @@ TIMING_REPEATS = 3
 
 
 def valid_morse(a: float, b: float, k_a: float, k_r: float) -> str | None:
-    """None if the paper's conditions hold, else which one fails."""
-    if not b >= a:
-        return "b_I < a_I"
-    if not k_a > k_r:
-        return "k_a <= k_r"
-    if not b * k_r / (a * k_a) < 1:
-        return f"b k_r / (a k_a) = {b * k_r / (a * k_a):.2f} >= 1"
-    return None
+    """None if the paper's conditions hold, else which one fails (:func:`~mrfswarm.discrete.potentials.morse_violation`)."""
+    from mrfswarm.discrete.potentials import morse_violation
+
+    broken = morse_violation(a, b, k_a, k_r)
+    return None if broken is None else broken[0]
 
 
 # --- running many configs: the sweep runner -----------------------------------------------------
@@ -123,7 +120,7 @@ class SwarmSizeSweep:
         return (float(np.mean(v)), float(np.std(v))) if v else (float("nan"), float("nan"))
 
     def d_min(self, k_a: float, k_r: float) -> float:
-        from mrfswarm.potentials import Morse
+        from mrfswarm.discrete.potentials import Morse
 
         return Morse(a=self.a, b=self.b, k_a=k_a, k_r=k_r).d_min
 
@@ -159,7 +156,7 @@ def a_sweep(quick: bool = False) -> list[dict]:
     base = experiment_config(SWARM_SIZE).interaction
     vals = [a for a in A_I[quick] if valid_morse(a, base.b, base.k_a, base.k_r) is None]
     recs = run_points(SWARM_SIZE, {"interaction.a": [float(a) for a in vals]}, SEEDS[quick])
-    from mrfswarm.potentials import Morse
+    from mrfswarm.discrete.potentials import Morse
 
     out = []
     for a in vals:
@@ -188,7 +185,7 @@ def graph_changes(name: str) -> list[bool]:
     An ICM step never raises the energy of the graph it optimized, so the swarm energy
     (each configuration on its own graph) can only rise at a step where the graph changed.
     """
-    from mrfswarm.interaction_graph import knn_edges
+    from mrfswarm.discrete.interaction_graph import knn_edges
 
     r = discrete_run(name)
     k = r.config.interaction.k
@@ -198,7 +195,7 @@ def graph_changes(name: str) -> list[bool]:
 
 def clique_counts(name: str) -> list[int]:
     """Number of maximal cliques of each step's k-NN graph along a scenario's discrete paths."""
-    from mrfswarm.discrete import graph_weights
+    from mrfswarm.discrete.planner import graph_weights
 
     r = discrete_run(name)
     return [len(graph_weights(p, r.config.interaction.k).cliques) for p in r.discrete.paths]
@@ -250,7 +247,7 @@ def step_times(quick: bool = False) -> list[dict]:
     toward a goal in free space (k = min(7, N - 1)); one warm-up step first. Also records
     the mean label-set size (cells per robot), the work that grows with n.
     """
-    from mrfswarm.discrete import DiscreteProblem, mrf_step, problem_label_sets
+    from mrfswarm.discrete.planner import DiscreteProblem, mrf_step, problem_label_sets
 
     swarm = _bench_swarm()
     mrf_step(swarm(5), swarm(5).start)  # warm-up (imports, caches)

@@ -109,7 +109,7 @@ class TimeSeries:
 def time_series(name: str, rate_hz: float = RATE_HZ, smoothing: str | None = None) -> TimeSeries:
     """The smoothed flight of a scenario sampled at ``rate_hz`` (Fig. 6's smoothing unless given)."""
     r = scenario_run(name, smoothing or SMOOTHED[name])
-    c = r.continuous
+    c = r.smoothed()
     t = np.linspace(0.0, c.makespan_s, int(c.makespan_s * rate_hz) + 1)
     pos = c.positions(t)
     ds = distance_series(pos)
@@ -153,7 +153,7 @@ def formation_census(seeds: int = CENSUS_SEEDS) -> dict:
 def scenario_numbers(name: str) -> dict:
     """What Fig. 6 shows of one scenario, in numbers."""
     r = smoothed_run(name)
-    d, m, c = r.discrete, r.metrics, r.continuous
+    d, m, c = r.discrete, r.metrics, r.smoothed()
     final = r.discrete_paths_world()[-1]
     nn = nearest_distances(final)
     ts = time_series(name)
@@ -205,7 +205,7 @@ def _discrete_panel(ax, r: Result) -> None:
 
 def _smooth_panel(ax, r: Result) -> None:
     world = r.discrete_paths_world()
-    c = r.continuous
+    c = r.smoothed()
     t = np.linspace(0.0, c.makespan_s, int(c.makespan_s * 40) + 2)
     pos = c.positions(t)
     n = pos.shape[1]
@@ -235,7 +235,7 @@ def make_fig6(out: Path, quick: bool = False) -> list[Path]:
             plots.panel_title(axes[0, j], "abcd"[j], f"{name}: {what}")
             _smooth_panel(axes[1, j], r)
             how = "smoothed, one window" if SMOOTHED[name] == "single" else "receding horizon"
-            plots.panel_title(axes[1, j], "efgh"[j], f"{name} {how}: {r.continuous.makespan_s:.1f} s flight")
+            plots.panel_title(axes[1, j], "efgh"[j], f"{name} {how}: {r.smoothed().makespan_s:.1f} s flight")
             axes[0, j].legend(loc="upper left", fontsize=7.5, framealpha=0.9)
         fig.suptitle("Fig. 6: final discrete trajectories (a-d; n = 2, ICM), min-snap smoothed (e, f) and smoothed "
                      "with receding-horizon planning (g, h; ours: safe regions, H = 8 steps, 50 % executed, "
@@ -251,7 +251,7 @@ def variant_numbers(name: str = "corridor") -> dict:
     out = {}
     for v in VARIANTS:
         r = scenario_run(name, v)
-        c = r.continuous
+        c = r.smoothed()
         ts = time_series(name, 100.0, v)
         lengths = np.linalg.norm(np.diff(ts.positions, axis=0), axis=-1).sum(axis=0)
         bound = float(lengths.max()) / r.config.smoothing.v_max
@@ -321,13 +321,13 @@ def flight_3d(quick: bool = False) -> tuple[np.ndarray, str, Result]:
     """
     if quick:
         r = smoothed_run("blocks")
-        c = r.continuous
+        c = r.smoothed()
         t = np.linspace(0.0, c.makespan_s, int(c.makespan_s * 20) + 2)
         xy = c.positions(t)
         z = np.full(xy.shape[:2] + (1,), r.config.scenario.altitude)
         return np.concatenate([xy, z], axis=2), "planned (quick mode: not flown)", r
     r = scenario_run("blocks", SMOOTHED["blocks"], ("simulation.enabled=true",))
-    f = r.flight
+    f = r.flown()
     pos = np.stack([fl.positions for fl in f.flights], axis=1)[::5]
     return pos, (f"flown in RotorPy ({r.config.simulation.vehicle}), max tracking error "
                  f"{f.max_tracking_error * 100:.1f} cm"), r
@@ -350,9 +350,9 @@ def make_authors(out: Path, quick: bool = False) -> list[Path]:
                               f"{r.discrete.n_steps} steps ({r.discrete.stop_reason}), {goal}")
             axes[0, j].legend(loc="upper left", fontsize=7.5, framealpha=0.9)
             _smooth_panel(axes[1, j], r)
-            sep = r.continuous.min_separation
+            sep = r.smoothed().min_separation
             plots.panel_title(axes[1, j], "cd"[j], f"{name} smoothed, receding horizon: "
-                              f"{r.continuous.makespan_s:.0f} s, min separation {sep:.2f} m")
+                              f"{r.smoothed().makespan_s:.0f} s, min separation {sep:.2f} m")
         fig.suptitle("Extra (not a paper figure): the authors' own swarm sizes, 10 drones in the corridor and 12 among "
                      "the blocks")
         return [plots.save_figure(fig, Path(out) / "extra_authors_swarms.png", dpi=90)]
@@ -369,9 +369,9 @@ def numbers_authors(quick: bool = False) -> dict:
             "stop_reason": r.discrete.stop_reason, "reached_goal": r.metrics.reached_goal,
             "final_goal_distance_m": r.metrics.final_goal_distance,
             "min_separation_discrete_m": r.metrics.min_separation,
-            "min_separation_continuous_m": float(r.continuous.min_separation),
+            "min_separation_continuous_m": float(r.smoothed().min_separation),
             "final_cells_distinct": len({tuple(c) for c in final.tolist()}) == len(final),
-            "makespan_s": r.continuous.makespan_s,
+            "makespan_s": r.smoothed().makespan_s,
         }
     return out
 
@@ -409,7 +409,7 @@ def make_fig1(out: Path, quick: bool = False) -> list[Path]:
         ax.set_ylabel("y [m]")
         ax.set_zlabel("z [m]")
         ax.set_title(f"Fig. 1: {n} quadrotors flying through the blocks ({z:g} m altitude, "
-                     f"{r.continuous.makespan_s:.0f} s)\n{what}; thin lines: shadows on the ground", y=0.95)
+                     f"{r.smoothed().makespan_s:.0f} s)\n{what}; thin lines: shadows on the ground", y=0.95)
         return [plots.save_figure(fig, Path(out) / "fig1_flight.png")]
 
 
@@ -418,7 +418,7 @@ def make_gifs(out: Path, quick: bool = False) -> list[Path]:
     written = []
     for name in SCENARIOS:
         r = smoothed_run(name)
-        c = r.continuous
+        c = r.smoothed()
         frames = np.linspace(0.0, c.makespan_s, max(2, int(c.makespan_s * 2) + 1))
         path = Path(out) / f"anim_{name}.gif"
         plots.animate(path, r.scenario.grid, frames, c.positions(frames), r.scenario.goal_world, fps=10,
@@ -430,7 +430,7 @@ def make_gifs(out: Path, quick: bool = False) -> list[Path]:
 def numbers_fig1(quick: bool = False) -> dict:
     """The numbers behind Fig. 1, for ``measured.json``."""
     _, what, r = flight_3d(quick)
-    out = {"makespan_s": r.continuous.makespan_s, "altitude_m": r.config.scenario.altitude, "shown": what}
+    out = {"makespan_s": r.smoothed().makespan_s, "altitude_m": r.config.scenario.altitude, "shown": what}
     if r.flight is not None:
         f = r.flight
         out.update({"max_tracking_error_m": f.max_tracking_error, "tracking_error_bound_m": f.tracking_bound,

@@ -113,7 +113,8 @@ class OccupancyGrid:
     @property
     def shape(self) -> tuple[int, int]:
         """``(W, H)`` in cells."""
-        return self.prob.shape  # type: ignore[return-value]
+        W, H = self.prob.shape
+        return W, H
 
     @property
     def width(self) -> int:

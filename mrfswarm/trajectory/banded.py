@@ -48,7 +48,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.linalg import lapack
 
-from mrfswarm.trajectory.polynomial import cost_hessian, falling_factorials
+from mrfswarm.trajectory.polynomial import cost_hessian, falling_factorials, piece_costs
 from mrfswarm.trajectory.problem import MinSnapProblem
 from solvers.errors import InvalidProblem, SolverError
 
@@ -79,15 +79,16 @@ def _row_terms(q: int, ks: int, ke: int):
     ``(terms, rhs)`` with rhs ``("w", offset)`` (waypoint), ``("g0", r)``, ``("g1", r)``
     or ``None`` (zero).
     """
-    start = [([(0, 0.0, 0, 1.0)], ("w", 0))]
+    Row = tuple[list[tuple[int, float, int, float]], tuple[str, int] | None]
+    start: list[Row] = [([(0, 0.0, 0, 1.0)], ("w", 0))]
     start += [([(0, 0.0, r, 1.0)], ("g0", r)) for r in range(1, ks + 1)]
     start += [([(0, 0.0, 2 * q - 1 - r, 1.0)], None) for r in range(ks + 1, q)]
-    end = [([(0, 1.0, 0, 1.0)], ("w", 1))]
+    end: list[Row] = [([(0, 1.0, 0, 1.0)], ("w", 1))]
     end += [([(0, 1.0, r, 1.0)], ("g1", r)) for r in range(1, ke + 1)]
     end += [([(0, 1.0, 2 * q - 1 - r, 1.0)], None) for r in range(ke + 1, q)]
     cont = range(1, 2 * q - 1)  # c >= q - 1: the optimum is C^(2q-2) whatever c is
     # left-only row, rows coupling both pieces, right-only row (keeps the band tight)
-    knot = [([(0, 1.0, 0, 1.0)], ("w", 1))]
+    knot: list[Row] = [([(0, 1.0, 0, 1.0)], ("w", 1))]
     knot += [([(0, 1.0, m, 1.0), (1, 0.0, m, -1.0)], None) for m in cont]
     knot += [([(1, 0.0, 0, 1.0)], ("w", 1))]
     assert len(start) == q and len(end) == q and len(knot) == 2 * q
@@ -253,19 +254,17 @@ def solve_banded(problem: MinSnapProblem, gradient: bool = False) -> BandedSolut
         raise SolverError(f"closed_form: dgbtrs failed (info={info})", backend="closed_form", status=f"info={info}")
     N = 2 * q
     coeffs = X.reshape(M, N, s.dim)
-    H = cost_hessian(N - 1, q)
-    Hc = np.einsum("kl,ild->ikd", H, coeffs)
-    per_piece = np.einsum("ikd,ikd->i", coeffs, Hc)
-    w = T ** (1 - 2 * q)
-    cost = float(per_piece @ w)
+    costs = piece_costs(coeffs, T, q)
+    cost = float(costs.sum())
     if not np.isfinite(cost):
         raise SolverError("closed_form: non-finite solution", backend="closed_form", status="nonfinite")
     grad = None
     if gradient:
-        # adjoint: A^T lam = dJ/dc
-        dJdc = (2.0 * w[:, None, None] * Hc).reshape(pat.n, s.dim)
+        # adjoint: A^T lam = dJ/dc, with dJ/dc_i = 2 T_i^(1-2q) H c_i
+        w = T ** (1 - 2 * q)
+        dJdc = (2.0 * w[:, None, None] * np.einsum("kl,ild->ikd", cost_hessian(N - 1, q), coeffs)).reshape(pat.n, s.dim)
         lam, info = lapack.dgbtrs(lu, pat.kl, pat.ku, dJdc, piv, trans=1)
-        grad = (1 - 2 * q) * T ** (-2 * q) * per_piece
+        grad = (1 - 2 * q) * costs / T
         # d(entry)/dT: entry = const * (T_i / T_{i+1})^expo on knot i
         contrib = vals * pat.expo * np.einsum("ed,ed->e", lam[pat.row], X[pat.col])
         mask = pat.expo != 0

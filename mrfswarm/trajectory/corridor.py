@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -109,7 +110,8 @@ def evaluate_reference(reference: Reference | np.ndarray, times: np.ndarray, dim
             if out.shape[:-1] != times.shape:
                 raise ValueError
         except (ValueError, TypeError, IndexError):
-            out = np.array([np.asarray(reference(float(t)), dtype=float) for t in times.reshape(-1)])
+            scalar_ref = cast(Callable[[float], np.ndarray], reference)  # it takes scalars only
+            out = np.array([np.asarray(scalar_ref(float(t)), dtype=float) for t in times.reshape(-1)])
             out = out.reshape(times.shape + (-1,))
     else:
         out = np.asarray(reference, dtype=float)

@@ -14,8 +14,8 @@ corridor and ``solvers.qp.DEFAULT_BACKEND`` with one.
 
 The QP path evaluates the formulation compiled once per shape
 (:mod:`mrfswarm.trajectory.formulation`) on normalized data (see :class:`Normalization`)
-and maps the solution back; :class:`MinSnapSolver` keeps the prepared backend between
-solves of the same shape so that a re-solve only updates the data and warm-starts.
+and maps the solution back; :class:`MinSnapSolver` keeps a :class:`solvers.qp.QPSolver`
+per backend, so that a re-solve of the same shape only updates the data and warm-starts.
 """
 
 from __future__ import annotations
@@ -31,10 +31,10 @@ import solvers.qp
 from mrfswarm.trajectory import banded
 from mrfswarm.trajectory.corridor import Corridor
 from mrfswarm.trajectory.formulation import compiled_min_snap
-from mrfswarm.trajectory.polynomial import PiecewisePolynomial, cost_hessian, tau_to_time
+from mrfswarm.trajectory.polynomial import PiecewisePolynomial, piece_costs, tau_to_time
 from mrfswarm.trajectory.problem import EndSpec, MinSnapProblem, MinSnapShape
 from solvers.errors import InvalidProblem, SolverNotFound
-from solvers.qp import Options, QPProblem, Solution
+from solvers.qp import Options, QPProblem, QPSolver, Solution
 
 log = logging.getLogger(__name__)
 
@@ -135,27 +135,6 @@ class MinSnapResult:
         return self.formulate_time_s + self.setup_time_s + self.solve_time_s
 
 
-_RECORDS: dict = {}
-
-
-def _backend(name: str):
-    """The registry record of ``name``, looked up once per registry.
-
-    ``Registry.get`` probes the modules of every backend (to name the installed ones
-    in its error message), which costs about 50 microseconds per call.
-    """
-    key = (id(solvers.qp.BACKENDS), name)
-    rec = _RECORDS.get(key)
-    if rec is None:
-        rec = _RECORDS[key] = solvers.qp.BACKENDS.get(name)
-    return rec
-
-
-def _cost(c_tau: np.ndarray, T: np.ndarray, q: int) -> float:
-    H = cost_hessian(c_tau.shape[1] - 1, q)
-    return float(np.einsum("ikd,kl,ild->i", c_tau, H, c_tau) @ T ** (1 - 2 * q))
-
-
 class MinSnapSolver:
     """Solves min-snap problems with one backend, reusing its setup across same-shape solves.
 
@@ -178,14 +157,12 @@ class MinSnapSolver:
     def __init__(self, backend: str | None = None, options: Options | None = None, *, warm: bool = True,
                  formulated: bool = False) -> None:
         if backend is not None and (backend != CLOSED_FORM or formulated):
-            _backend(backend)  # fail early on an unknown or missing backend
+            solvers.qp.BACKENDS.get(backend)  # fail early on an unknown or missing backend
         self.backend = backend
         self.options = options
         self.warm = warm
         self.formulated = formulated
-        self._prepared = None
-        self._shape: MinSnapShape | None = None
-        self._x: np.ndarray | None = None
+        self._solvers: dict[str, QPSolver] = {}  # one reusable handle per backend the route picks
 
     def _route(self, problem: MinSnapProblem) -> tuple[str, str]:
         name = self.backend
@@ -232,29 +209,16 @@ class MinSnapSolver:
         t0 = time.perf_counter()
         qp, norm = min_snap_qp(problem)
         t_form = time.perf_counter() - t0
-        record = _backend(name)
-        reuse = self.warm and self._prepared is not None and self._shape == problem.shape and self._prepared.name == name
-        try:
-            if reuse:
-                t1 = time.perf_counter()
-                self._prepared.update(qp)
-                setup = time.perf_counter() - t1
-                sol = self._prepared.solve(warm_start=self._x if "warm_start" in record.capabilities else None)
-            else:
-                self._prepared = record.entry(qp, self.options)  # what solvers.qp.prepare does
-                self._shape = problem.shape
-                setup = self._prepared.setup_time_s
-                sol = self._prepared.solve()
-        except Exception:
-            # A failed solve leaves the backend's iterates (and duals) where they are: an
-            # infeasibility certificate would be the next warm start. Start afresh next time.
-            self._prepared, self._shape, self._x = None, None, None
-            raise
-        self._x = sol.x
-        c_tau = norm.tau_coefficients(problem, sol.x)
+        solver = self._solvers.get(name)
+        if solver is None:
+            solver = self._solvers[name] = QPSolver(name, self.options, reuse=self.warm)
+        qp_sol = solver.solve(qp)
+        c_tau = norm.tau_coefficients(problem, qp_sol.x)
         traj = PiecewisePolynomial(T, tau_to_time(c_tau, T))
-        log.debug("min-snap %s via %s: %d iterations, status %s", problem.shape, name, sol.iterations, sol.status)
-        return MinSnapResult(traj, _cost(c_tau, T, q), name, "qp", t_form, setup, sol.solve_time_s, sol)
+        log.debug("min-snap %s via %s: %d iterations, status %s", problem.shape, name, qp_sol.iterations,
+                  qp_sol.status)
+        return MinSnapResult(traj, float(piece_costs(c_tau, T, q).sum()), name, "qp", t_form, qp_sol.setup_time_s,
+                             qp_sol.solve_time_s, qp_sol)
 
 
 class MinSnapBatchSolver:
@@ -280,11 +244,11 @@ class MinSnapBatchSolver:
 
     def __init__(self, backend: str | None = None, options: Options | None = None, *, warm: bool = True) -> None:
         self.backend = backend or solvers.qp.DEFAULT_BACKEND
-        _backend(self.backend)
+        solvers.qp.BACKENDS.get(self.backend)  # fail early on an unknown or missing backend
         self.options = options
         self.warm = warm
         self._patterns: dict = {}
-        self._prepared: dict = {}
+        self._solvers: dict[tuple[MinSnapShape, int], QPSolver] = {}  # one reusable handle per batch size
 
     def _pattern(self, shape: MinSnapShape, N: int):
         key = (shape, N)
@@ -326,22 +290,10 @@ class MinSnapBatchSolver:
         (pr, pc), (ar, ac) = self._pattern(shape, N)
         qp = QPProblem(P=sp.csc_matrix((Pd, pr, pc), shape=(N * n, N * n)), q=np.zeros(N * n),
                        A=sp.csc_matrix((Ad, ar, ac), shape=(N * m, N * n)), l=lo, u=up)
-        record = _backend(self.backend)
-        key = (shape, N)
-        entry = self._prepared.get(key) if self.warm else None
-        try:
-            if entry is not None:
-                prepared, x0 = entry
-                prepared.update(qp)
-                sol = prepared.solve(warm_start=x0 if "warm_start" in record.capabilities else None)
-            else:
-                prepared = record.entry(qp, self.options)
-                sol = prepared.solve()
-        except Exception:
-            self._prepared.pop(key, None)  # never warm-start from a failed solve's iterates
-            raise
-        if self.warm:
-            self._prepared[key] = (prepared, sol.x)
+        solver = self._solvers.get((shape, N))
+        if solver is None:
+            solver = self._solvers[(shape, N)] = QPSolver(self.backend, self.options, reuse=self.warm)
+        sol = solver.solve(qp)
         X = sol.x.reshape(N, n)
         return [PiecewisePolynomial(p.durations, tau_to_time(norm.tau_coefficients(p, X[k]), p.durations))
                 for k, (p, norm) in enumerate(zip(problems, norms))]

@@ -18,7 +18,7 @@ every coefficient in position units whatever the duration.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -112,6 +112,7 @@ class PiecewisePolynomial:
 
     durations: np.ndarray
     coefficients: np.ndarray
+    _knots: np.ndarray = field(init=False, repr=False)  # 0 and the cumulative durations, set in __post_init__
 
     def __post_init__(self) -> None:
         T = np.array(self.durations, dtype=float).reshape(-1)
@@ -341,13 +342,18 @@ def seam_jumps(trajectory: PiecewisePolynomial, max_order: int) -> np.ndarray:
     return out
 
 
-def integral_squared_derivative(trajectory: PiecewisePolynomial, order: int) -> float:
-    """Exact :math:`\\int_0^{T} \\|\\sigma^{(q)}(t)\\|^2 dt` with ``q = order``.
+def piece_costs(c_tau: np.ndarray, durations: np.ndarray, order: int) -> np.ndarray:
+    """(M,) exact :math:`\\int \\|\\sigma^{(q)}(t)\\|^2 dt` of each piece, ``q = order``.
 
-    Computed per piece in normalized time, :math:`T_i^{1-2q} \\sum_d c_{id}^\\top H c_{id}`
-    with :func:`cost_hessian`, which stays accurate for short and long pieces alike.
+    From the tau-coefficients ``c_tau`` (M, D+1, dim) of pieces of ``durations`` (M,):
+    :math:`T_i^{1-2q} \\sum_d c_{id}^\\top H c_{id}` with :func:`cost_hessian`, in
+    normalized time, which stays accurate for short and long pieces alike. The one place
+    the cost integral is computed.
     """
-    c = trajectory.tau_coefficients()
-    H = cost_hessian(trajectory.degree, order)
-    per_piece = np.einsum("ikd,kl,ild->i", c, H, c)
-    return float(per_piece @ trajectory.durations ** (1 - 2 * order))
+    H = cost_hessian(c_tau.shape[1] - 1, order)
+    return np.einsum("ikd,kl,ild->i", c_tau, H, c_tau) * np.asarray(durations, dtype=float) ** (1 - 2 * order)
+
+
+def integral_squared_derivative(trajectory: PiecewisePolynomial, order: int) -> float:
+    """Exact :math:`\\int_0^{T} \\|\\sigma^{(q)}(t)\\|^2 dt` with ``q = order`` (see :func:`piece_costs`)."""
+    return float(piece_costs(trajectory.tau_coefficients(), trajectory.durations, order).sum())

@@ -456,6 +456,7 @@ def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *
         if stale >= 3 or f.max() <= 1.0 + 1e-3:
             break
         T = T * np.sqrt(np.maximum(f, 1.0))  # damped: lengthening a piece also loads its neighbours
+    assert best is not None  # the loop ran at least once
     sc = scale_to_limits(best[1], v_max, a_max)
     # step 4: never slower than the uniform scaling of step 1
     if sc.trajectory.duration > path.duration:

@@ -145,6 +145,8 @@ def cost_and_gradient(problem: MinSnapProblem) -> tuple[float, np.ndarray]:
         gradient comes from the banded closed form).
     """
     sol = solve_banded(problem, gradient=True)
+    if sol.gradient is None:  # gradient=True computes it
+        raise RuntimeError("solve_banded returned no gradient")
     return sol.cost, sol.gradient
 
 
@@ -240,7 +242,7 @@ def refine_durations(
     if keep_total and J0 == 0.0:  # free ends through four points: one cubic, zero cost at any durations
         return RefinedDurations(durations=T0, objective=0.0, initial_objective=0.0, cost=0.0, time_weight=0.0,
                                 iterations=0, converged=True)
-    weight = (2 * q - 1) * J0 / T0.sum() if keep_total else float(time_weight)
+    weight = (2 * q - 1) * J0 / T0.sum() if time_weight is None else float(time_weight)
     F0 = J0 + weight * T0.sum()
     scale = 1.0 / F0  # the optimizer sees numbers near 1
 

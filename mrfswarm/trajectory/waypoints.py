@@ -36,8 +36,8 @@ def read_waypoints_csv(path: str | os.PathLike) -> np.ndarray:
     lines = [(n, r) for n, r in enumerate(csv.reader(io.StringIO(text)), start=1) if r and any(c.strip() for c in r)]
     if not lines:
         raise ScenarioError(f"{path}: empty file; expected a header line x,y or x,y,z")
-    n0, header = lines[0]
-    header = tuple(c.strip().lower() for c in header)
+    n0, first = lines[0]
+    header = tuple(c.strip().lower() for c in first)
     if header not in HEADERS:
         raise ScenarioError(f"{path}:{n0}: header must be x,y or x,y,z, got {','.join(header)!r}")
     rows = []

@@ -15,11 +15,12 @@ import dataclasses
 import time
 
 from solvers.mrf import bp, exact, gibbs, icm, lazy_flipper, trws
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.problem import PairwiseMRF, repair
 from solvers.mrf.result import MRFResult, Options
 from solvers.registry import Registry
 
-METHODS = Registry(
+METHODS: Registry[MRFCapabilities] = Registry(
     "MRF",
     [
         icm.BACKEND,
@@ -56,4 +57,14 @@ def minimize(mrf: PairwiseMRF, method: str = DEFAULT_METHOD, options: Options | 
     return dataclasses.replace(res, time_s=time.perf_counter() - t0)
 
 
-__all__ = ["METHODS", "DEFAULT_METHOD", "MRFResult", "Options", "PairwiseMRF", "available", "minimize", "repair"]
+__all__ = [
+    "DEFAULT_METHOD",
+    "METHODS",
+    "MRFCapabilities",
+    "MRFResult",
+    "Options",
+    "PairwiseMRF",
+    "available",
+    "minimize",
+    "repair",
+]

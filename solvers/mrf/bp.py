@@ -33,6 +33,7 @@ import time
 
 import numpy as np
 
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.incumbent import Incumbent
 from solvers.mrf.penalized import auto_penalty, penalized_pairs
 from solvers.mrf.problem import PairwiseMRF
@@ -58,7 +59,7 @@ def minimize(mrf: PairwiseMRF, options: Options) -> MRFResult:
     trace, decoded = [], []
     delta = np.inf
     it = 0
-    for it in range(1, options.max_iter + 1):
+    for it in range(1, options.max_iter + 1):  # noqa: B007 (the count of iterations run, read after the loop)
         belief = mrf.unary + np.bincount(scatter, weights=msg.ravel(), minlength=N * L).reshape(N, L)
         h = belief[src] - msg[rev]  # inf on the sender's padding labels
         new = np.empty_like(msg)
@@ -83,5 +84,5 @@ BACKEND = Backend(
     name="bp",
     entry=minimize,
     summary="damped min-sum loopy belief propagation, conflicts as finite penalties (Pearl 1988)",
-    capabilities=frozenset({"exact_on_trees"}),
+    capabilities=MRFCapabilities(optimal=False, lower_bound=False, exact_on_trees=True, monotone=False, stochastic=False),
 )

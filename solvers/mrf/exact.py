@@ -12,6 +12,7 @@ import time
 import numpy as np
 
 from solvers.errors import InvalidProblem
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
 from solvers.registry import Backend
@@ -63,5 +64,5 @@ BACKEND = Backend(
     name="exact",
     entry=minimize,
     summary="exhaustive enumeration (tiny problems only; the reference)",
-    capabilities=frozenset({"optimal", "lower_bound"}),
+    capabilities=MRFCapabilities(optimal=True, lower_bound=True, exact_on_trees=True, monotone=True, stochastic=False),
 )

@@ -36,6 +36,7 @@ import time
 
 import numpy as np
 
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.incumbent import Incumbent
 from solvers.mrf.local_energy import LocalEnergy, colour_sweep
 from solvers.mrf.problem import PairwiseMRF
@@ -104,5 +105,5 @@ BACKEND = Backend(
     name="gibbs",
     entry=minimize,
     summary="annealed Gibbs sampler (Geman & Geman 1984; Xi, Tan & Baras 2006), seeded",
-    capabilities=frozenset({"stochastic"}),
+    capabilities=MRFCapabilities(optimal=False, lower_bound=False, exact_on_trees=False, monotone=False, stochastic=True),
 )

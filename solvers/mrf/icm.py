@@ -32,6 +32,7 @@ import time
 
 import numpy as np
 
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.local_energy import LocalEnergy, colour_sweep, neighbours, union_adjacency
 from solvers.mrf.problem import PairwiseMRF
 from solvers.mrf.result import MRFResult, Options
@@ -128,5 +129,5 @@ BACKEND = Backend(
     name="icm",
     entry=minimize,
     summary="iterated conditional modes (Besag 1986), vectorized by colour classes; the paper's method",
-    capabilities=frozenset({"monotone"}),
+    capabilities=MRFCapabilities(optimal=False, lower_bound=False, exact_on_trees=False, monotone=True, stochastic=False),
 )

@@ -36,6 +36,7 @@ import time
 
 import numpy as np
 
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.icm import descend
 from solvers.mrf.local_energy import LocalEnergy, colour_sweep, neighbours, union_adjacency
 from solvers.mrf.problem import PairwiseMRF
@@ -228,5 +229,5 @@ BACKEND = Backend(
     name="lazy_flipper",
     entry=minimize,
     summary="lazy flipper (Andres et al. 2012): ICM, then joint moves of connected node sets",
-    capabilities=frozenset({"monotone"}),
+    capabilities=MRFCapabilities(optimal=False, lower_bound=False, exact_on_trees=False, monotone=True, stochastic=False),
 )

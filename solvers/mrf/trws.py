@@ -54,6 +54,7 @@ import time
 
 import numpy as np
 
+from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.incumbent import Incumbent
 from solvers.mrf.local_energy import colour_classes
 from solvers.mrf.penalized import auto_penalty, penalized_pairs
@@ -128,7 +129,7 @@ class _Chains:
         return th
 
     def forward(self, fw: np.ndarray, bw: np.ndarray, delta: np.ndarray) -> None:
-        for c, nodes in enumerate(self.classes):
+        for c in range(len(self.classes)):
             p = self.out_pairs[c]
             if not p.size:
                 continue
@@ -177,7 +178,7 @@ class _Chains:
                 forb[self.conf_flat[c][self.c_mask[q, x[self.c_early[q]], :].ravel()]] = True
                 forb = forb.reshape(-1, L)
                 allowed = np.where(forb, np.inf, cost)
-                stuck = ~np.isfinite(allowed).any(axis=1)
+                stuck = np.asarray(~np.isfinite(allowed).any(axis=1))
                 cost = np.where(stuck[:, None], cost, allowed)
             x[nodes] = np.argmin(cost, axis=1)
         return x
@@ -197,7 +198,7 @@ def minimize(mrf: PairwiseMRF, options: Options) -> MRFResult:
     trace, bounds, decoded = [], [], []
     lb = -np.inf
     it = 0
-    for it in range(1, options.max_iter + 1):
+    for it in range(1, options.max_iter + 1):  # noqa: B007 (the count of iterations run, read after the loop)
         ch.forward(fw, bw, dfw)
         ch.backward(fw, bw, dbw)
         prev = lb
@@ -219,5 +220,5 @@ BACKEND = Backend(
     name="trws",
     entry=minimize,
     summary="sequential tree-reweighted message passing with lower bound (Kolmogorov 2006)",
-    capabilities=frozenset({"lower_bound", "exact_on_trees"}),
+    capabilities=MRFCapabilities(optimal=False, lower_bound=True, exact_on_trees=True, monotone=False, stochastic=False),
 )

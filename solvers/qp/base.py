@@ -26,15 +26,8 @@ class PreparedQP(ABC):
     """A QP set up in one backend, ready to be solved (and re-solved after updates)."""
 
     name: ClassVar[str] = ""
-    #: Whether the backend accepts rows with ``l < u`` (all but ``closed_form`` do).
-    supports_inequalities: ClassVar[bool] = True
 
     def __init__(self, problem: QPProblem, options: Options | None = None) -> None:
-        if not self.supports_inequalities and problem.has_inequalities:
-            raise InvalidProblem(
-                f"backend {self.name!r} solves equality-constrained problems only; "
-                "this problem has inequality rows"
-            )
         self.problem = problem
         self.options = options or Options()
         t0 = time.perf_counter()
@@ -91,7 +84,7 @@ class PreparedQP(ABC):
             raise InfeasibleError(f"{self.name}: problem infeasible (status {raw!r})", backend=self.name, status=raw)
         if not status.ok or x is None:
             raise SolverError(f"{self.name}: solve failed (status {raw!r})", backend=self.name, status=raw)
-        x = np.asarray(x, dtype=float).reshape(-1)
+        x = np.array(x, dtype=float).reshape(-1)  # a copy: piqp and proxsuite return views of their buffers
         if not np.all(np.isfinite(x)):
             raise SolverError(f"{self.name}: returned a non-finite solution (status {raw!r})", backend=self.name, status=raw)
         if status is Status.OPTIMAL_INACCURATE:
@@ -105,12 +98,13 @@ class PreparedQP(ABC):
             solve_time_s=solve_time,
             backend=self.name,
             raw_status=raw,
-            y=None if y is None else np.asarray(y, dtype=float),
+            y=None if y is None else np.array(y, dtype=float),
         )
 
-    def _check_same_shape(self, problem: QPProblem) -> None:
+    def same_pattern(self, problem: QPProblem) -> bool:
+        """True when ``problem`` has the shape and sparsity pattern of the loaded one (so it can be an update)."""
         old = self.problem
-        same = (
+        return (
             old.n == problem.n
             and old.m == problem.m
             and old.P.nnz == problem.P.nnz
@@ -120,5 +114,7 @@ class PreparedQP(ABC):
             and np.array_equal(old.A.indices, problem.A.indices)
             and np.array_equal(old.A.indptr, problem.A.indptr)
         )
-        if not same:
+
+    def _check_same_shape(self, problem: QPProblem) -> None:
+        if not self.same_pattern(problem):
             raise InvalidProblem("update() needs a problem with the same shape and sparsity pattern")

@@ -49,6 +49,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from solvers.qp.base import PreparedQP
+from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
 from solvers.qp.solution import Options, Status
 from solvers.registry import Backend
@@ -75,7 +76,7 @@ def _settings(o: Options, has_rows: bool) -> dict:
         "verbose": False,
     }
     if o.time_limit is not None:
-        opts["CPUtime"] = float(o.time_limit)
+        opts["CPUtime"] = float(o.time_limit)  # type: ignore[assignment]  # qpOASES takes seconds as a float
     return opts
 
 
@@ -165,5 +166,5 @@ BACKEND = Backend(
     requires=("casadi",),
     extra="casadi",
     summary=f"CasADi conic (qpsol) with {PLUGIN}: active set, hot-started re-solves, small/medium QPs",
-    capabilities=frozenset({"inequalities", "detects_infeasibility", "warm_start"}),
+    capabilities=QPCapabilities(inequalities=True, warm_start=True, detects_infeasibility=True, sparse=False),
 )

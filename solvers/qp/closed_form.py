@@ -47,6 +47,7 @@ import scipy.sparse as sp
 
 from solvers.errors import InvalidProblem
 from solvers.qp.base import PreparedQP
+from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
 from solvers.qp.row_split import same_matrices, split_rows
 from solvers.qp.solution import Status
@@ -60,6 +61,7 @@ RCOND_MIN = 1e-14
 RESIDUAL_OK, RESIDUAL_USABLE = 1e-10, 1e-6
 REFINE_STEPS = 3
 _RUIZ_SWEEPS = 8
+_EQUALITY_ONLY = "backend 'closed_form' solves equality-constrained problems only; this problem has inequality rows"
 
 
 def _ruiz(K: sp.csc_matrix) -> np.ndarray:
@@ -78,12 +80,13 @@ class ClosedFormQP(PreparedQP):
     """Equality-constrained QP by a sparse LU of the (equilibrated) KKT matrix."""
 
     name = "closed_form"
-    supports_inequalities = False
 
     def _setup(self, problem: QPProblem) -> None:
         from scipy.sparse.linalg import LinearOperator, onenormest, splu
 
         split = split_rows(problem)
+        if split.n_in:  # dispatch refuses these first (the record has no inequalities); a direct caller too
+            raise InvalidProblem(_EQUALITY_ONLY)
         n, me = problem.n, split.n_eq
         K = sp.bmat([[problem.P, split.A_eq.T], [split.A_eq, None]], format="csc")
         K = sp.csc_matrix(K)  # bmat of an (n, 0) block with None keeps shapes, make sure of CSC
@@ -119,7 +122,7 @@ class ClosedFormQP(PreparedQP):
         split = split_rows(problem)
         if not split.same_partition(self._split):
             if problem.has_inequalities:
-                raise InvalidProblem(f"backend {self.name!r} solves equality-constrained problems only")
+                raise InvalidProblem(_EQUALITY_ONLY)
             super().update(problem)
             return
         if same_matrices(self.problem, problem):
@@ -163,5 +166,5 @@ BACKEND = Backend(
     requires=("scipy",),
     extra="",
     summary="closed form: sparse LU of the KKT system, equality constraints only (exact, linear in banded size)",
-    capabilities=frozenset({"equality_only", "direct"}),
+    capabilities=QPCapabilities(inequalities=False, warm_start=False, detects_infeasibility=False, sparse=True),
 )

@@ -31,6 +31,7 @@ import logging
 import numpy as np
 
 from solvers.qp.base import PreparedQP
+from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
 from solvers.qp.row_split import same_matrices
 from solvers.qp.solution import Options, Status
@@ -170,5 +171,5 @@ BACKEND = Backend(
     requires=("cvxpy",),
     extra="cvxpy",
     summary="CVXPY modeling layer with Clarabel (interior point); parametrized, compiled once",
-    capabilities=frozenset({"inequalities", "detects_infeasibility"}),
+    capabilities=QPCapabilities(inequalities=True, warm_start=False, detects_infeasibility=True, sparse=True),
 )

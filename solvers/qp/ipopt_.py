@@ -24,7 +24,9 @@ Two entry points share one translation of :class:`Options` and of Ipopt's status
   ``lbg <= g <= ubg``. An update with the same sparsity pattern only changes ``p`` and
   the bounds.
 
-Ipopt is an interior-point method: ``warm_start`` only sets the initial point ``x0``.
+Ipopt is an interior-point method: ``warm_start`` only sets the initial point ``x0``, and
+the record says ``warm_start=False`` (such a start barely helps an interior-point method,
+so :class:`~solvers.qp.QPSolver` does not pass one).
 In QP mode we tell Ipopt that the Hessian and constraint Jacobian are constant
 (``hessian_constant``, ``jac_c_constant``, ``jac_d_constant``), which saves their
 re-evaluation. We do not use Ipopt's ``mehrotra_algorithm`` (suggested for convex QPs):
@@ -47,6 +49,7 @@ import numpy as np
 
 from solvers.errors import InvalidProblem
 from solvers.qp.base import PreparedQP
+from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
 from solvers.qp.solution import Options, Status
 from solvers.registry import Backend
@@ -378,5 +381,5 @@ BACKEND = Backend(
     requires=("casadi",),
     extra="casadi",
     summary="Ipopt via CasADi nlpsol: interior point NLP solver (the QP as an NLP; general NLPs via solve_nlp)",
-    capabilities=frozenset({"inequalities", "detects_infeasibility", "nlp"}),
+    capabilities=QPCapabilities(inequalities=True, warm_start=False, detects_infeasibility=True, sparse=True, nlp=True),
 )

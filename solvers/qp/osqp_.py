@@ -10,6 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from solvers.qp.base import PreparedQP
+from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
 from solvers.qp.solution import Options, Status
 from solvers.registry import Backend
@@ -97,5 +98,5 @@ BACKEND = Backend(
     requires=("osqp",),
     extra="osqp",
     summary="OSQP: operator splitting (ADMM), sparse, warm-startable",
-    capabilities=frozenset({"inequalities", "detects_infeasibility", "warm_start"}),
+    capabilities=QPCapabilities(inequalities=True, warm_start=True, detects_infeasibility=True, sparse=True),
 )

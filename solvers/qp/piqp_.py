@@ -31,6 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from solvers.qp.base import PreparedQP
+from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
 from solvers.qp.row_split import split_rows
 from solvers.qp.solution import Options, Status
@@ -124,5 +125,5 @@ BACKEND = Backend(
     requires=("piqp",),
     extra="piqp",
     summary="PIQP: proximal interior point, sparse, accurate",
-    capabilities=frozenset({"inequalities", "detects_infeasibility"}),
+    capabilities=QPCapabilities(inequalities=True, warm_start=False, detects_infeasibility=True, sparse=True),
 )

@@ -40,7 +40,8 @@ def _transpose_permutation(n: int, indices: bytes, indptr: bytes) -> tuple[np.nd
     at (i, j) and b[k] at (j, i); None if the pattern is not symmetric. Cached per pattern:
     a formulation evaluated many times reuses one pattern."""
     rows = np.frombuffer(indices, dtype=np.int64)
-    cols = np.repeat(np.arange(n, dtype=np.int64), np.diff(np.frombuffer(indptr, dtype=np.int64)))
+    ptr: np.ndarray = np.frombuffer(indptr, dtype=np.int64)
+    cols = np.repeat(np.arange(n, dtype=np.int64), np.diff(ptr))
     a = np.argsort(rows * n + cols, kind="stable")
     b = np.argsort(cols * n + rows, kind="stable")
     if not np.array_equal((rows * n + cols)[a], (cols * n + rows)[b]):

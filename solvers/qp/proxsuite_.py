@@ -43,6 +43,7 @@ import logging
 import numpy as np
 
 from solvers.qp.base import PreparedQP
+from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
 from solvers.qp.row_split import RowSplit, split_rows
 from solvers.qp.solution import Options, Status
@@ -143,5 +144,5 @@ BACKEND = Backend(
     requires=("proxsuite",),
     extra="proxsuite",
     summary="ProxQP (ProxSuite): proximal augmented Lagrangian, dense or sparse, warm-startable",
-    capabilities=frozenset({"inequalities", "warm_start"}),  # no detects_infeasibility: see above
+    capabilities=QPCapabilities(inequalities=True, warm_start=True, detects_infeasibility=False, sparse=True),  # infeasibility: see the module docstring
 )

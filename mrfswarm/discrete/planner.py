@@ -30,13 +30,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mrfswarm.config import PROGRESS_RULES
+from mrfswarm.discrete.interaction_graph import CliqueWeights, clique_weights_of_graph, knn_edges, update_clique_weights
+from mrfswarm.discrete.label_sets import LabelSets, label_sets
+from mrfswarm.discrete.potentials import Morse
+from mrfswarm.discrete.safety import discrete_violations
+from mrfswarm.discrete.step_mrf import step_mrf
 from mrfswarm.errors import ScenarioError
-from mrfswarm.interaction_graph import CliqueWeights, clique_weights_of_graph, knn_edges, update_clique_weights
-from mrfswarm.label_sets import LabelSets, label_sets
-from mrfswarm.potentials import Morse
-from mrfswarm.safety import discrete_violations
-from mrfswarm.swarm_mrf import step_mrf
 from solvers import mrf as mrf_solvers
+from solvers.mrf import PairwiseMRF
 
 log = logging.getLogger(__name__)
 
@@ -69,7 +70,7 @@ class DiscreteProblem:
     k, order
         Neighbours in the interaction graph; label-set order n.
     trim_backward, contested
-        Label-set rules (:func:`mrfswarm.label_sets.label_sets`).
+        Label-set rules (:func:`mrfswarm.discrete.label_sets.label_sets`).
     goal_distance
         (W, H) the distance the goal field uses when it is not the straight line (the
         geodesic one); ``trim_backward`` then drops moves that increase it.
@@ -155,7 +156,7 @@ def graph_weights(positions: np.ndarray, k: int, timings: dict[str, float] | Non
     """G(x): k-NN edges, maximal cliques and their counts, timed into ``timings``.
 
     ``previous``: the graph of the step before, whose cliques away from the robots that
-    changed neighbours are kept (:func:`~mrfswarm.interaction_graph.update_clique_weights`).
+    changed neighbours are kept (:func:`~mrfswarm.discrete.interaction_graph.update_clique_weights`).
     """
     t0 = time.perf_counter()
     edges = knn_edges(positions.astype(float), k)
@@ -184,16 +185,10 @@ def mrf_step(problem: DiscreteProblem, positions: np.ndarray, method: str = "icm
         weights = graph_weights(positions, problem.k, timings)
     else:
         timings.update(graph_timings or {"graph": 0.0, "cliques": 0.0})
+    labels, model = step_model(problem, positions, weights, timings)
     t0 = time.perf_counter()
-    labels = problem_label_sets(problem, positions)
-    t1 = time.perf_counter()
-    model = step_mrf(labels, weights, problem.static, problem.morse, problem.resolution)
-    t2 = time.perf_counter()
     res = mrf_solvers.minimize(model, method=method, options=options)
-    t3 = time.perf_counter()
-    timings["labels"] = t1 - t0
-    timings["energy"] = t2 - t1
-    timings["optimizer"] = t3 - t2
+    timings["optimizer"] = time.perf_counter() - t0
     new = positions + labels.offsets[np.arange(len(positions)), res.labels]
     return StepOutcome(
         positions=new,
@@ -203,6 +198,25 @@ def mrf_step(problem: DiscreteProblem, positions: np.ndarray, method: str = "icm
         weights=weights,
         timings=timings,
     )
+
+
+def step_model(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueWeights,
+               timings: dict[str, float] | None = None) -> tuple[LabelSets, PairwiseMRF]:
+    """The MRF of one step from ``positions`` (N, 2) cells on the graph ``weights`` = G(positions).
+
+    The label sets X^t (:func:`problem_label_sets`) and the step's pairwise MRF over them
+    (:func:`~mrfswarm.discrete.step_mrf.step_mrf`: unary and pairwise terms of the clique
+    energies, hard conflicts, "everybody stays" as the initial labelling). Their build
+    times go into ``timings`` (``"labels"``, ``"energy"``) when it is given.
+    """
+    t0 = time.perf_counter()
+    labels = problem_label_sets(problem, positions)
+    t1 = time.perf_counter()
+    model = step_mrf(labels, weights, problem.static, problem.morse, problem.resolution)
+    if timings is not None:
+        timings["labels"] = t1 - t0
+        timings["energy"] = time.perf_counter() - t1
+    return labels, model
 
 
 def problem_label_sets(problem: DiscreteProblem, positions: np.ndarray) -> LabelSets:
@@ -247,6 +261,42 @@ def swarm_energy(problem: DiscreteProblem, positions: np.ndarray, weights: Cliqu
     return e
 
 
+class _Progress:
+    """The patience rule: the steps since the last progress, and the step that made it.
+
+    Progress is a new minimum (by more than ``tol``, relative above 1) of the swarm energy
+    or, with ``rule = "static"``, of the robots' static field sum.
+    """
+
+    def __init__(self, tol: float, rule: str, static_sum: float) -> None:
+        self.tol, self.rule = tol, rule
+        self.best, self.best_static = np.inf, static_sum
+        self.best_t, self.since = 0, 0
+
+    def _lower(self, value: float, best: float) -> bool:
+        return value < best - self.tol * max(1.0, abs(best))
+
+    def record(self, t: int, energy: float, static_sum: float) -> None:
+        """After step ``t``: the swarm energy and static field sum it reached."""
+        improved = self._lower(energy, self.best)
+        if improved:
+            self.best = energy
+        if self.rule == "static" and self._lower(static_sum, self.best_static):
+            self.best_static, improved = static_sum, True
+        if improved:
+            self.since, self.best_t = 0, t
+        else:
+            self.since += 1
+
+
+def _short_of_goal(problem: DiscreteProblem, cells: np.ndarray) -> bool:
+    """Some robot that has a free path to the goal is outside the goal region (never without a goal)."""
+    if problem.goal_path is None:
+        return False
+    d = problem.goal_path[cells[:, 0], cells[:, 1]]
+    return bool((np.isfinite(d) & ~(d <= problem.goal_region_radius)).any())
+
+
 def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int = 300, tol: float = 1e-6,
                   patience: int = 20, options: mrf_solvers.Options | None = None,
                   on_step: Callable[[int, StepOutcome], None] | None = None,
@@ -286,13 +336,12 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     pos = np.asarray(problem.start, dtype=np.intp).copy()
     _check_start(problem, pos)
     paths = [pos]
-    energy = []
+    energy: list[float] = []
     timings: dict[str, list[float]] = {s: [] for s in STAGES}
     steps: list[dict] = []
     converged = False
     reason = "max_steps"
-    best, since_best = np.inf, 0
-    best_static = _static_sum(problem, pos)
+    watch = _Progress(tol, progress, _static_sum(problem, pos))
     apart = separation_cells(problem)
     gt: dict[str, float] = {}
     weights = graph_weights(pos, problem.k, gt)
@@ -300,7 +349,7 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         out = mrf_step(problem, pos, method, options, weights, gt)
         if t == 1:
             energy.append(out.energy_before)
-            best, best_t = out.energy_before, 0
+            watch.best = out.energy_before
         for s in STAGES:
             timings[s].append(out.timings[s])
         steps.append({
@@ -327,30 +376,16 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         if out.energy_before - out.energy_after < tol * max(1.0, abs(out.energy_before)):
             converged, reason = True, "converged"
             break
-        improved = energy[-1] < best - tol * max(1.0, abs(best))
-        if improved:
-            best = energy[-1]
-        if progress == "static":
-            st = _static_sum(problem, pos)
-            if st < best_static - tol * max(1.0, abs(best_static)):
-                best_static, improved = st, True
-        if improved:
-            since_best, best_t = 0, t
-        else:
-            since_best += 1
-            if since_best >= patience:
-                # the steps since the last progress only circulate: the plan ends there
-                reason = "stalled"
-                del paths[best_t + 1:], energy[best_t + 1:], steps[best_t:]
-                for s in STAGES:
-                    del timings[s][best_t:]
-                break
-    if converged and problem.goal_path is not None:
-        final = paths[-1]
-        d = problem.goal_path[final[:, 0], final[:, 1]]
-        short = np.isfinite(d) & ~(d <= problem.goal_region_radius)
-        if short.any():  # a fixed point short of the goal is not convergence
-            converged, reason = False, "trapped"
+        watch.record(t, energy[-1], _static_sum(problem, pos))
+        if watch.since >= patience:
+            # the steps since the last progress only circulate: the plan ends there
+            reason, best_t = "stalled", watch.best_t
+            del paths[best_t + 1:], energy[best_t + 1:], steps[best_t:]
+            for s in STAGES:
+                del timings[s][best_t:]
+            break
+    if converged and _short_of_goal(problem, paths[-1]):  # a fixed point short of the goal is not convergence
+        converged, reason = False, "trapped"
     log.info("discrete stage: %d steps, %s", len(paths) - 1, reason)
     stacked = np.stack(paths)
     bad = discrete_violations(stacked, problem.free)

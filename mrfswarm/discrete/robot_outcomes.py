@@ -38,8 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mrfswarm.discrete import nearest_neighbour_cells
-from mrfswarm.motion import moves_clear, stencil
+from mrfswarm.discrete.motion import moves_clear, stencil
+from mrfswarm.discrete.planner import nearest_neighbour_cells
 
 #: Free cells per robot in the goal region (besides scenario.goal_radius).
 GOAL_CELLS_PER_ROBOT = 4
@@ -159,6 +159,7 @@ def robot_outcomes(final: np.ndarray, free: np.ndarray, static: np.ndarray, orde
         reason = None
         at_goal = dist = None
         if goal_path is not None:
+            assert region_radius is not None  # given with goal_path
             dist = float(d[i]) if np.isfinite(d[i]) else None
             at_goal = bool(dist is not None and dist <= region_radius)
             if dist is None:

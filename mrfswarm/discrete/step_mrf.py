@@ -4,9 +4,9 @@ For the interaction graph G_t and label sets X^t, the swarm energy of a labellin
 
     eps(x) = sum_c E_c(x_c) = sum_i w_i rho_S(x_i) + sum_{(i,j) in G_t} w_ij rho_I(|x_i - x_j|)
 
-(pairwise reduction, :mod:`mrfswarm.interaction_graph`). Hard conflicts are the robot
+(pairwise reduction, :mod:`mrfswarm.discrete.interaction_graph`). Hard conflicts are the robot
 pairs, neighbours in G_t or not, whose straight moves would bring them closer than one
-cell (:mod:`mrfswarm.motion`).
+cell (:mod:`mrfswarm.discrete.motion`).
 """
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from mrfswarm.interaction_graph import CliqueWeights
-from mrfswarm.label_sets import LabelSets
-from mrfswarm.motion import MIN_SEPARATION, interaction_radius, min_distance_during_move, nearby_pairs, stencil
-from mrfswarm.potentials import Morse
+from mrfswarm.discrete.interaction_graph import CliqueWeights
+from mrfswarm.discrete.label_sets import LabelSets
+from mrfswarm.discrete.motion import MIN_SEPARATION, interaction_radius, min_distance_during_move, nearby_pairs, stencil
+from mrfswarm.discrete.potentials import Morse
 from solvers.mrf import PairwiseMRF
 
 
@@ -85,7 +85,7 @@ def conflict_tables(labels: LabelSets) -> tuple[np.ndarray, np.ndarray]:
         return pairs, np.zeros((0, L, L), dtype=bool)
     d0 = starts[pairs[:, 0]] - starts[pairs[:, 1]]
     g = (d0[:, 0] + R) * (2 * R + 1) + (d0[:, 1] + R)
-    possible = table.reshape(len(table), -1).any(axis=1)[g]
+    possible = np.asarray(table.reshape(len(table), -1).any(axis=1))[g]
     pairs, g = pairs[possible], g[possible]
     if len(pairs) and table.shape[1] <= 64:
         # Before the (C, L, L) tables, keep the pairs with a colliding pair of *their* moves:
@@ -122,7 +122,7 @@ class _MorseBySquaredDistance:
         need = int(d2.max(initial=0)) + 1
         if need > len(self.table):
             size = max(need, 2 * len(self.table), 1024)
-            self.table = self.morse(np.sqrt(np.arange(size, dtype=float)) * self.resolution)
+            self.table = np.asarray(self.morse(np.sqrt(np.arange(size, dtype=float)) * self.resolution))
         return self.table[d2]
 
 

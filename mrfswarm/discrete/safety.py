@@ -12,15 +12,21 @@ pairs are found with a k-d tree query of that radius, never all pairs; the close
 pair of a step that violates the separation is among them, so the messages are those of
 the all-pairs check :func:`discrete_violations_brute_force` (tested equal). Obstacle
 clearance of the moves is evaluated per distinct move offset
-(:func:`mrfswarm.motion.segments_clear`). The cost is O(T N log N).
+(:func:`mrfswarm.discrete.motion.segments_clear`). The cost is O(T N log N).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from mrfswarm.discrete.motion import (
+    MIN_SEPARATION,
+    WALL_CLEARANCE,
+    min_distance_during_move,
+    nearby_pairs,
+    segments_clear,
+)
 from mrfswarm.geometry import segment_clear
-from mrfswarm.motion import MIN_SEPARATION, WALL_CLEARANCE, min_distance_during_move, nearby_pairs, segments_clear
 
 _TOL = 1e-9
 

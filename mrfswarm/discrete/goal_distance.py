@@ -6,7 +6,7 @@ where ICM, a local method, stops. Here the distance is measured along free paths
 shortest-path search (``scipy.sparse.csgraph.dijkstra``) from the goal over a graph whose
 vertices are the free cells and whose edges are the moves a robot can make in one MRF
 step: the 8 neighbours for search order n >= 2 (4 for n = 1), a diagonal move only when
-both cells beside it are free (the motion rule of :mod:`mrfswarm.motion`). Two distances
+both cells beside it are free (the motion rule of :mod:`mrfswarm.discrete.motion`). Two distances
 come out of it:
 
 - :attr:`GoalDistance.path`: the length (metres) of the shortest free path, with 8
@@ -36,7 +36,7 @@ so rho_S(p) - rho_S(q) >= (a_G / k_G) L > 0: from every free cell connected to t
 except the goal, one move (a label of every search order n >= 1) lowers the static field
 by at least a_G / k_G per metre. The goal is its only local minimum. This is a property of
 the static field: the robots' interaction (Morse) and the one-robot-per-cell rule can
-still hold a robot back; :mod:`mrfswarm.robot_outcomes` reports it when they do.
+still hold a robot back; :mod:`mrfswarm.discrete.robot_outcomes` reports it when they do.
 
 Free cells not connected to the goal have ``inf`` distances (and an ``inf`` static
 field): a robot there has no path to the goal, which the scenario rejects with an error
@@ -52,7 +52,7 @@ import numpy as np
 from scipy.sparse import csr_array
 from scipy.sparse.csgraph import dijkstra
 
-from mrfswarm.motion import moves_clear, stencil
+from mrfswarm.discrete.motion import moves_clear, stencil
 
 #: Label-set order whose moves form the search graph for orders >= 2 (the 8 neighbours).
 _GRAPH_ORDER = 2
@@ -152,6 +152,8 @@ def goal_distance(free: np.ndarray, goal_cell: np.ndarray, resolution: float = 1
     gi = int(g[0] * H + g[1])
     path = _search(a, b, length, n, gi)[0].reshape(W, H)
     if climb_weight > 0:
+        if obstacle is None:
+            raise ValueError("climb_weight > 0 needs the obstacle field")
         rise = np.maximum(0.0, obstacle[dst[:, 0], dst[:, 1]] - obstacle[src[:, 0], src[:, 1]])
         field, pred = _search(a, b, length + climb_weight * rise, n, gi)
         field = field.reshape(W, H)

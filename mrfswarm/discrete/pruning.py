@@ -25,8 +25,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from mrfswarm.discrete.motion import WALL_CLEARANCE, segments_clear
 from mrfswarm.geometry import segment_clear, segment_segment_distance
-from mrfswarm.motion import WALL_CLEARANCE, segments_clear
 
 _TOUCH = 1e-9
 #: Slack on the k-d tree search radius (the exact distance test decides).

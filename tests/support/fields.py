@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
-from mrfswarm.potentials import static_field
+from mrfswarm.discrete.potentials import static_field
 
 
 def random_map_static(free: np.ndarray, goal: np.ndarray | None, start: np.ndarray, distance: str,

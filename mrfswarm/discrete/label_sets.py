@@ -6,7 +6,7 @@ wanted by several robots given to one only (X_i ∩ X_j = ∅); optionally (c) t
 pointing away from the goal trimmed.
 
 We add one rule the paper leaves implicit: the straight move must keep half a cell from
-every occupied cell (:mod:`mrfswarm.motion`), so no move cuts a wall's corner or jumps a
+every occupied cell (:mod:`mrfswarm.discrete.motion`), so no move cuts a wall's corner or jumps a
 wall. Label 0 is always "stay", which is always in X_i.
 
 A contested cell goes to the robot nearest to it (so each robot's cells lie in its own
@@ -32,10 +32,8 @@ from functools import cached_property
 
 import numpy as np
 
-from mrfswarm.motion import moves_clear, stencil
-
-#: Rules for who gets a cell several robots could move to (see the module docstring).
-CONTESTED_RULES = ("downhill", "nearest")
+from mrfswarm.config import CONTESTED_RULES
+from mrfswarm.discrete.motion import moves_clear, stencil
 
 
 @dataclass(frozen=True)
@@ -105,7 +103,7 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     contested
         Who gets a contested cell: a name in :data:`CONTESTED_RULES`.
     goal_distance
-        (W, H) the goal field's distance to the goal (:mod:`mrfswarm.goal_distance`),
+        (W, H) the goal field's distance to the goal (:mod:`mrfswarm.discrete.goal_distance`),
         for ``trim_backward``; None: trim by direction.
     """
     if contested not in CONTESTED_RULES:
@@ -139,6 +137,7 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     cell_id = cand[r, s, 0] * H + cand[r, s, 1]
     dist2 = (off[s] ** 2).sum(axis=1)
     if contested == "downhill":
+        assert static is not None  # checked above
         rise = static[cand[r, s, 0], cand[r, s, 1]] - static[starts[r, 0], starts[r, 1]]
         order_idx = np.lexsort((r, rise, dist2, cell_id))
     else:

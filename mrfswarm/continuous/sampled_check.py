@@ -1,9 +1,10 @@
-"""Sampling checks of continuous trajectories: separation, obstacles, limits.
+"""The dense sampled check of continuous trajectories: separation and obstacles.
 
-Every output of the continuous stage is checked by sampling all robots on one time grid
-at ``rate_hz`` (at least 100 Hz): the minimum distance between any two robots (all
-pairs, not only neighbours) and whether any sample lies in an occupied cell, plus the
-distance to the nearest occupied cell.
+Independent of the certificate (which proves the same properties on control points),
+this samples all robots on one time grid at ``rate_hz`` (at least 100 Hz): the minimum
+distance between any two robots (all pairs, not only neighbours), whether any sample
+lies in an occupied cell or off the map, and the distance to the nearest occupied cell.
+The continuous stage runs it on the whole flight when ``smoothing.check_rate_hz`` > 0.
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ class SampledCheck:
     in_obstacle: tuple[int, float] | None
 
 
-def sample_times(t0: float, t1: float, rate_hz: float) -> np.ndarray:
+def uniform_times(t0: float, t1: float, rate_hz: float) -> np.ndarray:
     """Times from t0 to t1 inclusive, spaced at most 1 / rate_hz apart."""
     n = max(2, int(np.ceil((t1 - t0) * rate_hz)) + 1)
     return np.linspace(t0, t1, n)

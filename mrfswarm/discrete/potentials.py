@@ -6,7 +6,7 @@
   upside down); zeta > |rho'_I(d_min)| makes rho_I positive.
 - Goal: rho_G(p) = a_G exp(d(p) / k_G), with d the distance to the goal: the paper's
   straight-line |p - p_g| (``goal_potential.distance = "euclidean"``) or the distance
-  over free paths (``"geodesic"``, the default; :mod:`mrfswarm.goal_distance`), which
+  over free paths (``"geodesic"``, the default; :mod:`mrfswarm.discrete.goal_distance`), which
   leaves the static field no local minimum but the goal.
 - Obstacle: m_hat = Gamma where P(occupied) >= 0.5 else 0, convolved with a Gaussian of
   sigma_hat cells.
@@ -24,11 +24,32 @@ import numpy as np
 from scipy import ndimage
 
 from mrfswarm.config import GoalPotentialConfig, InteractionConfig, ObstaclePotentialConfig
+from mrfswarm.discrete.goal_distance import GoalDistance, goal_distance
 from mrfswarm.errors import ConfigError, ScenarioError
-from mrfswarm.goal_distance import GoalDistance, goal_distance
 
 #: zeta = ZETA_MARGIN * |rho'_I(d_min)| when the config leaves zeta unset.
 ZETA_MARGIN = 1.01
+
+
+def morse_violation(a: float, b: float, k_a: float, k_r: float) -> tuple[str, str] | None:
+    """The first of the paper's conditions on the Morse parameters that fails, or None.
+
+    The conditions: a, b, k_a, k_r > 0 (finite), b >= a, k_a > k_r and
+    b k_r / (a k_a) < 1. Returns ``(short, message)``: a short name of the condition (for
+    tables and figures) and a message naming the config keys (for :class:`ConfigError`).
+    """
+    for name, v in (("a", a), ("b", b), ("k_a", k_a), ("k_r", k_r)):
+        if not (math.isfinite(v) and v > 0):
+            return f"{name} <= 0", f"interaction.{name} = {v!r}: must be > 0"
+    if b < a:
+        return "b_I < a_I", f"interaction.b = {b!r}: must be >= interaction.a = {a!r}"
+    if k_a <= k_r:
+        return "k_a <= k_r", f"interaction.k_a = {k_a!r}: must be > interaction.k_r = {k_r!r}"
+    ratio = b * k_r / (a * k_a)
+    if ratio >= 1:
+        return (f"b k_r / (a k_a) = {ratio:.2f} >= 1",
+                f"interaction: b * k_r / (a * k_a) = {ratio:.4g} must be < 1 (a={a}, b={b}, k_a={k_a}, k_r={k_r})")
+    return None
 
 
 @dataclass(frozen=True)
@@ -49,21 +70,10 @@ class Morse:
     zeta: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("a", "b", "k_a", "k_r"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ConfigError(f"interaction.{name} = {v!r}: must be > 0")
-        if self.b < self.a:
-            raise ConfigError(f"interaction.b = {self.b!r}: must be >= interaction.a = {self.a!r}")
-        if self.k_a <= self.k_r:
-            raise ConfigError(f"interaction.k_a = {self.k_a!r}: must be > interaction.k_r = {self.k_r!r}")
-        ratio = self.b * self.k_r / (self.a * self.k_a)
-        if ratio >= 1:
-            raise ConfigError(
-                f"interaction: b * k_r / (a * k_a) = {ratio:.4g} must be < 1 (a={self.a}, b={self.b}, "
-                f"k_a={self.k_a}, k_r={self.k_r})"
-            )
-        depth = abs(self.raw(self.d_min))
+        broken = morse_violation(self.a, self.b, self.k_a, self.k_r)
+        if broken is not None:
+            raise ConfigError(broken[1])
+        depth = abs(float(self.raw(self.d_min)))
         if self.zeta is None:
             object.__setattr__(self, "zeta", ZETA_MARGIN * depth)
         elif not self.zeta > depth:
@@ -85,7 +95,9 @@ class Morse:
 
     def __call__(self, d: np.ndarray | float) -> np.ndarray | float:
         """rho_I(d) = rho'_I(d) + zeta (positive)."""
-        return self.raw(d) + self.zeta
+        zeta = self.zeta
+        assert zeta is not None  # set by __post_init__
+        return self.raw(d) + zeta
 
 
 #: exp(x) overflows float64 above ~709.8; a goal distance beyond this many k_G is refused.
@@ -131,7 +143,7 @@ def goal_distances(prob: np.ndarray, goal_cell: np.ndarray, resolution: float, g
     """The free-path distances to the goal, and the distance rho_G uses (``goal_cfg.distance``).
 
     ``"geodesic"``: the free-path distance with the obstacle potential climbed counted at
-    k_G / a_G metres per unit (:func:`mrfswarm.goal_distance.goal_distance`), which
+    k_G / a_G metres per unit (:func:`mrfswarm.discrete.goal_distance.goal_distance`), which
     leaves rho_S no local minimum but the goal; ``"euclidean"``: the straight-line
     distance of the paper (``path`` is still the free-path length, for reporting).
     """

@@ -1,0 +1,8 @@
+"""Helpers shared by several test modules (references and inputs, not tests).
+
+- :mod:`support.fields`: static fields of random maps;
+- :mod:`support.qp_reference`: QPs with known optima;
+- :mod:`support.trajectories`: random waypoints and the min-snap references.
+
+Fixtures live in ``tests/conftest.py``.
+"""
