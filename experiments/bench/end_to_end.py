@@ -92,12 +92,10 @@ def measure(trajectories, grid, v_max: float) -> dict:
 def child(case: str, variant: str, code: str | None) -> None:
     """Plan one case with one variant and print its row as JSON (run in a child process)."""
     use(code)
-    import mrfswarm
-    from mrfswarm.pipeline import plan
-
     import tomllib
 
     from mrfswarm.config import from_dict
+    from mrfswarm.pipeline import plan
 
     data = tomllib.loads((EXP / f"{case}.toml").read_text())
     for section, key in PAPER_DISCRETE:  # the code before knew only the paper's rules: drop them there

@@ -53,6 +53,7 @@ import math
 import threading
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -135,8 +136,8 @@ class PieceMaps:
         flat = ca.vertcat(*blocks)
         self.function = ca.Function("bernstein_piece", [T], [flat])
         self.derivative_function = ca.Function("bernstein_piece_dT", [T], [ca.jacobian(flat, T)])
-        self._maps: dict[int, object] = {}
-        self._dmaps: dict[int, object] = {}
+        self._maps: dict[int, Any] = {}  # casadi.Function, per window length
+        self._dmaps: dict[int, Any] = {}
         self._lock = threading.Lock()
         # structural nonzeros: exact zeros at two unrelated durations are zeros for all
         k = np.asarray(self.function(0.73)).ravel() != 0
@@ -276,7 +277,12 @@ class WindowFormulation:
         Ts = spec.time_scale
         reg = spec.regions
         origin = np.asarray(spec.origin, dtype=float)
-        rows, cols, kidx, coef, lo, hi = [], [], [], [], [], []
+        rows: list[np.ndarray] = []
+        cols: list[np.ndarray] = []
+        kidx: list[np.ndarray] = []
+        coef: list[np.ndarray] = []
+        lo: list[np.ndarray] = []
+        hi: list[np.ndarray] = []
         n_rows = 0
 
         def col(g, d, j, a):

@@ -43,6 +43,7 @@ import logging
 import os
 import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -67,8 +68,7 @@ from mrfswarm.continuous.regions import (
     region_clearance,
     separations,
 )
-from mrfswarm.continuous.sampled_check import SampledCheck, check_positions
-from mrfswarm.continuous.sampled_check import uniform_times as sample_times
+from mrfswarm.continuous.sampled_check import SampledCheck, check_positions, uniform_times
 from mrfswarm.continuous.time_grid import nominal_durations, witness_durations
 from mrfswarm.errors import UnsafeTrajectoryError
 from mrfswarm.maps import OccupancyGrid
@@ -77,8 +77,8 @@ from mrfswarm.trajectory import PiecewisePolynomial
 from mrfswarm.trajectory.bernstein import tau_control_points
 from mrfswarm.trajectory.retiming import max_derivative_norm_all
 from solvers.errors import SolverError
-from solvers.qp.ipopt_ import minimize_bounded
 from solvers.qp import Options as QPOptions
+from solvers.qp.ipopt_ import minimize_bounded
 
 log = logging.getLogger(__name__)
 
@@ -269,7 +269,7 @@ class RecedingHorizon:
         self.active = np.zeros(len(self.seps), dtype=bool)
         self.limit_rows = np.zeros((self.T, self.N, 3), dtype=bool)
         self.workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
-        self._pool = None
+        self._pool: ProcessPoolExecutor | None = None
         self.regions_s = time.perf_counter() - t0
         self._check_s = 0.0
 
@@ -492,11 +492,12 @@ class RecedingHorizon:
         upper = np.maximum(2 * np.maximum(self.witness[a:b], self.nominal[a:b]), sol.durations)
         res = minimize_bounded(fun, grad, sol.durations, lower, upper, NLP_OPTIONS)
         before = sol.cost + w * sol.durations.sum()
-        tried = sorted(((s.cost + w * s.durations.sum(), k) for k, s in solved.items() if s is not None))
-        for value, key in tried:  # Ipopt's last point first if it is the best, else the best it saw
+        found = {k: s for k, s in solved.items() if s is not None}
+        tried = sorted((s.cost + w * s.durations.sum(), k) for k, s in found.items())
+        for value, key in tried:  # the best point Ipopt saw first
             if value >= before:
                 break
-            best = solved[key]
+            best = found[key]
             if self._certify(best, a).ok:
                 rec.refined = True
                 self.active, self.limit_rows = rows[key]
@@ -509,8 +510,6 @@ class RecedingHorizon:
     def run(self, on_window: Callable[[WindowRecord], None] | None = None) -> ContinuousPlan:
         """Plan every window; returns the assembled, certified trajectories."""
         if self.workers > 1 and self.N >= PARALLEL_ROBOTS:
-            from concurrent.futures import ProcessPoolExecutor
-
             self._pool = ProcessPoolExecutor(self.workers)
         try:
             return self._run(on_window)
@@ -524,7 +523,7 @@ class RecedingHorizon:
         q, pm = cfg.derivative, piece_maps(cfg.degree, cfg.derivative)
         tic = time.perf_counter()
         if T == 0:  # nobody moved: hover in place for a moment
-            hover = [PiecewisePolynomial([1.0], np.concatenate(
+            hover = [PiecewisePolynomial(np.array([1.0]), np.concatenate(
                 [self.X[0, i][None, None, :], np.zeros((1, cfg.degree, 2))], axis=1)) for i in range(N)]
             return self._finish(hover, np.array([0.0, 1.0]), [], tic)
         Y = np.zeros((T + 1, N, q, 2))
@@ -558,7 +557,7 @@ class RecedingHorizon:
         clearance = sampled_clearance(trajectories, self.grid)
         sampled = None
         if self.cfg.check_rate_hz > 0:
-            times = sample_times(0.0, float(knots[-1]), self.cfg.check_rate_hz)
+            times = uniform_times(0.0, float(knots[-1]), self.cfg.check_rate_hz)
             pts = np.stack([tr.evaluate(times) for tr in trajectories], axis=1)
             sampled = check_positions(times, pts, self.grid)
         check_s = time.perf_counter() - t0 + self._check_s
@@ -594,7 +593,9 @@ def pack_groups(groups: list[np.ndarray], size: int) -> list[np.ndarray]:
     only (not on how many workers solve them), so a plan is the same with any number of
     workers.
     """
-    chunks, current, count = [], [], 0
+    chunks: list[np.ndarray] = []
+    current: list[np.ndarray] = []
+    count = 0
     for g in sorted(groups, key=lambda g: int(g[0])):
         if count and count + len(g) > size:
             chunks.append(np.concatenate(current))
