@@ -43,7 +43,12 @@ minimized over T by Ipopt, each evaluation a QP and its gradient exact from the 
 multipliers and the symbolic derivative ``dk/dT``
 (:meth:`WindowFormulation.duration_gradient`). Durations are shared by all robots (one
 time grid) and every constraint is indexed by step, not by time, so the constraints stay
-valid whatever durations the NLP picks.
+valid whatever durations the NLP picks. This reduced space was chosen over one NLP in the
+trajectory and the durations together (tried first): every point Ipopt visits is then a
+solution of the window problem with all its lazily added rows, so the next window's
+feasibility argument holds for whatever it returns, and Ipopt works on M variables, not
+thousands (corridor10 with refinement: 28 s of planning instead of 403 s, makespan 25.1 s
+instead of 33.2 s).
 """
 
 from __future__ import annotations
