@@ -62,7 +62,10 @@ def measure(trajectories, grid, v_max: float) -> dict:
     """Flight metrics of trajectories on one time grid (the same code for every variant)."""
     import numpy as np
 
-    from mrfswarm.continuous.sampled_check import min_pair_distance
+    try:
+        from mrfswarm.continuous.sampled_check import min_pair_distance
+    except ImportError:  # the baseline revision's layout
+        from mrfswarm.continuous_check import min_pair_distance
     from mrfswarm.metrics import obstacle_clearance
     from mrfswarm.trajectory import integral_squared_derivative, max_derivative_norms
 

@@ -66,7 +66,10 @@ def child(n: int, code: str | None, continuous: bool = False, workers: int | Non
     import resource
 
     import mrfswarm
-    from mrfswarm.discrete.safety import discrete_violations
+    try:
+        from mrfswarm.discrete.safety import discrete_violations
+    except ImportError:  # the baseline revision's layout
+        from mrfswarm.safety import discrete_violations
     from mrfswarm.outputs import write_outputs
     from mrfswarm.pipeline import plan
 

@@ -38,7 +38,6 @@ in their durations. The refined solution is accepted if it certifies and lowers 
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import os
 import time
@@ -86,8 +85,6 @@ log = logging.getLogger(__name__)
 MARGIN = 1e-6
 #: The nominal time grid speeds up and slows down at this fraction of a_max.
 NOMINAL_ACCELERATION = 0.25
-#: Iteration cap of the QPs solved while refining durations (interior point solvers need tens).
-REFINE_QP_ITERATIONS = 200
 #: Ipopt's settings for time refinement: each iteration solves the window's QP a few times; on
 #: corridor.toml 12 iterations keep nearly all of 25's gain (makespan 21.4 s against 21.3) at a fifth of the QPs.
 NLP_OPTIONS = QPOptions(eps_abs=1e-4, eps_rel=1e-4, max_iter=12)
@@ -298,7 +295,7 @@ class RecedingHorizon:
             margin=MARGIN, limit_mask=self.limit_rows[a:b, robots])
 
     def _solve(self, a: int, b: int, start: np.ndarray, durations: np.ndarray, rec: WindowRecord,
-               gradient: bool = False, options: QPOptions | None = None) -> tuple[_Solution | None, str]:
+               gradient: bool = False) -> tuple[_Solution | None, str]:
         """The window's QP at ``durations``, its corridor and limit rows added lazily.
 
         A round solves the robots whose constraint set changed (robots linked by the
@@ -330,7 +327,7 @@ class RecedingHorizon:
                 mine = np.zeros(self.N, dtype=bool)
                 mine[robots] = True
                 specs.append(self._spec(a, b, robots, start, cand[self.active[cand] & mine[seps.first]]))
-            results = self._map(solve_window, [(spec, durations, self.backend, options or self.qp_options, gradient)
+            results = self._map(solve_window, [(spec, durations, self.backend, self.qp_options, gradient)
                                                for spec in specs])
             rec.rounds += 1
             for robots, out in zip(chunks, results):
@@ -468,15 +465,12 @@ class RecedingHorizon:
         # rows, so a far trial point (where every limit binds) does not burden the rest
         base = (self.active.copy(), self.limit_rows.copy())
         rows: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-        # an evaluation where the QP is infeasible is only a "no": do not let it run long
-        quick = dataclasses.replace(self.qp_options, max_iter=min(self.qp_options.max_iter, REFINE_QP_ITERATIONS))
 
         def at(T: np.ndarray) -> _Solution | None:
             key = np.asarray(T, dtype=float).tobytes()
             if key not in solved:
                 self.active, self.limit_rows = base[0].copy(), base[1].copy()
-                solved[key] = self._solve(a, b, start, np.asarray(T, dtype=float), rec, gradient=True,
-                                          options=quick)[0]
+                solved[key] = self._solve(a, b, start, np.asarray(T, dtype=float), rec, gradient=True)[0]
                 rows[key] = (self.active, self.limit_rows)
             return solved[key]
 
