@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
 from mrfswarm.errors import ConfigError
+from mrfswarm.file_input import read_text
 from mrfswarm.maps import LOADERS
 
 SEAM_MODES = ("rest", "continuous")
@@ -385,10 +386,7 @@ def load_config(path: str | Path | None = None, overrides: list[str] | None = No
     base = Path(".")
     if path is not None:
         p = Path(path)
-        try:
-            text = p.read_text()
-        except OSError as e:
-            raise ConfigError(f"cannot read config {str(p)!r}: {e.strerror}") from e
+        text = read_text(p, "config", ConfigError)
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
