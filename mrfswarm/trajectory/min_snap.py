@@ -32,7 +32,7 @@ from mrfswarm.trajectory import banded
 from mrfswarm.trajectory.corridor import Corridor
 from mrfswarm.trajectory.formulation import compiled_min_snap
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial, piece_costs, tau_to_time
-from mrfswarm.trajectory.problem import EndSpec, MinSnapProblem, MinSnapShape
+from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE, EndSpec, MinSnapProblem, MinSnapShape
 from solvers.errors import InvalidProblem, SolverNotFound
 from solvers.qp import Options, QPProblem, QPSolver, Solution
 
@@ -303,8 +303,8 @@ def solve_min_snap(
     waypoints: np.ndarray,
     durations: np.ndarray,
     *,
-    degree: int = 7,
-    derivative: int = 4,
+    degree: int = DEFAULT_DEGREE,
+    derivative: int = DEFAULT_DERIVATIVE,
     continuity: int | None = None,
     start: EndSpec = "rest",
     end: EndSpec = "rest",

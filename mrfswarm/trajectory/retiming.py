@@ -75,6 +75,7 @@ import numpy as np
 
 from mrfswarm.trajectory.bernstein import tau_control_points
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial
+from mrfswarm.trajectory.problem import DEFAULT_DERIVATIVE
 from solvers.errors import InvalidProblem, SolverError, SolverNotFound
 
 log = logging.getLogger(__name__)
@@ -326,7 +327,7 @@ def _limit_ratios(trajectory: PiecewisePolynomial, v_max: float, a_max: float) -
     return np.maximum(v / v_max, np.sqrt(a / a_max))
 
 
-def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *, derivative: int = 4,
+def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *, derivative: int = DEFAULT_DERIVATIVE,
                   gridpoints_per_piece: int = 20, refit_pieces_per_piece: int = 10, stretch_rounds: int = 10,
                   backend: str | None = None) -> ToppraRetiming:
     """Retime ``trajectory`` with toppra under speed and acceleration limits, then refit.
