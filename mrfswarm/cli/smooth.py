@@ -61,7 +61,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--durations", metavar="d1,d2,...", help="piece durations in seconds, one per segment")
     p.add_argument("--speed", type=float, metavar="V", help=f"constant speed for the durations (default {DEFAULT_SPEED} m/s)")
     p.add_argument("--qp", default=CLOSED_FORM, metavar="NAME",
-                   help="closed_form (default) or a QP backend (see `mrfswarm solvers`)")
+                   help="closed_form (default; the banded closed form where it applies) or another QP backend "
+                        "(see `mrfswarm solvers`)")
     p.add_argument("--degree", type=int, default=DEFAULT_DEGREE, metavar="N",
                    help=f"polynomial degree (default {DEFAULT_DEGREE})")
     p.add_argument("--derivative", type=int, default=DEFAULT_DERIVATIVE, metavar="Q",
