@@ -15,7 +15,9 @@ from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
 from mrfswarm.errors import ConfigError
+from mrfswarm.file_input import read_text
 from mrfswarm.maps import LOADERS
+from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE
 
 SEAM_MODES = ("rest", "continuous")
 #: What resets the discrete stage's patience (see :func:`mrfswarm.discrete.planner.plan_discrete`).
@@ -143,9 +145,11 @@ class SmoothingConfig:
     """
 
     enabled: bool = True
+    # the continuous stage's default QP backend, written only here (a bare QP without a
+    # backend goes to solvers.qp.DEFAULT_BACKEND)
     backend: str = "piqp"
-    degree: int = 7
-    derivative: int = 4
+    degree: int = DEFAULT_DEGREE
+    derivative: int = DEFAULT_DERIVATIVE
     speed: float = 1.25
     region_growth: float = 1.0
     horizon: int = 8
@@ -385,10 +389,7 @@ def load_config(path: str | Path | None = None, overrides: list[str] | None = No
     base = Path(".")
     if path is not None:
         p = Path(path)
-        try:
-            text = p.read_text()
-        except OSError as e:
-            raise ConfigError(f"cannot read config {str(p)!r}: {e.strerror}") from e
+        text = read_text(p, "config", ConfigError)
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
@@ -397,9 +398,3 @@ def load_config(path: str | Path | None = None, overrides: list[str] | None = No
     if overrides:
         data = apply_overrides(data, overrides)
     return from_dict(data, base)
-
-
-def resolve_path(cfg: Config, p: str | Path) -> Path:
-    """A path from the config, relative to the config file's folder."""
-    p = Path(p)
-    return p if p.is_absolute() else cfg.base_dir / p

@@ -176,14 +176,6 @@ def distance_series(points: np.ndarray, max_pairs: int = MEAN_PAIRS, max_work: i
     return DistanceSeries(dmin, mean, exact, len(pairs))
 
 
-def pairwise_distance_stats(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per row of ``points`` (T, N, 2): mean and min inter-robot distance (:func:`distance_series`)."""
-    if points.shape[1] < 2:
-        return np.full(len(points), np.nan), np.full(len(points), np.nan)
-    ds = distance_series(points)
-    return ds.mean, ds.min
-
-
 class ObstacleIndex:
     """Distances to the occupied cells of a grid, from a k-d tree built once.
 

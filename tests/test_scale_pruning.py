@@ -7,13 +7,12 @@ from mrfswarm.discrete.motion import stencil
 from mrfswarm.discrete.planner import DiscreteProblem, plan_discrete
 from mrfswarm.discrete.potentials import Morse
 from mrfswarm.discrete.pruning import horizon_bounds, prune_paths, prune_paths_brute_force, prune_robot
+from support.swarms import random_start
 
 
 def wandering(rng, n, steps, W=25, H=25, order=2):
     """Robots on distinct cells taking random stencil moves (a pruning input need not be a valid plan)."""
-    free = rng.random((W, H)) > 0.15
-    cells = np.argwhere(free)
-    pos = cells[rng.choice(len(cells), n, replace=False)]
+    free, pos = random_start(rng, n, W, H, 0.15)
     off = stencil(order)
     paths = [pos]
     for _ in range(steps):

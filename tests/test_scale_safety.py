@@ -6,13 +6,12 @@ import pytest
 from mrfswarm.discrete.motion import min_distance_during_move, segments_clear, stencil, step_min_separation
 from mrfswarm.discrete.safety import discrete_violations, discrete_violations_brute_force
 from mrfswarm.geometry import segment_clear
+from support.swarms import random_start
 
 
 def random_plan(rng, n, steps, W=30, H=30, order=2, p_bad=0.0):
     """Robots on distinct cells moving by stencil offsets; with ``p_bad`` some moves ignore every rule."""
-    free = rng.random((W, H)) > 0.12
-    cells = np.argwhere(free)
-    pos = cells[rng.choice(len(cells), n, replace=False)]
+    free, pos = random_start(rng, n, W, H, 0.12)
     off = stencil(order)
     paths = [pos]
     for _ in range(steps):

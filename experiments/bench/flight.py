@@ -15,9 +15,10 @@ Needs ``pip install "mrfswarm[batched]"``.
 from __future__ import annotations
 
 import argparse
-import csv
 import time
 from pathlib import Path
+
+from csv_table import write_csv
 
 import mrfswarm
 from mrfswarm.pipeline import plan
@@ -61,11 +62,7 @@ def main() -> None:
                  "tracking_bound_m": "", "extrapolated": True})
     print(f"{'processes':>10} {len(trs):>6} {rows[0]['flown_s']:>8.1f} {est:>8.1f} {rows[0]['flown_s'] / est:>11.3f}"
           "   (extrapolated from the subset)")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    with open(args.out, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(args.out, rows)
     print(f"wrote {args.out}")
 
 

@@ -30,7 +30,6 @@ Writes every row to ``experiments/bench/results/min_snap.csv`` (``--out`` to cha
 from __future__ import annotations
 
 import argparse
-import csv
 import multiprocessing as mp
 import pathlib
 import statistics
@@ -38,6 +37,7 @@ import time
 from functools import partial
 
 import numpy as np
+from csv_table import write_csv
 
 import solvers.qp
 from mrfswarm.trajectory import MinSnapProblem, MinSnapSolver, constant_speed_durations, solve_min_snap
@@ -205,15 +205,10 @@ def main() -> None:
         rows.append(dict(pieces=M, method="rotorpy MinSnap (cvxopt)", cold_total_ms=ms(rp) if rp else "",
                          x_rotorpy=1.0 if rp else "", note=rp_note))
         print_table([r for r in rows if r["pieces"] == M])
-    args.out.parent.mkdir(parents=True, exist_ok=True)
     cols = ["pieces", "method", "compile_ms", "cold_formulate_ms", "cold_setup_ms", "cold_solve_ms", "cold_total_ms",
             "warm_formulate_ms", "warm_setup_ms", "warm_solve_ms", "warm_total_ms", "iterations", "max_err",
             "x_rotorpy", "note"]
-    with open(args.out, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=cols)
-        w.writeheader()
-        for r in rows:
-            w.writerow({c: (f"{r[c]:.6g}" if isinstance(r.get(c), float) else r.get(c, "")) for c in cols})
+    write_csv(args.out, rows, cols, float_format=".6g")
     print(f"\nwrote {args.out}")
 
 

@@ -19,7 +19,6 @@ and the script fails unless both codes moved every robot to the same cell at eve
 from __future__ import annotations
 
 import argparse
-import csv
 import hashlib
 import json
 import sys
@@ -31,6 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 from baseline_code import extract, run_child, use
+from csv_table import write_csv
 
 RESULTS = Path(__file__).parent / "results"
 PARTS = ("graph", "cliques", "labels", "energy", "optimizer", "step")
@@ -118,11 +118,7 @@ def main() -> None:
             o, w = rows[-2], rows[-1]
             print(f"{'':>5} {'ratio':>5} " + " ".join(
                 f"{o[f'{p}_median_ms'] / max(w[f'{p}_median_ms'], 1e-9):>15.2f}" for p in PARTS) + "  (old / new)")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    with open(args.out, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(args.out, rows)
     print(f"wrote {args.out}")
 
 

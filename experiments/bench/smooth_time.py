@@ -34,7 +34,6 @@ OpenBLAS's threads make L-BFGS-B's own small linear algebra several times slower
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import pathlib
 import statistics
@@ -45,6 +44,7 @@ import time
 from functools import partial
 
 import numpy as np
+from csv_table import write_csv
 from min_snap import in_child, repeat, waypoints
 from scipy.optimize import minimize
 
@@ -174,14 +174,9 @@ def main() -> None:
         for name, method in (("plain", "cli: mrfswarm smooth"), ("refine+limits", "cli: --refine-time --v-max --a-max"),
                              ("refine+toppra", "cli: --refine-time --retime toppra --v-max --a-max")):
             rows.append(dict(waypoints=n, pieces=n - 1, method=method, time_s=c[name]))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
     cols = ["waypoints", "pieces", "method", "time_s", "iterations", "x_vs_fd", "cost", "total_s", "scaled_s",
             "toppra_s", "toppra_method", "toppra_ms", "time_weight", "note"]
-    with open(args.out, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=cols)
-        w.writeheader()
-        for r in rows:
-            w.writerow({c: (f"{r[c]:.6g}" if isinstance(r.get(c), float) else r.get(c, "")) for c in cols})
+    write_csv(args.out, rows, cols, float_format=".6g")
     print(f"\nwrote {args.out}")
 
 

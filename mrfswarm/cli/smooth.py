@@ -42,6 +42,7 @@ import solvers.qp
 from mrfswarm.config import ScenarioConfig
 from mrfswarm.errors import ConfigError
 from mrfswarm.trajectory.min_snap import CLOSED_FORM, solve_min_snap
+from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE
 from mrfswarm.trajectory.retiming import require_toppra, retime_toppra, scale_to_limits
 from mrfswarm.trajectory.time_allocation import constant_speed_durations, refine_durations, scaled_time_weight
 from mrfswarm.trajectory.uav_csv import DEGREE as CSV_DEGREE
@@ -60,9 +61,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--durations", metavar="d1,d2,...", help="piece durations in seconds, one per segment")
     p.add_argument("--speed", type=float, metavar="V", help=f"constant speed for the durations (default {DEFAULT_SPEED} m/s)")
     p.add_argument("--qp", default=CLOSED_FORM, metavar="NAME",
-                   help="closed_form (default) or a QP backend (see `mrfswarm solvers`)")
-    p.add_argument("--degree", type=int, default=CSV_DEGREE, metavar="N", help="polynomial degree (default 7)")
-    p.add_argument("--derivative", type=int, default=4, metavar="Q", help="minimized derivative (default 4, snap)")
+                   help="closed_form (default; the banded closed form where it applies) or another QP backend "
+                        "(see `mrfswarm solvers`)")
+    p.add_argument("--degree", type=int, default=DEFAULT_DEGREE, metavar="N",
+                   help=f"polynomial degree (default {DEFAULT_DEGREE})")
+    p.add_argument("--derivative", type=int, default=DEFAULT_DERIVATIVE, metavar="Q",
+                   help=f"minimized derivative (default {DEFAULT_DERIVATIVE}, snap)")
     p.add_argument("--altitude", type=float, default=None, metavar="Z",
                    help=f"z of a 2-D trajectory (default {ScenarioConfig.altitude} m)")
     p.add_argument("--v-max", type=float, default=None, metavar="V", help="speed limit the output meets (m/s)")

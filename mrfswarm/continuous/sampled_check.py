@@ -102,17 +102,3 @@ def check_positions(times: np.ndarray, points: np.ndarray, grid: OccupancyGrid) 
         min_clearance=None if clr is None else clr * grid.resolution,
         in_obstacle=hit,
     )
-
-
-def separation_series(times: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Minimum and mean inter-robot distance at each sample (the paper's Fig. 7c)."""
-    S, N, _ = points.shape
-    dmin, _ = min_pair_distance(points)
-    if N < 2:
-        return dmin, np.full(S, np.nan)
-    iu, ju = np.triu_indices(N, 1)
-    mean = np.empty(S)
-    for a in range(0, S, 256):  # bounded memory for large swarms
-        d = np.hypot(*(points[a:a + 256, iu] - points[a:a + 256, ju]).transpose(2, 0, 1))
-        mean[a:a + 256] = d.mean(axis=1)
-    return dmin, mean

@@ -24,6 +24,7 @@ import logging
 from pathlib import Path
 
 from mrfswarm.errors import ScenarioError
+from mrfswarm.file_input import read_bytes
 from mrfswarm.maps import characters
 from mrfswarm.maps.grid import MAX_CELLS, OccupancyGrid
 from mrfswarm.maps.spec import PREFIX, check_keys, file_path
@@ -68,10 +69,7 @@ def read_movingai(path: Path | str) -> OccupancyGrid:
         characters, unknown terrain character; the message names the file and the line.
     """
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as e:
-        raise ScenarioError(f"cannot read MovingAI map {str(path)!r}: {e.strerror or e}") from e
+    raw = read_bytes(path, "MovingAI map")
     try:
         text = raw.decode("ascii")
     except UnicodeDecodeError as e:

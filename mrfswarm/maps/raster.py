@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm.errors import ScenarioError
+from mrfswarm.file_input import read_bytes
 from mrfswarm.maps.grid import MAX_CELLS
 
 _TOKEN = re.compile(rb"\s*(?:#[^\n]*\n\s*)*([^\s#]+)")
@@ -59,10 +60,7 @@ def read_pgm(path: Path) -> Raster:
     ScenarioError
         Unreadable file, bad header, 16-bit samples, truncated or out-of-range data.
     """
-    try:
-        data = path.read_bytes()
-    except OSError as e:
-        raise ScenarioError(f"cannot read map image {str(path)!r}: {e.strerror or e}") from e
+    data = read_bytes(path, "map image")
     magic, (w, h, maxval), pos = _header(data, path)
     if magic not in (b"P5", b"P2"):
         raise ScenarioError(f"{path}: not a PGM file (magic {magic!r}, expected b'P5' or b'P2')")

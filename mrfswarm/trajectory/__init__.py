@@ -21,7 +21,8 @@ Modules, one job each:
 - :mod:`~mrfswarm.trajectory.corridor`, :mod:`~mrfswarm.trajectory.reference`:
   corridor boxes at sample times, tubes around reference motions;
 - :mod:`~mrfswarm.trajectory.time_allocation`: initial durations and their refinement;
-- :mod:`~mrfswarm.trajectory.retiming`: exact maxima, time scaling, toppra;
+- :mod:`~mrfswarm.trajectory.retiming`: exact maxima, time scaling, toppra retiming
+  (toppra's time law in :mod:`~mrfswarm.trajectory.toppra_law`, imported on use);
 - :mod:`~mrfswarm.trajectory.uav_csv`, :mod:`~mrfswarm.trajectory.waypoints`: files.
 """
 

@@ -114,117 +114,33 @@ class CompiledMinSnap:
 
         t0 = time.perf_counter()
         self.shape = shape
-        M, dim, D, q = shape.pieces, shape.dim, shape.degree, shape.derivative
-        c, K, ks, ke = shape.continuity, shape.samples_per_piece, shape.start_order, shape.end_order
-        N = D + 1
-        nb = N - 2 * q
-        stride = q + nb
-        per_dim = (M + 1) * q + M * nb
-        self.n = dim * per_dim
-        W = ca.SX.sym("W", (M + 1) * dim)
-        T = ca.SX.sym("T", M)
-        lo = ca.SX.sym("lo", M * K * dim)
-        hi = ca.SX.sym("hi", M * K * dim)
-        g0 = ca.SX.sym("g0", ks * dim)
-        g1 = ca.SX.sym("g1", ke * dim)
-        x = ca.SX.sym("x", self.n)
-
-        herm, bub = hermite_basis(D, q)
-        E = np.hstack([herm, bub])  # N x nz: tau-coefficients of the piece's local variables
-        nz = E.shape[1]
-        # local variable a of piece i is x[i * stride + offset[a]]; its coefficient carries T_i^rpow[a]
-        offset = np.concatenate([np.arange(q), stride + np.arange(q), q + np.arange(nb)])
-        rpow = np.concatenate([np.arange(q), np.arange(q), np.zeros(nb, int)])
-        G = E.T @ cost_hessian(D, q) @ E  # cost of piece i: T_i^(1-2q) sum_ab G_ab T_i^(r_a + r_b) z_a z_b
-        G = (G + G.T) / 2  # exactly symmetric, so P's (a, b) and (b, a) entries are the same float
-        G[np.abs(G) < 1e-12 * np.abs(G).max()] = 0.0
-        powers: dict = {}
-
-        def Tp(e: int, sl=slice(None)):
-            """Row vector T_i^e (cached so each power is formed once)."""
-            if e not in powers:
-                powers[e] = ca.DM.ones(1, M) if e == 0 else T.T ** e
-            return powers[e][:, sl]
-
-        VE = np.vander(sample_taus(K), N, increasing=True) @ E if K else None
-        rho = (T[1:] / T[:-1]).T if M > 1 else None  # 1 x (M-1)
-
-        # P written out (no AD): P[d, i*stride+offset[a], i*stride+offset[b]] += 2 G_ab T_i^(1-2q+r_a+r_b).
-        # Even pieces share no knot, nor do odd ones: one duplicate-free triplet per parity, one addition.
-        pairs = [(a_, b_) for a_ in range(nz) for b_ in range(nz) if G[a_, b_] != 0.0]
-        P = 0
-        for parity in (0, 1):
-            pieces = np.arange(parity, M, 2)
-            if pieces.size == 0:
-                continue
-            rows, cols, vals = [], [], []
-            for a_, b_ in pairs:
-                v = 2.0 * float(G[a_, b_]) * Tp(1 - 2 * q + int(rpow[a_] + rpow[b_]))[:, pieces.tolist()]
-                for d in range(dim):
-                    rows.append(d * per_dim + offset[a_] + stride * pieces)
-                    cols.append(d * per_dim + offset[b_] + stride * pieces)
-                    vals.append(v)
-            P = P + ca.SX.triplet(np.concatenate(rows).tolist(), np.concatenate(cols).tolist(),
-                                  ca.horzcat(*vals).T, self.n, self.n)
-        g, lb, ub = [], [], []
-        for d in range(dim):
-            xd = x[d * per_dim:(d + 1) * per_dim]
-            Z = [xd[(offset[a] + stride * np.arange(M)).tolist()].T for a in range(nz)]  # 1 x M each
-            Wd = W[d * (M + 1):(d + 1) * (M + 1)]
-            g.append(xd[(stride * np.arange(M + 1)).tolist()])  # positions y_{j,0}
-            lb.append(Wd)
-            ub.append(Wd)
-            if ks:
-                g.append(xd[list(range(1, ks + 1))])
-                lb.append(g0[d * ks:(d + 1) * ks])
-                ub.append(g0[d * ks:(d + 1) * ks])
-            if ke:
-                g.append(xd[[M * stride + r for r in range(1, ke + 1)]])
-                lb.append(g1[d * ke:(d + 1) * ke])
-                ub.append(g1[d * ke:(d + 1) * ke])
-            if M > 1:
-                left, right = slice(0, M - 1), slice(1, M)
-                for r in range(q, c + 1):
-                    e1 = derivative_row(D, r, 1.0) @ E
-                    e0 = derivative_row(D, r, 0.0) @ E
-                    expr = 0
-                    for a_ in range(nz):
-                        if e1[a_] != 0.0:
-                            expr += float(e1[a_]) * Z[a_][:, left] * Tp(int(rpow[a_]), left) * rho ** (r / 2)
-                        if e0[a_] != 0.0:
-                            expr -= float(e0[a_]) * Z[a_][:, right] * Tp(int(rpow[a_]), right) * rho ** (-r / 2)
-                    g.append(expr.T)
-                    lb.append(ca.DM.zeros(M - 1))
-                    ub.append(ca.DM.zeros(M - 1))
-            if K:
-                rows = []
-                for s_ in range(K):
-                    row = 0
-                    for a_ in range(nz):
-                        if VE[s_, a_] != 0.0:
-                            row += float(VE[s_, a_]) * Z[a_] * Tp(int(rpow[a_]))
-                    rows.append(row)
-                g.append(ca.reshape(ca.vertcat(*rows), K * M, 1))  # row s + K*i
-                lb.append(lo[d * M * K:(d + 1) * M * K])
-                ub.append(hi[d * M * K:(d + 1) * M * K])
+        basis = _PieceBasis(shape)
+        self.n = shape.dim * basis.per_dim
+        sym = _Symbols(shape, self.n)
+        powers = _DurationPowers(sym.T, shape.pieces)
+        P = _cost_matrix(shape, basis, powers, self.n)
+        g, lb, ub = _constraints(shape, basis, sym, powers)
         g_all = ca.vertcat(*g)
-        A = ca.jacobian(g_all, x)
+        A = ca.jacobian(g_all, sym.x)
         self.m = g_all.numel()
-        # rows of the knot positions y_{j,0}, per dimension (their bounds widen by a waypoint tolerance)
-        rows_per_dim = (M + 1) + ks + ke + (c - q + 1) * max(M - 1, 0) + K * M
-        self._position_rows = np.arange(dim)[:, None] * rows_per_dim + np.arange(M + 1)[None, :]  # (dim, M+1)
-        self._fn = ca.Function("min_snap_qp", [W, T, lo, hi, g0, g1], [P, A, ca.vertcat(*lb), ca.vertcat(*ub)])
-        sP, sA = self._fn.sparsity_out(0), self._fn.sparsity_out(1)
+        self._position_rows = _position_rows(shape)
+        self._compile(ca.Function("min_snap_qp", [sym.W, sym.T, sym.lo, sym.hi, sym.g0, sym.g1],
+                                  [P, A, ca.vertcat(*lb), ca.vertcat(*ub)]))
+        # numpy side of the basis, to turn a solution into tau-coefficients
+        self._E, self._offset, self._rpow = basis.E, basis.offset, basis.rpow
+        self._stride, self._per_dim = basis.stride, basis.per_dim
+        self.compile_time_s = time.perf_counter() - t0
+        log.debug("compiled min-snap QP %s in %.3f s (n=%d, m=%d)", shape, self.compile_time_s, self.n, self.m)
+
+    def _compile(self, fn) -> None:
+        """Keep ``fn``'s output patterns and an evaluation buffer that writes into numpy arrays."""
+        self._fn = fn
+        sP, sA = fn.sparsity_out(0), fn.sparsity_out(1)
         self._P_pattern = (np.asarray(sP.row(), np.int32), np.asarray(sP.colind(), np.int32))
         self._A_pattern = (np.asarray(sA.row(), np.int32), np.asarray(sA.colind(), np.int32))
         self._nnz = (sP.nnz(), sA.nnz())
-        self._buf, self._eval = self._fn.buffer()
+        self._buf, self._eval = fn.buffer()
         self._lock = threading.Lock()
-        # numpy side of the basis, to turn a solution into tau-coefficients
-        self._E, self._offset, self._rpow = E, offset, rpow
-        self._stride, self._per_dim = stride, per_dim
-        self.compile_time_s = time.perf_counter() - t0
-        log.debug("compiled min-snap QP %s in %.3f s (n=%d, m=%d)", shape, self.compile_time_s, self.n, self.m)
 
     def evaluate(self, waypoints: np.ndarray, durations: np.ndarray, lower: np.ndarray | None,
                  upper: np.ndarray | None, start: np.ndarray, end: np.ndarray,
@@ -294,6 +210,170 @@ class CompiledMinSnap:
         Z = X[:, self._offset[None, :] + self._stride * np.arange(M)[:, None]]  # (dim, M, nz)
         Z = Z * durations[None, :, None] ** self._rpow[None, None, :]
         return np.einsum("na,dia->ind", self._E, Z)
+
+
+class _PieceBasis:
+    """The constant basis of one piece and where its local variables sit in ``x``.
+
+    Local variable ``a`` of piece ``i`` (dimension ``d``) is
+    ``x[d * per_dim + i * stride + offset[a]]``; its coefficient carries ``T_i^rpow[a]``.
+    ``G = E^T H E`` gives piece ``i``'s cost ``T_i^(1-2q) sum_ab G_ab T_i^(r_a + r_b) z_a z_b``.
+    """
+
+    def __init__(self, shape: MinSnapShape) -> None:
+        M, D, q = shape.pieces, shape.degree, shape.derivative
+        N = D + 1
+        nb = N - 2 * q
+        self.stride = q + nb
+        self.per_dim = (M + 1) * q + M * nb
+        herm, bub = hermite_basis(D, q)
+        self.E = np.hstack([herm, bub])  # N x nz: tau-coefficients of the piece's local variables
+        self.nz = self.E.shape[1]
+        self.offset = np.concatenate([np.arange(q), self.stride + np.arange(q), q + np.arange(nb)])
+        self.rpow = np.concatenate([np.arange(q), np.arange(q), np.zeros(nb, int)])
+        G = self.E.T @ cost_hessian(D, q) @ self.E
+        G = (G + G.T) / 2  # exactly symmetric, so P's (a, b) and (b, a) entries are the same float
+        G[np.abs(G) < 1e-12 * np.abs(G).max()] = 0.0
+        self.G = G
+
+
+class _Symbols:
+    """The parameters (waypoints, durations, corridor bounds, end derivatives) and the variables."""
+
+    def __init__(self, shape: MinSnapShape, n: int) -> None:
+        import casadi as ca
+
+        M, dim, K = shape.pieces, shape.dim, shape.samples_per_piece
+        self.W = ca.SX.sym("W", (M + 1) * dim)
+        self.T = ca.SX.sym("T", M)
+        self.lo = ca.SX.sym("lo", M * K * dim)
+        self.hi = ca.SX.sym("hi", M * K * dim)
+        self.g0 = ca.SX.sym("g0", shape.start_order * dim)
+        self.g1 = ca.SX.sym("g1", shape.end_order * dim)
+        self.x = ca.SX.sym("x", n)
+
+
+class _DurationPowers:
+    """Row vectors ``T_i^e``, each power formed once."""
+
+    def __init__(self, T, M: int) -> None:
+        self._T, self._M = T, M
+        self._powers: dict = {}
+
+    def __call__(self, e: int, sl=slice(None)):
+        import casadi as ca
+
+        if e not in self._powers:
+            self._powers[e] = ca.DM.ones(1, self._M) if e == 0 else self._T.T ** e
+        return self._powers[e][:, sl]
+
+
+def _cost_matrix(shape: MinSnapShape, basis: _PieceBasis, Tp: _DurationPowers, n: int):
+    """P written out (no AD): ``P[d, i*stride+offset[a], i*stride+offset[b]] += 2 G_ab T_i^(1-2q+r_a+r_b)``.
+
+    Even pieces share no knot, nor do odd ones: one duplicate-free triplet per parity, one addition.
+    """
+    import casadi as ca
+
+    M, dim, q = shape.pieces, shape.dim, shape.derivative
+    G, offset, rpow, stride, per_dim = basis.G, basis.offset, basis.rpow, basis.stride, basis.per_dim
+    pairs = [(a_, b_) for a_ in range(basis.nz) for b_ in range(basis.nz) if G[a_, b_] != 0.0]
+    P = 0
+    for parity in (0, 1):
+        pieces = np.arange(parity, M, 2)
+        if pieces.size == 0:
+            continue
+        rows, cols, vals = [], [], []
+        for a_, b_ in pairs:
+            v = 2.0 * float(G[a_, b_]) * Tp(1 - 2 * q + int(rpow[a_] + rpow[b_]))[:, pieces.tolist()]
+            for d in range(dim):
+                rows.append(d * per_dim + offset[a_] + stride * pieces)
+                cols.append(d * per_dim + offset[b_] + stride * pieces)
+                vals.append(v)
+        P = P + ca.SX.triplet(np.concatenate(rows).tolist(), np.concatenate(cols).tolist(),
+                              ca.horzcat(*vals).T, n, n)
+    return P
+
+
+def _constraints(shape: MinSnapShape, basis: _PieceBasis, sym: _Symbols, Tp: _DurationPowers) -> tuple[list, list, list]:
+    """Constraint expressions and their bounds, dimension by dimension.
+
+    Per dimension, in this order: the knot positions, the given start and end
+    derivatives, continuity above ``q - 1``, the corridor samples (see :func:`_position_rows`).
+    """
+    M, K, ks, ke = shape.pieces, shape.samples_per_piece, shape.start_order, shape.end_order
+    stride, per_dim = basis.stride, basis.per_dim
+    g: list = []
+    lb: list = []
+    ub: list = []
+    for d in range(shape.dim):
+        xd = sym.x[d * per_dim:(d + 1) * per_dim]
+        Z = [xd[(basis.offset[a] + stride * np.arange(M)).tolist()].T for a in range(basis.nz)]  # 1 x M each
+        Wd = sym.W[d * (M + 1):(d + 1) * (M + 1)]
+        g.append(xd[(stride * np.arange(M + 1)).tolist()])  # positions y_{j,0}
+        lb.append(Wd)
+        ub.append(Wd)
+        if ks:
+            g.append(xd[list(range(1, ks + 1))])
+            lb.append(sym.g0[d * ks:(d + 1) * ks])
+            ub.append(sym.g0[d * ks:(d + 1) * ks])
+        if ke:
+            g.append(xd[[M * stride + r for r in range(1, ke + 1)]])
+            lb.append(sym.g1[d * ke:(d + 1) * ke])
+            ub.append(sym.g1[d * ke:(d + 1) * ke])
+        if M > 1:
+            _continuity(g, lb, ub, shape, basis, sym, Tp, Z)
+        if K:
+            g.append(_corridor_samples(shape, basis, Tp, Z))  # row s + K*i
+            lb.append(sym.lo[d * M * K:(d + 1) * M * K])
+            ub.append(sym.hi[d * M * K:(d + 1) * M * K])
+    return g, lb, ub
+
+
+def _continuity(g: list, lb: list, ub: list, shape: MinSnapShape, basis: _PieceBasis, sym: _Symbols,
+                Tp: _DurationPowers, Z: list) -> None:
+    """Append derivatives ``q..c`` equal across each knot (in normalized time, rho-scaled)."""
+    import casadi as ca
+
+    M, D, q, c = shape.pieces, shape.degree, shape.derivative, shape.continuity
+    E, rpow = basis.E, basis.rpow
+    rho = (sym.T[1:] / sym.T[:-1]).T  # 1 x (M-1)
+    left, right = slice(0, M - 1), slice(1, M)
+    for r in range(q, c + 1):
+        e1 = derivative_row(D, r, 1.0) @ E
+        e0 = derivative_row(D, r, 0.0) @ E
+        expr = 0
+        for a_ in range(basis.nz):
+            if e1[a_] != 0.0:
+                expr += float(e1[a_]) * Z[a_][:, left] * Tp(int(rpow[a_]), left) * rho ** (r / 2)
+            if e0[a_] != 0.0:
+                expr -= float(e0[a_]) * Z[a_][:, right] * Tp(int(rpow[a_]), right) * rho ** (-r / 2)
+        g.append(expr.T)
+        lb.append(ca.DM.zeros(M - 1))
+        ub.append(ca.DM.zeros(M - 1))
+
+
+def _corridor_samples(shape: MinSnapShape, basis: _PieceBasis, Tp: _DurationPowers, Z: list):
+    """Positions at the ``K`` sample taus of every piece, as one column (row ``s + K * i``)."""
+    import casadi as ca
+
+    K, M = shape.samples_per_piece, shape.pieces
+    VE = np.vander(sample_taus(K), shape.degree + 1, increasing=True) @ basis.E
+    rows = []
+    for s_ in range(K):
+        row = 0
+        for a_ in range(basis.nz):
+            if VE[s_, a_] != 0.0:
+                row += float(VE[s_, a_]) * Z[a_] * Tp(int(basis.rpow[a_]))
+        rows.append(row)
+    return ca.reshape(ca.vertcat(*rows), K * M, 1)
+
+
+def _position_rows(shape: MinSnapShape) -> np.ndarray:
+    """(dim, M+1) constraint rows of the knot positions ``y_{j,0}`` (a waypoint tolerance widens their bounds)."""
+    M, q, c = shape.pieces, shape.derivative, shape.continuity
+    rows_per_dim = (M + 1) + shape.start_order + shape.end_order + (c - q + 1) * max(M - 1, 0) + shape.samples_per_piece * M
+    return np.arange(shape.dim)[:, None] * rows_per_dim + np.arange(M + 1)[None, :]
 
 
 @lru_cache(maxsize=32)

@@ -4,13 +4,16 @@
 >>> res = solve_min_snap([[0, 0], [1, 0], [1, 1]], [1.0, 1.0])          # doctest: +SKIP
 >>> res.trajectory(0.5), res.cost, res.backend                         # doctest: +SKIP
 
-Backend names are those of ``solvers.qp.BACKENDS``, plus the meaning this module gives
-``"closed_form"``: without a corridor and with degree ``2q - 1`` it is the banded closed
-form of :mod:`mrfswarm.trajectory.banded` (linear in the number of pieces; the accuracy
-reference); with a higher degree it is the formulated QP handed to the registry's
-generic ``closed_form`` (equality-only KKT) backend; with a corridor it is an error,
-since corridor inequalities need a QP backend. ``None`` picks ``closed_form`` without a
-corridor and ``solvers.qp.DEFAULT_BACKEND`` with one.
+Two routes solve a problem, named by :attr:`MinSnapResult.method`: the *banded* route
+(:data:`BANDED`, the closed form of :mod:`mrfswarm.trajectory.banded`, linear in the
+number of pieces; the accuracy reference) and the *QP* route (:data:`QP_ROUTE`, the
+formulated QP handed to a backend of ``solvers.qp.BACKENDS``). A backend is chosen by its
+registry name; choosing the registry's equality-only backend ``closed_form``
+(:data:`CLOSED_FORM`) takes the banded route when it applies (no corridor, degree
+``2q - 1``), and the QP route with that backend otherwise; with a corridor it is an error,
+since corridor inequalities need a QP backend. ``None`` chooses ``closed_form`` without a
+corridor and ``solvers.qp.DEFAULT_BACKEND`` with one. The result's ``backend`` is the
+backend chosen (``closed_form`` on the banded route too).
 
 The QP path evaluates the formulation compiled once per shape
 (:mod:`mrfswarm.trajectory.formulation`) on normalized data (see :class:`Normalization`)
@@ -32,13 +35,17 @@ from mrfswarm.trajectory import banded
 from mrfswarm.trajectory.corridor import Corridor
 from mrfswarm.trajectory.formulation import compiled_min_snap
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial, piece_costs, tau_to_time
-from mrfswarm.trajectory.problem import EndSpec, MinSnapProblem, MinSnapShape
+from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE, EndSpec, MinSnapProblem, MinSnapShape
 from solvers.errors import InvalidProblem, SolverNotFound
 from solvers.qp import Options, QPProblem, QPSolver, Solution
 
 log = logging.getLogger(__name__)
 
+#: The registry name of the equality-only QP backend (solvers/qp/closed_form.py).
 CLOSED_FORM = "closed_form"
+#: The two routes, as :attr:`MinSnapResult.method` names them.
+BANDED = "banded"
+QP_ROUTE = "qp"
 
 
 @dataclass(frozen=True)
@@ -112,7 +119,8 @@ class MinSnapResult:
     backend
         ``"closed_form"`` or the QP backend's registry name.
     method
-        ``"banded"`` (closed form) or ``"qp"`` (formulated QP).
+        The route: :data:`BANDED` (``"banded"``, the closed form) or :data:`QP_ROUTE`
+        (``"qp"``, the formulated QP).
     formulate_time_s, setup_time_s, solve_time_s
         Evaluating the compiled formulation (and normalizing), backend setup (0 for the
         banded path, or a cheap update on a warm re-solve), and solving.
@@ -141,17 +149,16 @@ class MinSnapSolver:
     Parameters
     ----------
     backend
-        A name of ``solvers.qp.BACKENDS``, ``"closed_form"``, or ``None`` (see the
-        module docstring).
+        A name of ``solvers.qp.BACKENDS`` or ``None``; ``"closed_form"`` takes the banded
+        route where it applies (see the module docstring).
     options
         QP options (tolerances, iterations, time limit).
     warm
         Reuse the prepared backend (update + warm start) when the next problem has the
         same shape.
     formulated
-        Always solve the formulated QP, never the banded closed form; ``"closed_form"``
-        then names the registry's generic equality-only backend (for tests and
-        benchmarks of the QP path).
+        Always take the QP route, never the banded one; ``"closed_form"`` then is only
+        the registry's equality-only backend (for tests and benchmarks of the QP route).
     """
 
     def __init__(self, backend: str | None = None, options: Options | None = None, *, warm: bool = True,
@@ -165,6 +172,7 @@ class MinSnapSolver:
         self._solvers: dict[str, QPSolver] = {}  # one reusable handle per backend the route picks
 
     def _route(self, problem: MinSnapProblem) -> tuple[str, str]:
+        """``(backend, route)`` for ``problem``: the backend chosen and :data:`BANDED` or :data:`QP_ROUTE`."""
         name = self.backend
         if name is None:
             name = solvers.qp.DEFAULT_BACKEND if problem.has_corridor else CLOSED_FORM
@@ -176,13 +184,13 @@ class MinSnapSolver:
                     "closed_form solves equality-only problems"
                 )
             if banded.supports(problem) and not self.formulated:
-                return CLOSED_FORM, "banded"
+                return CLOSED_FORM, BANDED
             if CLOSED_FORM not in solvers.qp.BACKENDS:
                 raise SolverNotFound(
                     f"degree {problem.degree} > 2q - 1 = {2 * problem.derivative - 1} needs the generic "
                     f"closed_form QP backend, which is not registered; installed: {', '.join(solvers.qp.available())}"
                 )
-        return name, "qp"
+        return name, QP_ROUTE
 
     def solve(self, problem: MinSnapProblem) -> MinSnapResult:
         """Solve ``problem``.
@@ -198,14 +206,14 @@ class MinSnapSolver:
         SolverError
             Any other backend failure.
         """
-        name, method = self._route(problem)
+        name, route = self._route(problem)
         T, q = problem.durations, problem.derivative
-        if method == "banded":
+        if route == BANDED:
             t0 = time.perf_counter()
             sol = banded.solve_banded(problem)
             dt = time.perf_counter() - t0
             traj = PiecewisePolynomial(T, tau_to_time(sol.coefficients, T))
-            return MinSnapResult(traj, sol.cost, CLOSED_FORM, "banded", 0.0, 0.0, dt)
+            return MinSnapResult(traj, sol.cost, CLOSED_FORM, BANDED, 0.0, 0.0, dt)
         t0 = time.perf_counter()
         qp, norm = min_snap_qp(problem)
         t_form = time.perf_counter() - t0
@@ -217,7 +225,7 @@ class MinSnapSolver:
         traj = PiecewisePolynomial(T, tau_to_time(c_tau, T))
         log.debug("min-snap %s via %s: %d iterations, status %s", problem.shape, name, qp_sol.iterations,
                   qp_sol.status)
-        return MinSnapResult(traj, float(piece_costs(c_tau, T, q).sum()), name, "qp", t_form, qp_sol.setup_time_s,
+        return MinSnapResult(traj, float(piece_costs(c_tau, T, q).sum()), name, QP_ROUTE, t_form, qp_sol.setup_time_s,
                              qp_sol.solve_time_s, qp_sol)
 
 
@@ -235,7 +243,7 @@ class MinSnapBatchSolver:
     Parameters
     ----------
     backend
-        A QP backend name (not ``closed_form``'s banded path: batches carry corridors).
+        A QP backend name (never the banded route: batches carry corridors).
     options
         QP options.
     warm
@@ -303,8 +311,8 @@ def solve_min_snap(
     waypoints: np.ndarray,
     durations: np.ndarray,
     *,
-    degree: int = 7,
-    derivative: int = 4,
+    degree: int = DEFAULT_DEGREE,
+    derivative: int = DEFAULT_DERIVATIVE,
     continuity: int | None = None,
     start: EndSpec = "rest",
     end: EndSpec = "rest",

@@ -31,6 +31,12 @@ import numpy as np
 from mrfswarm.trajectory.corridor import Corridor
 from solvers.errors import InvalidProblem
 
+#: The paper's piece degree (7) and minimized derivative (4, snap), the defaults of every
+#: smoothing function, the config and ``mrfswarm smooth``: degree ``2q - 1``, the lowest the
+#: closed form takes, and the highest the uav_trajectories CSV holds.
+DEFAULT_DEGREE = 7
+DEFAULT_DERIVATIVE = 4
+
 EndSpec = str | np.ndarray | list | tuple | None
 
 
@@ -123,8 +129,8 @@ class MinSnapProblem:
         waypoints: np.ndarray,
         durations: np.ndarray,
         *,
-        degree: int = 7,
-        derivative: int = 4,
+        degree: int = DEFAULT_DEGREE,
+        derivative: int = DEFAULT_DERIVATIVE,
         continuity: int | None = None,
         start: EndSpec = "rest",
         end: EndSpec = "rest",

@@ -75,7 +75,8 @@ import numpy as np
 
 from mrfswarm.trajectory.bernstein import tau_control_points
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial
-from solvers.errors import InvalidProblem, SolverError, SolverNotFound
+from mrfswarm.trajectory.problem import DEFAULT_DERIVATIVE
+from solvers.errors import InvalidProblem, SolverNotFound
 
 log = logging.getLogger(__name__)
 
@@ -326,7 +327,7 @@ def _limit_ratios(trajectory: PiecewisePolynomial, v_max: float, a_max: float) -
     return np.maximum(v / v_max, np.sqrt(a / a_max))
 
 
-def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *, derivative: int = 4,
+def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *, derivative: int = DEFAULT_DERIVATIVE,
                   gridpoints_per_piece: int = 20, refit_pieces_per_piece: int = 10, stretch_rounds: int = 10,
                   backend: str | None = None) -> ToppraRetiming:
     """Retime ``trajectory`` with toppra under speed and acceleration limits, then refit.
@@ -365,6 +366,35 @@ def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *
     SolverError
         If toppra fails to parametrize the path.
     """
+    _check_toppra_arguments(v_max, a_max, gridpoints_per_piece, refit_pieces_per_piece, stretch_rounds)
+    require_toppra()
+    from mrfswarm.trajectory.toppra_law import time_optimal_law
+
+    uniform = scale_to_limits(trajectory, v_max, a_max, allow_speedup=True)
+    path = uniform.trajectory  # step 1: s = time of the input scaled to the limits
+    G = gridpoints_per_piece
+    kn = path.knots
+    grid = np.concatenate([(kn[:-1, None] + np.arange(G)[None, :] / G * path.durations[:, None]).ravel(), kn[-1:]])
+    ss, sd, times = time_optimal_law(path, grid, v_max, a_max, *_inscribed_directions(path.dim))  # step 2
+    s_fit, t_fit = _refit_samples(ss, sd, times, G, refit_pieces_per_piece)  # step 3
+    best = _refit_with_stretching(path.evaluate(s_fit), np.diff(t_fit), v_max, a_max, derivative, stretch_rounds,
+                                  backend)
+    sc = scale_to_limits(best, v_max, a_max)
+    # step 4: never slower than the uniform scaling of step 1
+    if sc.trajectory.duration > path.duration:
+        method, out, alpha, v_pk, a_pk, fit_s = "uniform", path, uniform.alpha, uniform.v_peak, uniform.a_peak, ss[:0]
+    else:
+        method, out, alpha, v_pk, a_pk, fit_s = "toppra", sc.trajectory, sc.alpha, sc.v_peak, sc.a_peak, s_fit
+    log.info("toppra: %.3f s time-optimal on the path; refit of %d pieces scaled by %.3f to %.3f s; "
+             "uniform scaling %.3f s; returned: %s", times[-1], best.pieces, sc.alpha, sc.trajectory.duration,
+             path.duration, method)
+    to_input = 1.0 / uniform.alpha  # path parameter -> time of the input trajectory
+    return ToppraRetiming(out, method, ss * to_input, times, fit_s * to_input, float(times[-1]), float(alpha),
+                          float(v_pk), float(a_pk))
+
+
+def _check_toppra_arguments(v_max: float, a_max: float, gridpoints_per_piece: int, refit_pieces_per_piece: int,
+                            stretch_rounds: int) -> None:
     if v_max is None or a_max is None:
         raise InvalidProblem("retime_toppra needs both v_max and a_max")
     _check_limit("v_max", v_max)
@@ -372,69 +402,13 @@ def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *
     if gridpoints_per_piece < 1 or refit_pieces_per_piece < 1 or stretch_rounds < 0:
         raise InvalidProblem(f"gridpoints_per_piece ({gridpoints_per_piece}) and refit_pieces_per_piece "
                              f"({refit_pieces_per_piece}) must be >= 1, stretch_rounds ({stretch_rounds}) >= 0")
-    require_toppra()
-    import toppra
-    import toppra.algorithm as algo
-    import toppra.constraint as constraint
 
-    from mrfswarm.trajectory.min_snap import solve_min_snap
 
-    uniform = scale_to_limits(trajectory, v_max, a_max, allow_speedup=True)
-    path = uniform.trajectory  # step 1: s = time of the input scaled to the limits
-    dim = path.dim
-    D, h = _inscribed_directions(dim)
-    kn = path.knots
-    G = gridpoints_per_piece
-    grid = np.concatenate([(kn[:-1, None] + np.arange(G)[None, :] / G * path.durations[:, None]).ravel(), kn[-1:]])
+def _refit_samples(ss: np.ndarray, sd: np.ndarray, times: np.ndarray, G: int, R: int) -> tuple[np.ndarray, np.ndarray]:
+    """Step 3's refit points: ``R`` per input piece, evenly spread in toppra's time (``G`` gridpoints a piece).
 
-    class _Path(toppra.interpolator.AbstractGeometricPath):
-        def __call__(self, path_positions, order=0):
-            return path.evaluate(path_positions, order)
-
-        @property
-        def dof(self):
-            return dim
-
-        @property
-        def path_interval(self):
-            return np.array([0.0, path.duration])
-
-    class _RateBound(constraint.LinearConstraint):
-        """Step 2: ``sd <= SD_BOUND``; at the rest ends nothing else bounds it."""
-
-        def __init__(self) -> None:
-            super().__init__()
-            self.dof = dim
-
-        def compute_constraint_params(self, _path, gridpoints):
-            xb = np.zeros((len(gridpoints), 2))
-            xb[:, 1] = SD_BOUND**2
-            return None, None, None, None, None, None, xb
-
-    F = np.zeros((1 + len(D), 1 + dim))
-    F[0, 0] = 1.0
-    F[1:, 1:] = D
-    g = np.concatenate([[v_max**2], np.full(len(D), h * a_max)])
-    # w = (|qd|^2, qdd): linear in (sdd, sd^2) along the path, as toppra's second-order form needs
-    con = constraint.SecondOrderConstraint(
-        lambda q, qd, qdd: np.concatenate([[qd @ qd], qdd]), lambda q: F, lambda q: g, dof=dim,
-        discretization_scheme=constraint.DiscretizationType.Interpolation,
-    )
-    inst = algo.TOPPRA([con, _RateBound()], _Path(), gridpoints=grid, solver_wrapper="seidel")
-    inst.compute_parameterization(0.0, 0.0)
-    data = inst.problem_data
-    if data.return_code != algo.ParameterizationReturnCode.Ok or data.sd_vec is None:
-        raise SolverError(f"toppra failed to parametrize the path: {data.return_code}", backend="toppra",
-                          status=str(data.return_code))
-    sd = np.asarray(data.sd_vec, dtype=float).reshape(-1)
-    ss = np.asarray(data.gridpoints, dtype=float).reshape(-1)
-    dt = 2.0 * np.diff(ss) / np.maximum(sd[:-1] + sd[1:], 1e-300)  # constant path acceleration per interval
-    times = np.concatenate([[0.0], np.cumsum(dt)])
-    if ss.size != grid.size or not np.all(np.isfinite(times)) or np.any(dt <= 0):
-        raise SolverError("toppra returned an unusable parametrization", backend="toppra", status="bad_time_law")
-
-    # step 3: refit points evenly spread in toppra's time within each input piece
-    R = refit_pieces_per_piece
+    Returns ``(s, t)``: their path parameters (the input's knots exactly) and times.
+    """
     t_knots = times[::G]
     t_fit = np.append((t_knots[:-1, None] + np.arange(R)[None, :] / R * np.diff(t_knots)[:, None]).ravel(), times[-1])
     i = np.clip(np.searchsorted(times, t_fit, side="right") - 1, 0, ss.size - 2)
@@ -442,10 +416,20 @@ def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *
     sdd = (sd[i + 1] ** 2 - sd[i] ** 2) / (2.0 * (ss[i + 1] - ss[i]))
     s_fit = np.minimum(ss[i] + sd[i] * tau + 0.5 * sdd * tau**2, ss[i + 1])
     s_fit[::R] = ss[::G]  # exactly the knots
-    points = path.evaluate(s_fit)
-    T = np.diff(t_fit)
+    return s_fit, t_fit
+
+
+def _refit_with_stretching(points: np.ndarray, T: np.ndarray, v_max: float, a_max: float, derivative: int,
+                           rounds: int, backend: str | None) -> PiecewisePolynomial:
+    """Step 3's refit through ``points``: lengthen the pieces over a limit for up to ``rounds`` rounds.
+
+    Returns the refit of the shortest duration once scaled to the limits (stops after 3
+    rounds without a shorter one, or when every limit holds).
+    """
+    from mrfswarm.trajectory.min_snap import solve_min_snap
+
     best, stale = None, 0
-    for _ in range(stretch_rounds + 1):
+    for _ in range(rounds + 1):
         refit = solve_min_snap(points, T, degree=2 * derivative - 1, derivative=derivative,
                                backend=backend).trajectory
         f = _limit_ratios(refit, v_max, a_max)
@@ -457,15 +441,4 @@ def retime_toppra(trajectory: PiecewisePolynomial, v_max: float, a_max: float, *
             break
         T = T * np.sqrt(np.maximum(f, 1.0))  # damped: lengthening a piece also loads its neighbours
     assert best is not None  # the loop ran at least once
-    sc = scale_to_limits(best[1], v_max, a_max)
-    # step 4: never slower than the uniform scaling of step 1
-    if sc.trajectory.duration > path.duration:
-        method, out, alpha, v_pk, a_pk, fit_s = "uniform", path, uniform.alpha, uniform.v_peak, uniform.a_peak, ss[:0]
-    else:
-        method, out, alpha, v_pk, a_pk, fit_s = "toppra", sc.trajectory, sc.alpha, sc.v_peak, sc.a_peak, s_fit
-    log.info("toppra: %.3f s time-optimal on the path; refit of %d pieces scaled by %.3f to %.3f s; "
-             "uniform scaling %.3f s; returned: %s", times[-1], best[1].pieces, sc.alpha, sc.trajectory.duration,
-             path.duration, method)
-    to_input = 1.0 / uniform.alpha  # path parameter -> time of the input trajectory
-    return ToppraRetiming(out, method, ss * to_input, times, fit_s * to_input, float(times[-1]), float(alpha),
-                          float(v_pk), float(a_pk))
+    return best[1]

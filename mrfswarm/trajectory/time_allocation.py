@@ -57,7 +57,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mrfswarm.trajectory.banded import solve_banded
-from mrfswarm.trajectory.problem import EndSpec, MinSnapProblem
+from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE, EndSpec, MinSnapProblem
 from solvers.errors import InvalidProblem
 
 log = logging.getLogger(__name__)
@@ -98,8 +98,8 @@ def trapezoidal_durations(waypoints: np.ndarray, v_max: float, a_max: float) -> 
     return np.where(cruise, d / v_max + v_max / a_max, 2.0 * np.sqrt(d / a_max))
 
 
-def stationary_time_weight(waypoints: np.ndarray, durations: np.ndarray, *, degree: int = 7,
-                           derivative: int = 4) -> float:
+def stationary_time_weight(waypoints: np.ndarray, durations: np.ndarray, *, degree: int = DEFAULT_DEGREE,
+                           derivative: int = DEFAULT_DERIVATIVE) -> float:
     """The time weight for which ``durations`` have the optimal total: :math:`(2q-1) J^*(T) / \\sum_i T_i`.
 
     At this weight :math:`F(\\alpha T)` is least at :math:`\\alpha = 1` (rest-to-rest ends;
@@ -115,7 +115,7 @@ def stationary_time_weight(waypoints: np.ndarray, durations: np.ndarray, *, degr
     return (2 * problem.derivative - 1) * J / float(problem.durations.sum())
 
 
-def scaled_time_weight(time_weight: float, alpha: float, derivative: int = 4) -> float:
+def scaled_time_weight(time_weight: float, alpha: float, derivative: int = DEFAULT_DERIVATIVE) -> float:
     """The weight :math:`k_T \\alpha^{-2q}` whose optimum is the ``k_T`` optimum slowed down by ``alpha``.
 
     Parameters
@@ -185,8 +185,8 @@ def refine_durations(
     durations: np.ndarray,
     *,
     time_weight: float | None = None,
-    degree: int = 7,
-    derivative: int = 4,
+    degree: int = DEFAULT_DEGREE,
+    derivative: int = DEFAULT_DERIVATIVE,
     start: EndSpec = "rest",
     end: EndSpec = "rest",
     min_duration: float | None = None,

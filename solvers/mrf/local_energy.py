@@ -136,7 +136,6 @@ class LocalEnergy:
         (ep, eend), (cp, cend), (self._pairwise, self._mask) = _shared
         self._edge = self._recipe(mrf.edges, ep, eend, pos, L)
         self._conf = self._recipe(mrf.conflicts, cp, cend, pos, L)
-        self.n_incident = int(self._edge[0].size)
 
     @staticmethod
     def _recipe(pairs: np.ndarray, p: np.ndarray, end: np.ndarray, pos: np.ndarray, L: int) -> tuple:

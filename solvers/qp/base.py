@@ -17,9 +17,16 @@ import numpy as np
 
 from solvers.errors import InfeasibleError, InvalidProblem, SolverError
 from solvers.qp.problem import QPProblem
+from solvers.qp.row_split import RowSplit, split_rows
 from solvers.qp.solution import Options, Solution, Status
 
 log = logging.getLogger(__name__)
+
+
+def set_attributes(target: object, values: dict) -> None:
+    """Set each of ``values`` as an attribute of ``target`` (a backend's settings object)."""
+    for key, val in values.items():
+        setattr(target, key, val)
 
 
 class PreparedQP(ABC):
@@ -118,3 +125,16 @@ class PreparedQP(ABC):
     def _check_same_shape(self, problem: QPProblem) -> None:
         if not self.same_pattern(problem):
             raise InvalidProblem("update() needs a problem with the same shape and sparsity pattern")
+
+    def _split_for_update(self, problem: QPProblem, current: RowSplit) -> RowSplit | None:
+        """The row split of ``problem`` when it partitions the rows as ``current`` does.
+
+        For backends that split ``l <= Ax <= u`` into equality and inequality rows: a new
+        partition sets the backend up again (the default :meth:`update`) and returns None.
+        """
+        self._check_same_shape(problem)
+        split = split_rows(problem)
+        if split.same_partition(current):
+            return split
+        PreparedQP.update(self, problem)
+        return None

@@ -16,7 +16,7 @@ rows ``A_eq x + s = b`` with ``s`` in the zero cone, finite upper sides
 nonnegative cone (a two-sided row is in both; a row free on both sides in neither).
 Clarabel's multipliers ``z`` satisfy ``P x + q + A_K' z = 0`` for the stacked matrix,
 so the standard form's ``y`` is ``z`` on equality and upper rows and ``-z`` on lower
-rows (:func:`_scatter`). ``P`` is passed as its upper triangle, as Clarabel expects.
+rows (:func:`~solvers.qp.row_split.scatter_one_sided`). ``P`` is passed as its upper triangle, as Clarabel expects.
 
 Tolerances: ``tol_gap_abs``, ``tol_gap_rel`` and ``tol_feas`` are ``eps_abs``,
 ``eps_rel`` and ``eps_abs``; ``max_iter`` and ``time_limit`` are Clarabel's own.
@@ -40,7 +40,7 @@ import scipy.sparse as sp
 from solvers.qp.base import PreparedQP
 from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
-from solvers.qp.row_split import split_rows
+from solvers.qp.row_split import one_sided_rows, scatter_one_sided, stack_one_sided
 from solvers.qp.solution import Options, Status
 from solvers.registry import Backend
 
@@ -81,35 +81,6 @@ def _status(st) -> Status:
     return table.get(st, Status.ERROR)
 
 
-def _rows(problem: QPProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Row indices of the equalities, of the finite upper sides and of the finite lower sides."""
-    split = split_rows(problem)  # validates l == u == inf rows
-    ineq = np.zeros(problem.m, dtype=bool)
-    ineq[split.ineq] = True
-    return split.eq, np.flatnonzero(ineq & np.isfinite(problem.u)), np.flatnonzero(ineq & np.isfinite(problem.l))
-
-
-def _conic(problem: QPProblem, rows: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[sp.csc_matrix, np.ndarray]:
-    """The stacked ``A_K`` and ``b`` of ``A_K x + s = b`` for the row blocks ``rows``."""
-    eq, hi, lo = rows
-    A = problem.A.tocsr()
-    A_K = sp.vstack([A[eq], A[hi], -A[lo]], format="csc")
-    A_K.sort_indices()
-    b = np.concatenate([problem.l[eq], problem.u[hi], -problem.l[lo]])
-    return A_K, b
-
-
-def _scatter(m: int, rows: tuple[np.ndarray, np.ndarray, np.ndarray], z: np.ndarray) -> np.ndarray:
-    """The standard form's multipliers (length ``m``) from Clarabel's ``z`` of the stacked rows."""
-    eq, hi, lo = rows
-    y = np.zeros(m)
-    k = len(eq) + len(hi)
-    y[eq] = z[:len(eq)]
-    y[hi] += z[len(eq):k]
-    y[lo] -= z[k:]
-    return y
-
-
 class ClarabelQP(PreparedQP):
     """Clarabel's ``DefaultSolver`` on the standard form, updated in place when allowed."""
 
@@ -118,8 +89,8 @@ class ClarabelQP(PreparedQP):
     def _setup(self, problem: QPProblem) -> None:
         import clarabel
 
-        rows = _rows(problem)
-        A_K, b = _conic(problem, rows)
+        rows = one_sided_rows(problem)
+        A_K, b = stack_one_sided(problem, rows)
         eq, hi, lo = rows
         cones = []
         if len(eq):
@@ -132,12 +103,12 @@ class ClarabelQP(PreparedQP):
 
     def update(self, problem: QPProblem) -> None:
         self._check_same_shape(problem)
-        rows = _rows(problem)
+        rows = one_sided_rows(problem)
         if not (all(np.array_equal(a, b) for a, b in zip(rows, self._rows, strict=True))
                 and self._solver.is_data_update_allowed()):
             super().update(problem)
             return
-        A_K, b = _conic(problem, rows)
+        A_K, b = stack_one_sided(problem, rows)
         P_triu = sp.triu(problem.P, format="csc")
         same_patterns = (np.array_equal(P_triu.indptr, self._P_triu.indptr)
                          and np.array_equal(P_triu.indices, self._P_triu.indices)
@@ -154,7 +125,7 @@ class ClarabelQP(PreparedQP):
         # interior point: warm_start ignored
         r = self._solver.solve()
         status = _status(r.status)
-        y = _scatter(self.problem.m, self._rows, np.asarray(r.z, dtype=float)) if status.ok else None
+        y = scatter_one_sided(self.problem.m, self._rows, np.asarray(r.z, dtype=float)) if status.ok else None
         return np.asarray(r.x, dtype=float), status, str(r.status), r.iterations, y
 
 

@@ -14,7 +14,7 @@ import time
 import numpy as np
 
 from solvers.errors import InvalidProblem
-from solvers.qp import casadi_, clarabel_, closed_form, cvxpy_, ipopt_, osqp_, piqp_, proxsuite_
+from solvers.qp import casadi_, clarabel_, closed_form, cvxpy_, ipopt_, osqp_, piqp_, proxsuite_, qpsolvers_
 from solvers.qp.base import PreparedQP
 from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
@@ -31,6 +31,7 @@ BACKENDS: Registry[QPCapabilities] = Registry(
         proxsuite_.BACKEND,
         clarabel_.BACKEND,
         cvxpy_.BACKEND,
+        *qpsolvers_.BACKENDS,
         casadi_.BACKEND,
         ipopt_.BACKEND,
         closed_form.BACKEND,

@@ -30,7 +30,7 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 
-from solvers.qp.base import PreparedQP
+from solvers.qp.base import PreparedQP, set_attributes
 from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
 from solvers.qp.row_split import split_rows
@@ -84,8 +84,7 @@ class PiqpQP(PreparedQP):
 
         split = split_rows(problem)
         solver = piqp.SparseSolver()
-        for key, val in _settings(self.options).items():
-            setattr(solver.settings, key, val)
+        set_attributes(solver.settings, _settings(self.options))
         P_triu = sp.triu(problem.P, format="csc")
         solver.setup(P_triu, problem.q, *self._constraints(split))
         self._solver, self._split, self._P_triu = solver, split, P_triu
@@ -97,10 +96,8 @@ class PiqpQP(PreparedQP):
         return (*eq, *ineq)
 
     def update(self, problem: QPProblem) -> None:
-        self._check_same_shape(problem)
-        split = split_rows(problem)
-        if not split.same_partition(self._split):
-            super().update(problem)
+        split = self._split_for_update(problem, self._split)
+        if split is None:
             return
         P_triu = sp.triu(problem.P, format="csc")
         if not (np.array_equal(P_triu.indptr, self._P_triu.indptr) and np.array_equal(P_triu.indices, self._P_triu.indices)):

@@ -42,7 +42,7 @@ import logging
 
 import numpy as np
 
-from solvers.qp.base import PreparedQP
+from solvers.qp.base import PreparedQP, set_attributes
 from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
 from solvers.qp.row_split import RowSplit, split_rows
@@ -99,8 +99,7 @@ class ProxsuiteQP(PreparedQP):
         self._dense = problem.n <= DENSE_MAX_N
         api = proxqp.dense if self._dense else proxqp.sparse
         qp = api.QP(problem.n, split.n_eq, split.n_in)
-        for key, val in _settings(self.options).items():
-            setattr(qp.settings, key, val)
+        set_attributes(qp.settings, _settings(self.options))
         qp.init(*self._data(problem, split))
         self._qp, self._split = qp, split
 
@@ -115,10 +114,8 @@ class ProxsuiteQP(PreparedQP):
         return (conv(problem.P), problem.q, *eq, *ineq)
 
     def update(self, problem: QPProblem) -> None:
-        self._check_same_shape(problem)
-        split = split_rows(problem)
-        if not split.same_partition(self._split):
-            super().update(problem)
+        split = self._split_for_update(problem, self._split)
+        if split is None:
             return
         self.problem = problem
         self._split = split

@@ -100,6 +100,46 @@ def split_rows(problem: QPProblem) -> RowSplit:
     )
 
 
+def one_sided_rows(problem: QPProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Row indices of the equalities, of the finite upper sides and of the finite lower sides.
+
+    For backends that take ``A_eq x = b`` and one-sided rows ``G x <= h`` (a two-sided row
+    is in both inequality blocks, a row free on both sides in neither).
+    """
+    split = split_rows(problem)  # validates l == u == inf rows
+    ineq = np.zeros(problem.m, dtype=bool)
+    ineq[split.ineq] = True
+    return split.eq, np.flatnonzero(ineq & np.isfinite(problem.u)), np.flatnonzero(ineq & np.isfinite(problem.l))
+
+
+def stack_one_sided(problem: QPProblem, rows: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[sp.csc_matrix, np.ndarray]:
+    """``[A_eq; A_hi; -A_lo]`` (CSC) and ``[l_eq; u_hi; -l_lo]`` for the row blocks ``rows``.
+
+    The first ``len(rows[0])`` rows are the equalities, the others read ``G x <= h``.
+    """
+    eq, hi, lo = rows
+    A = problem.A.tocsr()
+    A_K = sp.vstack([A[eq], A[hi], -A[lo]], format="csc")
+    A_K.sort_indices()
+    b = np.concatenate([problem.l[eq], problem.u[hi], -problem.l[lo]])
+    return A_K, b
+
+
+def scatter_one_sided(m: int, rows: tuple[np.ndarray, np.ndarray, np.ndarray], z: np.ndarray) -> np.ndarray:
+    """The standard form's multipliers (length ``m``) from those ``z`` of the stacked rows.
+
+    ``z`` in the stacked form's convention, ``P x + q + A_K' z = 0``: the equalities' and
+    upper sides' multipliers carry over, the lower sides' change sign.
+    """
+    eq, hi, lo = rows
+    y = np.zeros(m)
+    k = len(eq) + len(hi)
+    y[eq] = z[:len(eq)]
+    y[hi] += z[len(eq):k]
+    y[lo] -= z[k:]
+    return y
+
+
 def same_matrices(old: QPProblem, new: QPProblem) -> bool:
     """True when ``new`` has the very same ``P`` and ``A`` as ``old`` (only q, l, u differ).
 

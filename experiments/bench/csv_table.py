@@ -1,0 +1,25 @@
+"""The benchmarks' one CSV writer: a list of row dicts to a file, its folder made."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+
+def write_csv(path: Path, rows: list[dict], columns: list[str] | None = None, float_format: str | None = None) -> None:
+    """Write ``rows`` to ``path`` with a header of ``columns`` (default: the first row's keys).
+
+    A key a row lacks is written empty; with ``float_format`` (e.g. ``".6g"``) floats are
+    formatted with it.
+    """
+    columns = list(rows[0]) if columns is None else columns
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=columns)
+        w.writeheader()
+        for r in rows:
+            w.writerow({c: _cell(r.get(c, ""), float_format) for c in columns})
+
+
+def _cell(value, float_format: str | None):
+    return format(value, float_format) if float_format and isinstance(value, float) else value
