@@ -198,6 +198,7 @@ class _Solution:
     durations: np.ndarray
     cost: float = 0.0
     gradient: np.ndarray | None = None  # d cost / d durations (M,), when asked for
+    cps: list[np.ndarray] | None = None  # [P, V, A, J] control points, as _control_points gives them
 
 
 class RecedingHorizon:
@@ -355,7 +356,7 @@ class RecedingHorizon:
             if not new_pairs.any() and not new_limits.any():
                 rec.active_pairs = int(self.active[cand].sum())
                 return _Solution(Y, B, durations, float(cost.sum()),
-                                 None if grad is None else grad.sum(axis=0)), ""
+                                 None if grad is None else grad.sum(axis=0), cps), ""
             self.active[cand[new_pairs]] = True
             self.limit_rows[a:b] |= new_limits
             touched = np.zeros(self.N, dtype=bool)
@@ -384,7 +385,8 @@ class RecedingHorizon:
 
     def _certify(self, sol: _Solution, a: int) -> Certificate:
         tic = time.perf_counter()
-        cps = self._control_points(sol.Y, sol.B, sol.durations)
+        # the solve's control points of this very Y, B (every robot's were recomputed after its last QP)
+        cps = sol.cps if sol.cps is not None else self._control_points(sol.Y, sol.B, sol.durations)
         out = certify_pieces(cps, self.regions.window(a, a + len(sol.durations)), self.distance, self.limits)
         self._check_s += time.perf_counter() - tic
         return out

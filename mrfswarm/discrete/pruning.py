@@ -31,6 +31,9 @@ from mrfswarm.geometry import segment_clear, segment_segment_distance
 _TOUCH = 1e-9
 #: Slack on the k-d tree search radius (the exact distance test decides).
 _SLACK = 1e-6
+#: Chords are queried in groups of half-lengths [0, 0.5), [0.5, 1), ... (cells), the last open-ended.
+_CHORD_BIN = 0.5
+_CHORD_BINS = 16
 
 
 def horizon_bounds(n_steps: int, horizon: int) -> list[tuple[int, int]]:
@@ -114,11 +117,24 @@ def _window_valid(paths: np.ndarray, free: np.ndarray, a: int, b: int) -> np.nda
         cpf, cqf = cp[cand].astype(float), cq[cand].astype(float)
         c_mid, c_half = (cpf + cqf) / 2, np.hypot(*(cqf - cpf).T) / 2
         s_mid, s_half = (sp + sq) / 2, np.hypot(*(sq - sp).T) / 2
-        reach = float(c_half.max() + s_half.max()) + _TOUCH + _SLACK
-        near = cKDTree(c_mid).sparse_distance_matrix(cKDTree(s_mid), reach, output_type="ndarray")
-        ci, si = near["i"].astype(np.intp), near["j"].astype(np.intp)
-        keep = (sown[si] != owner[cand[ci]]) & (near["v"] <= c_half[ci] + s_half[si] + _TOUCH + _SLACK)
-        ci, si = ci[keep], si[keep]
+        s_tree, s_reach = cKDTree(s_mid), float(s_half.max()) + _TOUCH + _SLACK
+        ci_parts, si_parts = [], []
+        # chords queried in groups of like length, each with its own reach: one global reach set by
+        # the longest chord made every short chord meet most of a dense swarm (12 s -> 1 s at 300)
+        groups = np.minimum(np.floor(c_half / _CHORD_BIN).astype(np.intp), _CHORD_BINS - 1)
+        for g in np.unique(groups):
+            idx = np.flatnonzero(groups == g)
+            near = cKDTree(c_mid[idx]).sparse_distance_matrix(s_tree, float(c_half[idx].max()) + s_reach,
+                                                              output_type="ndarray")
+            ci, si = idx[near["i"].astype(np.intp)], near["j"].astype(np.intp)
+            keep = (sown[si] != owner[cand[ci]]) & (near["v"] <= c_half[ci] + s_half[si] + _TOUCH + _SLACK)
+            ci, si = ci[keep], si[keep]
+            # segments that touch have overlapping bounding boxes (grown by the touching distance)
+            keep = np.all((np.minimum(cpf[ci], cqf[ci]) <= np.maximum(sp[si], sq[si]) + _TOUCH + _SLACK)
+                          & (np.minimum(sp[si], sq[si]) <= np.maximum(cpf[ci], cqf[ci]) + _TOUCH + _SLACK), axis=1)
+            ci_parts.append(ci[keep])
+            si_parts.append(si[keep])
+        ci, si = np.concatenate(ci_parts), np.concatenate(si_parts)
         touch = segment_segment_distance(cpf[ci], cqf[ci], sp[si], sq[si]) < _TOUCH
         crossed = np.zeros(len(cand), dtype=bool)
         crossed[ci[touch]] = True
