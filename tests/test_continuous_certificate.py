@@ -142,5 +142,6 @@ def test_exact_min_separation_against_dense_sampling():
         pts = np.stack([tr.evaluate(t) for tr in flight], axis=1)
         iu, ju = np.triu_indices(6, 1)
         dense = np.linalg.norm(pts[:, iu] - pts[:, ju], axis=-1).min()
-        exact = exact_min_separation(flight, 0.5)
-        assert exact <= dense + 1e-9 and dense - exact < 1e-4
+        for block in (1, 2, 8):  # steps taken one, two or all at a time: the same minimum
+            exact = exact_min_separation(flight, 0.5, block=block)
+            assert exact <= dense + 1e-9 and dense - exact < 1e-4
