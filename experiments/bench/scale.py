@@ -133,7 +133,8 @@ def figure(rows: list[dict], slopes: dict[str, float], path: Path, stages: tuple
     ax.set_xlabel("robots N")
     ax.set_ylabel("seconds")
     what = "both stages" if "smoothing" in stages else "discrete stage only"
-    ax.set_title(f"free-space crossing, {what} (dotted: baseline)")
+    base = next((r.get("baseline_ref") for r in rows if r["code"] == "baseline"), None)
+    ax.set_title(f"free-space crossing, {what}" + (f" (dotted: {base})" if base else ""))
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     fig.tight_layout()
