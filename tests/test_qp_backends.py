@@ -498,3 +498,57 @@ def test_piqp_stops_at_its_iteration_cap_not_at_a_first_order_methods():
                            l=np.array([1.0]), u=np.array([1.0]))
     with pytest.raises(SolverError, match="MAX_ITER"):
         qp.solve(problem, "piqp", qp.Options(eps_abs=1e-12, eps_rel=1e-12, max_iter=1))
+
+
+def _window_qp() -> qp.QPProblem:
+    """A 4-robot window problem of the continuous stage (288 variables, 608 rows), feasible.
+
+    Cut down from a 1000-robot crossing where PIQP, equilibrating it first (its default),
+    declared it primal infeasible after 8 iterations.
+    """
+    d = np.load(ROOT / "tests" / "data" / "window_qp_4_robots.npz")
+    n = len(d["q"])
+    P = sp.csc_matrix((d["P_data"], d["P_indices"], d["P_indptr"]), shape=(n, n))
+    A = sp.csc_matrix((d["A_data"], d["A_indices"], d["A_indptr"]), shape=tuple(d["shape_A"]))
+    return qp.QPProblem(P=P, q=d["q"], A=A, l=d["l"], u=d["u"])
+
+
+@pytest.mark.parametrize("name", [n for n in NAMES if n in ("osqp", "piqp", "proxsuite", "clarabel")], ids=str)
+def test_scaling_off_solves_a_window_problem(name):
+    """``Options(scaling=False)`` reaches the backend: every backend with an equilibration step
+    solves the window problem without it, to the interior-point reference."""
+    installed(name)
+    problem = _window_qp()
+    ref = qp.solve(problem, "clarabel", qp.Options(eps_abs=1e-10, eps_rel=1e-10))
+    sol = qp.solve(problem, name, qp.Options(eps_abs=1e-7, eps_rel=1e-7, max_iter=50000, scaling=False))
+    assert problem.max_violation(sol.x) <= 1e-6
+    assert abs(sol.objective - ref.objective) <= 1e-6 * abs(ref.objective)
+
+
+def test_scaling_option_is_translated_by_every_backend_that_has_it():
+    """Each backend's own setting follows ``Options.scaling`` (its default when True)."""
+    from solvers.qp import osqp_, piqp_
+
+    pytest.importorskip("piqp")
+    assert piqp_._settings(qp.Options(scaling=False))["preconditioner_iter"] == 0
+    assert piqp_._settings(qp.Options())["preconditioner_iter"] > 0
+    assert osqp_._settings(qp.Options(scaling=False))["scaling"] == 0
+    assert osqp_._settings(qp.Options())["scaling"] > 0
+    if "clarabel" in qp.available():
+        from solvers.qp import clarabel_
+
+        assert clarabel_._settings(qp.Options(scaling=False)).equilibrate_enable is False
+        assert clarabel_._settings(qp.Options()).equilibrate_enable is True
+
+
+def test_piqp_without_equilibration_solves_what_it_calls_infeasible_with_it():
+    """Why the continuous stage turns scaling off (receding_horizon.QP_OPTIONS): with PIQP's
+    default equilibration this feasible window is reported infeasible (on the PIQP this was
+    found with; a later PIQP that solves it too keeps the test passing), without it solved."""
+    pytest.importorskip("piqp")
+    from mrfswarm.continuous.receding_horizon import QP_OPTIONS
+
+    problem = _window_qp()
+    assert QP_OPTIONS.scaling is False
+    sol = qp.solve(problem, "piqp", QP_OPTIONS)
+    assert sol.status.ok and problem.max_violation(sol.x) <= 1e-6

@@ -253,13 +253,60 @@ class WindowSpec:
 
 def _sparse_map(rows: np.ndarray, cols: np.ndarray, kidx: np.ndarray, coef: np.ndarray, shape: tuple[int, int],
                 n_k: int) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
-    """CSC pattern of a matrix whose entry (rows[e], cols[e]) sums coef[e] * k[kidx[e]], and the map k -> data."""
+    """CSC pattern of a matrix whose entry (rows[e], cols[e]) sums coef[e] * k[kidx[e]], and the map k -> data.
+
+    Entries that share a position are summed (sorting by position: O(nnz log nnz)).
+    """
     key = cols.astype(np.int64) * shape[0] + rows.astype(np.int64)
     uniq, inv = np.unique(key, return_inverse=True)
     indices = (uniq % shape[0]).astype(np.int32)
     indptr = np.concatenate([[0], np.cumsum(np.bincount(uniq // shape[0], minlength=shape[1]))]).astype(np.int32)
     S = sp.csr_matrix((coef, (inv, kidx)), shape=(len(uniq), n_k))
     return indices, indptr, S
+
+
+def _distinct_sparse_map(rows: np.ndarray, cols: np.ndarray, kidx: np.ndarray, coef: np.ndarray,
+                         shape: tuple[int, int], n_k: int) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
+    """:func:`_sparse_map` of entries at distinct positions (the constraint matrix), in linear time.
+
+    SciPy's conversion to CSC (a counting sort) orders the entries: stored as values, their
+    indices come out as the permutation. Entries that do share a position (not expected)
+    take the general route.
+    """
+    nnz = len(rows)
+    order = sp.csc_matrix((np.arange(1, nnz + 1, dtype=float), (rows, cols)), shape=shape)
+    if order.nnz != nnz:
+        return _sparse_map(rows, cols, kidx, coef, shape, n_k)
+    order.sort_indices()
+    perm = order.data.astype(np.int64) - 1
+    S = sp.csr_matrix((coef[perm], kidx[perm], np.arange(nnz + 1)), shape=(nnz, n_k))
+    return order.indices.astype(np.int32), order.indptr.astype(np.int32), S
+
+
+@lru_cache(maxsize=32)
+def _block_cost_map(degree: int, derivative: int, steps: int, per_dim: int) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
+    """The cost's map (:func:`_sparse_map`) of one robot's one coordinate: every block of P is this one."""
+    pm = piece_maps(degree, derivative)
+    J, Aa, Bb = np.ix_(np.arange(steps), np.arange(pm.nz), np.arange(pm.nz))
+    keep = np.broadcast_to(pm.h_mask[Aa, Bb], (steps, pm.nz, pm.nz))
+    col_a, col_b = J * pm.stride + pm.offset[Aa], J * pm.stride + pm.offset[Bb]
+    return _sparse_map(np.broadcast_to(col_a, keep.shape)[keep], np.broadcast_to(col_b, keep.shape)[keep],
+                       np.broadcast_to(pm.h_index(J, Aa, Bb), keep.shape)[keep], np.ones(int(keep.sum())),
+                       (per_dim, per_dim), steps * pm.size + 1)
+
+
+def _block_diagonal_map(block: tuple[np.ndarray, np.ndarray, sp.csr_matrix],
+                        copies: int) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
+    """The map of a block-diagonal matrix of ``copies`` equal blocks (diagonal blocks of ``block``'s size)."""
+    indices, indptr, S = block
+    size, nnz = len(indptr) - 1, len(indices)
+    shift = np.arange(copies)
+    full_indices = (indices[None, :] + size * shift[:, None]).ravel().astype(np.int32)
+    full_indptr = np.concatenate([(indptr[None, :-1] + nnz * shift[:, None]).ravel(), [nnz * copies]]).astype(np.int32)
+    S_full = sp.csr_matrix((np.tile(S.data, copies), np.tile(S.indices, copies),
+                            np.concatenate([(S.indptr[None, :-1] + S.nnz * shift[:, None]).ravel(), [S.nnz * copies]])),
+                           shape=(nnz * copies, S.shape[1]))
+    return full_indices, full_indptr, S_full
 
 
 class WindowFormulation:
@@ -356,15 +403,10 @@ class WindowFormulation:
         self._fixed_values = np.concatenate([start.ravel(), end.ravel()])
         self.m = n_rows
         rows_a, cols_a = np.concatenate(rows), np.concatenate(cols)
-        self._A = _sparse_map(rows_a, cols_a, np.concatenate(kidx), np.concatenate(coef), (self.m, self.n), n_k)
+        self._A = _distinct_sparse_map(rows_a, cols_a, np.concatenate(kidx), np.concatenate(coef), (self.m, self.n), n_k)
         self.l, self.u = np.concatenate(lo), np.concatenate(hi)
-        # cost: blocks (g, d, j) of the symmetric piece Hessian
-        Gi, Dd, J, Aa, Bb = np.ix_(np.arange(G), np.arange(2), np.arange(M), np.arange(nz), np.arange(nz))
-        keep = np.broadcast_to(pm.h_mask[Aa, Bb], (G, 2, M, nz, nz))
-        self._P = _sparse_map(np.broadcast_to(col(Gi, Dd, J, Aa), keep.shape)[keep],
-                              np.broadcast_to(col(Gi, Dd, J, Bb), keep.shape)[keep],
-                              np.broadcast_to(pm.h_index(J, Aa, Bb), keep.shape)[keep],
-                              np.ones(int(keep.sum())), (self.n, self.n), n_k)
+        # cost: one block per robot and coordinate, all alike (the symmetric piece Hessians along its steps)
+        self._P = _block_diagonal_map(_block_cost_map(D, q, M, self.per_dim), 2 * G)
 
     # ------------------------------------------------------------------ QP
     def normalized(self, durations: np.ndarray) -> np.ndarray:

@@ -60,6 +60,7 @@ def _settings(o: Options):
     if o.time_limit is not None:
         s.time_limit = float(o.time_limit)
     s.verbose = bool(o.verbose)
+    s.equilibrate_enable = bool(o.scaling)
     return s
 
 

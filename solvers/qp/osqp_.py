@@ -26,6 +26,7 @@ def _settings(o: Options) -> dict:
         time_limit=o.time_limit or 1e10,
         verbose=o.verbose,
         polishing=o.polish,
+        scaling=10 if o.scaling else 0,  # OSQP's default is 10
         eps_prim_inf=1e-6,
         eps_dual_inf=1e-6,
     )

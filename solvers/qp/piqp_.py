@@ -58,6 +58,7 @@ def _settings(o: Options) -> dict:
         eps_duality_gap_rel=o.eps_rel,
         max_iter=min(o.max_iter, MAX_ITER),
         verbose=o.verbose,
+        preconditioner_iter=10 if o.scaling else 0,  # PIQP's default is 10
     )
 
 

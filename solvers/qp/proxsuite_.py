@@ -100,7 +100,7 @@ class ProxsuiteQP(PreparedQP):
         api = proxqp.dense if self._dense else proxqp.sparse
         qp = api.QP(problem.n, split.n_eq, split.n_in)
         set_attributes(qp.settings, _settings(self.options))
-        qp.init(*self._data(problem, split))
+        qp.init(*self._data(problem, split), compute_preconditioner=self.options.scaling)
         self._qp, self._split = qp, split
 
     def _data(self, problem: QPProblem, split: RowSplit) -> tuple:

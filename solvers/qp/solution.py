@@ -41,6 +41,13 @@ class Options:
         Let the backend print.
     polish
         Ask first-order backends (osqp) for a solution polishing step.
+    scaling
+        Let the backend equilibrate the problem (Ruiz scaling of its rows and columns)
+        before solving: osqp, piqp, proxsuite, clarabel. ``False`` for problems already
+        scaled by their formulation, where equilibration can cost iterations or even
+        mislead infeasibility detection (the continuous stage's window problems: piqp
+        declared feasible windows infeasible, osqp stopped inaccurate). Backends without
+        such a step ignore it.
     """
 
     eps_abs: float = 1e-8
@@ -49,6 +56,7 @@ class Options:
     time_limit: float | None = None
     verbose: bool = False
     polish: bool = True
+    scaling: bool = True
 
     def __post_init__(self) -> None:
         if not (self.eps_abs > 0 and self.eps_rel >= 0):
