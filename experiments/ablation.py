@@ -159,7 +159,7 @@ def _recorder(problem: DiscreteProblem, records: list[StepRecord]):
 
 def run_one(config: Path, method: str, max_steps: int | None = None, seed: int = 0) -> Run:
     """Plan one scenario's discrete stage with ``method`` and measure it."""
-    cfg = load_config(config, ["smoothing.enabled=false", f"mrf.optimizer={method}"])
+    cfg = load_config(config, ["smoothing.enabled=false", f"mrf.method={method}"])
     scn = build_scenario(cfg)
     problem = scn.discrete_problem()
     records: list[StepRecord] = []

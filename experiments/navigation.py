@@ -112,7 +112,7 @@ def run_case(args: tuple) -> tuple[dict, np.ndarray | None]:
     from mrfswarm.scenario import build_scenario
 
     variant, overrides, method, name, kind, seed, n, start_seed, path, keep_paths = args
-    cfg = load_config(path, ["smoothing.enabled=false", f"mrf.optimizer={method}", *overrides])
+    cfg = load_config(path, ["smoothing.enabled=false", f"mrf.method={method}", *overrides])
     t0 = time.perf_counter()
     scn = build_scenario(cfg, seed=start_seed)
     t1 = time.perf_counter()

@@ -3,6 +3,8 @@
 Defaults are the paper's parameter table (Fernando & Liu, Table I), written here once.
 Unknown keys and out-of-range values raise :class:`ConfigError` naming the dotted key.
 Paths in a config are relative to the config file. ``--set a.b=v`` overrides any key.
+A key renamed since an earlier version (:data:`RENAMED_KEYS`) still loads under its new
+name, with a :class:`~mrfswarm.errors.DeprecatedKeyWarning`.
 """
 
 from __future__ import annotations
@@ -10,11 +12,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import tomllib
+import warnings
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
-from mrfswarm.errors import ConfigError
+from mrfswarm.errors import ConfigError, DeprecatedKeyWarning
 from mrfswarm.file_input import read_text
 from mrfswarm.maps import LOADERS
 from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE
@@ -32,6 +35,10 @@ REMOVED_KEYS = {
     "smoothing.corridor": "trajectories now fly in safe regions around the discrete moves "
                           "(smoothing.region_growth sets their size)",
     "smoothing.safety_distance": "the safety distance is twice scenario.robot_radius (metres)",
+}
+#: Keys of earlier versions that still load, and their current names (in the same section).
+RENAMED_KEYS = {
+    "mrf.optimizer": "mrf.method",  # the name solvers.mrf.minimize(method=) and plan_discrete(method=) use
 }
 
 
@@ -100,7 +107,10 @@ class ObstaclePotentialConfig:
 
 @dataclass(frozen=True)
 class MrfConfig:
-    """The discrete stage: optimizer, search order n, stopping.
+    """The discrete stage: MRF method, search order n, stopping.
+
+    ``method`` is a name of ``solvers.mrf.METHODS`` (``--mrf NAME`` is a shorthand for
+    ``--set mrf.method=NAME``).
 
     A step's label set is the free cells with dx^2 + dy^2 <= ``order``. The planner stops
     when one optimizer run lowers the swarm energy by less than ``tol`` times its value
@@ -118,7 +128,7 @@ class MrfConfig:
     cliques change and so can stall a large swarm that is still on its way.
     """
 
-    optimizer: str = "icm"
+    method: str = "icm"
     order: int = 2
     max_steps: int = 300
     tol: float = 1e-6
@@ -252,6 +262,31 @@ def _coerce(key: str, value: Any, hint: Any) -> Any:
     raise TypeError(f"unsupported config annotation {hint!r} for {key}")  # a bug in this module, not user input
 
 
+def current_key(key: str) -> str:
+    """The dotted config ``key`` under its current name; an old name warns (:data:`RENAMED_KEYS`)."""
+    new = RENAMED_KEYS.get(key)
+    if new is None:
+        return key
+    warnings.warn(f"config key {key} is now {new}; {key} still loads, as {new}", DeprecatedKeyWarning, stacklevel=2)
+    return new
+
+
+def _current_names(data: dict) -> dict:
+    """TOML data with its renamed keys under their current names (warning once for each)."""
+    out = dict(data)
+    for old, new in RENAMED_KEYS.items():
+        section, key = old.split(".")
+        table = out.get(section)
+        if not isinstance(table, dict) or key not in table:
+            continue
+        if new.split(".")[1] in table:
+            raise ConfigError(f"{old} and {new} are both given; {old} is the old name of {new}: keep {new}")
+        table = dict(table)
+        table[current_key(old).split(".")[1]] = table.pop(key)
+        out[section] = table
+    return out
+
+
 def _build_section(name: str, cls: type, table: Any) -> Any:
     if not isinstance(table, dict):
         raise ConfigError(f"[{name}] must be a table, got {table!r}")
@@ -330,6 +365,7 @@ def from_dict(data: dict, base_dir: Path | str = ".") -> Config:
         Unknown key, wrong type or out-of-range value; the message names the key.
     """
     types = _section_types()
+    data = _current_names(data)
     for key in data:
         if key not in types:
             raise ConfigError(f"unknown config section {key!r}; allowed: {', '.join(types)}")
@@ -355,10 +391,15 @@ def parse_override(item: str) -> tuple[list[str], Any]:
 
 
 def apply_overrides(data: dict, overrides: list[str]) -> dict:
-    """Apply ``--set`` overrides to TOML data (nested tables created as needed)."""
+    """Apply ``--set`` overrides to TOML data (nested tables created as needed).
+
+    A renamed key sets its current name (:func:`current_key`), so that ``--set
+    mrf.optimizer=gibbs`` overrides ``method`` in a config that gives it.
+    """
     data = _deepcopy(data)
     for item in overrides:
         path, value = parse_override(item)
+        path = current_key(".".join(path)).split(".")
         node = data
         for part in path[:-1]:
             nxt = node.setdefault(part, {})
@@ -395,6 +436,7 @@ def load_config(path: str | Path | None = None, overrides: list[str] | None = No
         except tomllib.TOMLDecodeError as e:
             raise ConfigError(f"{p}: invalid TOML: {e}") from e
         base = p.resolve().parent
+    data = _current_names(data)  # before the overrides, which set current names
     if overrides:
         data = apply_overrides(data, overrides)
     return from_dict(data, base)

@@ -97,7 +97,7 @@ class Result:
 
     @property
     def mrf(self) -> str:
-        return self.config.mrf.optimizer
+        return self.config.mrf.method
 
     @property
     def qp(self) -> str | None:
@@ -215,6 +215,9 @@ def _num(v: float | None) -> float | None:
 def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: str | None = None) -> Config:
     """A config object from a config or a path, with ``--mrf``/``--qp`` applied and checked.
 
+    ``mrf`` and ``qp`` are shorthands: ``mrf=NAME`` sets ``mrf.method`` and ``qp=NAME``
+    sets ``smoothing.backend``, over what the config gives.
+
     Raises
     ------
     SolverNotFound
@@ -225,10 +228,10 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     """
     cfg = config if isinstance(config, Config) else load_config(config)
     if mrf is not None:
-        cfg = cfg.replace(mrf=dataclasses.replace(cfg.mrf, optimizer=mrf))
+        cfg = cfg.replace(mrf=dataclasses.replace(cfg.mrf, method=mrf))
     if qp is not None:
         cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, backend=qp))
-    mrf_solvers.METHODS.get(cfg.mrf.optimizer)  # fail now, not after the map is loaded
+    mrf_solvers.METHODS.get(cfg.mrf.method)  # fail now, not after the map is loaded
     if cfg.smoothing.enabled:
         record = solvers.qp.BACKENDS.get(cfg.smoothing.backend)  # an unknown or missing QP backend fails now too
         if not record.capabilities.inequalities:
@@ -252,7 +255,11 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     config
         A :class:`Config` or a path to a TOML config.
     mrf, qp
-        Override the MRF optimizer / QP backend.
+        Shorthands for the config keys ``mrf.method`` (the MRF method, a name of
+        ``solvers.mrf.METHODS``) and ``smoothing.backend`` (the QP backend, a name of
+        ``solvers.qp.BACKENDS``): given, they replace the config's value, as ``--mrf
+        NAME`` and ``--qp NAME`` stand for ``--set mrf.method=NAME`` and ``--set
+        smoothing.backend=NAME``.
     seed
         Overrides the start sampling seed and the optimizer's seed (an integer >= 0).
     progress
@@ -286,7 +293,7 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
 
     with tqdm(total=cfg.mrf.max_steps, desc="MRF steps", unit="step", disable=not show, leave=False) as bar:
         t0 = time.perf_counter()
-        plan_d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.optimizer, max_steps=cfg.mrf.max_steps,
+        plan_d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.method, max_steps=cfg.mrf.max_steps,
                                tol=cfg.mrf.tol, patience=cfg.mrf.patience, options=options,
                                on_step=lambda t, out: bar.update(1), progress=cfg.mrf.progress)
         timings["discrete"] = time.perf_counter() - t0

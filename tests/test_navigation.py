@@ -58,7 +58,7 @@ class MapRun:
 def run_map(name: str, *overrides: str) -> MapRun:
     cfg = load_config(MAPS / f"{name}.toml", [*DISCRETE, *overrides])
     scn = build_scenario(cfg)
-    d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.optimizer, max_steps=cfg.mrf.max_steps, tol=cfg.mrf.tol,
+    d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.method, max_steps=cfg.mrf.max_steps, tol=cfg.mrf.tol,
                       patience=cfg.mrf.patience, progress=cfg.mrf.progress)
     robots = robot_outcomes(d.paths[-1], scn.grid.free, scn.static, cfg.mrf.order, scn.grid.resolution,
                             SEPARATION_FACTOR * scn.morse.d_min, d.stop_reason, scn.distances.path,
