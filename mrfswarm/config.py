@@ -21,6 +21,8 @@ from mrfswarm.errors import ConfigError, DeprecatedKeyWarning
 from mrfswarm.file_input import read_text
 from mrfswarm.maps import LOADERS
 from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE
+from solvers.mrf import Options as MRFOptions
+from solvers.qp import Options as QPOptions
 
 SEAM_MODES = ("rest", "continuous")
 #: What resets the discrete stage's patience (see :func:`mrfswarm.discrete.planner.plan_discrete`).
@@ -39,6 +41,12 @@ REMOVED_KEYS = {
 #: Keys of earlier versions that still load, and their current names (in the same section).
 RENAMED_KEYS = {
     "mrf.optimizer": "mrf.method",  # the name solvers.mrf.minimize(method=) and plan_discrete(method=) use
+}
+#: Optional tables of solver options and the options class whose fields they may set. The
+#: config holds the fields given; the stage that solves puts them over its own options.
+SOLVER_OPTIONS: dict[str, type] = {
+    "mrf.options": MRFOptions,
+    "smoothing.qp_options": QPOptions,
 }
 
 
@@ -110,7 +118,9 @@ class MrfConfig:
     """The discrete stage: MRF method, search order n, stopping.
 
     ``method`` is a name of ``solvers.mrf.METHODS`` (``--mrf NAME`` is a shorthand for
-    ``--set mrf.method=NAME``).
+    ``--set mrf.method=NAME``); ``options`` (the table ``[mrf.options]``) sets fields of
+    :class:`solvers.mrf.Options` (``max_iter``, ``tol``, ``time_limit``, ...) for every
+    step's run of it.
 
     A step's label set is the free cells with dx^2 + dy^2 <= ``order``. The planner stops
     when one optimizer run lowers the swarm energy by less than ``tol`` times its value
@@ -136,6 +146,7 @@ class MrfConfig:
     trim_backward: bool = False
     contested: str = "downhill"
     progress: str = "static"
+    options: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -151,7 +162,9 @@ class SmoothingConfig:
     jerk limit bounds how far a tracking controller lags (see :mod:`mrfswarm.simulation`).
     ``time_refinement`` re-optimizes each window's step durations (Ipopt) for snap +
     ``time_weight`` x flight time (snap units per second, per robot). ``check_rate_hz`` > 0
-    adds an independent sampled check of the whole flight at that rate.
+    adds an independent sampled check of the whole flight at that rate. ``qp_options`` (the
+    table ``[smoothing.qp_options]``) sets fields of :class:`solvers.qp.Options`
+    (``eps_abs``, ``eps_rel``, ``max_iter``, ...) over the stage's own for every QP solve.
     """
 
     enabled: bool = True
@@ -171,6 +184,7 @@ class SmoothingConfig:
     a_max: float = 4.0
     j_max: float = 4.0
     check_rate_hz: float = 0.0
+    qp_options: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -251,7 +265,7 @@ def _coerce(key: str, value: Any, hint: Any) -> Any:
         if not isinstance(value, str):
             raise ConfigError(f"{key} must be a string, got {value!r}")
         return value
-    if hint is dict:
+    if hint is dict or origin is dict:
         if not isinstance(value, dict):
             raise ConfigError(f"{key} must be a table, got {value!r}")
         return value
@@ -297,8 +311,22 @@ def _build_section(name: str, cls: type, table: Any) -> Any:
             raise ConfigError(f"config key {name}.{key} was removed: {REMOVED_KEYS[f'{name}.{key}']}")
         if key not in known:
             raise ConfigError(f"unknown config key {name}.{key}; allowed: {', '.join(sorted(known))}")
-    values = {k: _coerce(f"{name}.{k}", v, hints[k]) for k, v in table.items()}
+    values = {k: _solver_options(f"{name}.{k}", v) if f"{name}.{k}" in SOLVER_OPTIONS
+              else _coerce(f"{name}.{k}", v, hints[k]) for k, v in table.items()}
     return cls(**values)
+
+
+def _solver_options(key: str, table: Any) -> dict[str, Any]:
+    """The fields a table of :data:`SOLVER_OPTIONS` gives, each checked against its annotation."""
+    if not isinstance(table, dict):
+        raise ConfigError(f"{key} must be a table, got {table!r}")
+    cls = SOLVER_OPTIONS[key]
+    hints = get_type_hints(cls)
+    known = [f.name for f in fields(cls)]
+    for k in table:
+        if k not in known:
+            raise ConfigError(f"unknown config key {key}.{k}; allowed: {', '.join(known)}")
+    return {k: _coerce(f"{key}.{k}", v, hints[k]) for k, v in table.items()}
 
 
 def _validate(cfg: Config) -> None:
@@ -351,6 +379,12 @@ def _validate(cfg: Config) -> None:
     need(sm.v_max > 0, "smoothing.v_max", sm.v_max, "must be > 0")
     need(sm.a_max > 0, "smoothing.a_max", sm.a_max, "must be > 0")
     need(sm.j_max > 0, "smoothing.j_max", sm.j_max, "must be > 0")
+    for key, cls in SOLVER_OPTIONS.items():  # the options class's own range checks
+        section, name = key.split(".")
+        try:
+            cls(**getattr(getattr(cfg, section), name))
+        except ValueError as e:
+            raise ConfigError(f"{key}: {e}") from None
     need(cfg.simulation.rate_hz >= 100, "simulation.rate_hz", cfg.simulation.rate_hz, "must be >= 100")
     need(cfg.simulation.backend in ("auto", "batched", "processes"), "simulation.backend", cfg.simulation.backend,
          "must be one of auto, batched, processes")

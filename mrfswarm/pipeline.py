@@ -246,6 +246,19 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     return cfg
 
 
+def mrf_options(cfg: Config, seed: int | None = None) -> mrf_solvers.Options:
+    """The MRF method's options: the config's ``[mrf.options]`` over the defaults, ``seed`` (if given) over those."""
+    options = mrf_solvers.Options(**cfg.mrf.options)
+    return options if seed is None else dataclasses.replace(options, seed=seed)
+
+
+def qp_options(cfg: Config) -> solvers.qp.Options:
+    """The continuous stage's QP options: the config's ``[smoothing.qp_options]`` over the stage's own."""
+    from mrfswarm.continuous.receding_horizon import QP_OPTIONS
+
+    return dataclasses.replace(QP_OPTIONS, **cfg.smoothing.qp_options)
+
+
 def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None = None, seed: int | None = None,
          progress: bool | None = None, workers: int | None = None) -> Result:
     """Plan a scenario: the discrete stage, waypoint pruning, metrics.
@@ -261,7 +274,8 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         NAME`` and ``--qp NAME`` stand for ``--set mrf.method=NAME`` and ``--set
         smoothing.backend=NAME``.
     seed
-        Overrides the start sampling seed and the optimizer's seed (an integer >= 0).
+        Overrides the start sampling seed and the MRF method's (``mrf.options.seed``), an
+        integer >= 0.
     progress
         Show a progress bar (default: when stderr is a terminal).
     workers
@@ -287,7 +301,7 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     t0 = time.perf_counter()
     scn = build_scenario(cfg, seed)
     timings["scenario"] = time.perf_counter() - t0
-    options = mrf_solvers.Options(seed=0 if seed is None else seed)
+    options = mrf_options(cfg, seed)
     show = sys.stderr.isatty() if progress is None else progress
     from tqdm import tqdm
 
@@ -332,7 +346,7 @@ def _continuous(result: Result, show: bool, workers: int | None = None) -> None:
 
     cfg = result.config
     rh = RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
-                         cfg.smoothing.backend, workers=workers)
+                         cfg.smoothing.backend, qp_options(cfg), workers=workers)
     with tqdm(total=len(rh.windows()), desc="smoothing", unit="window", disable=not show, leave=False) as bar:
         plan = rh.run(on_window=lambda w: bar.update(1))
     result.continuous = plan

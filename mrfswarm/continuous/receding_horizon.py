@@ -88,6 +88,8 @@ NOMINAL_ACCELERATION = 0.25
 #: Ipopt's settings for time refinement: each iteration solves the window's QP a few times; on
 #: corridor.toml 12 iterations keep nearly all of 25's gain (makespan 21.4 s against 21.3) at a fifth of the QPs.
 NLP_OPTIONS = QPOptions(eps_abs=1e-4, eps_rel=1e-4, max_iter=12)
+#: The QP solves' options unless the caller gives others (the config's [smoothing.qp_options] go over these).
+QP_OPTIONS = QPOptions(eps_abs=1e-7, eps_rel=1e-7, max_iter=50000)
 #: Robots per chunk: independent groups are packed into QPs of about this many robots.
 CHUNK_ROBOTS = 64
 #: Swarms at least this large solve their chunks in worker processes (smaller ones gain nothing).
@@ -217,7 +219,7 @@ class RecedingHorizon:
     backend
         QP backend name for every solve (default ``cfg.backend``).
     qp_options
-        Options of every QP solve.
+        Options of every QP solve (default :data:`QP_OPTIONS`).
     workers
         Processes that solve a window's independent chunks of robots at once (default:
         the machine's cores; used for swarms of ``PARALLEL_ROBOTS`` or more). The plan
@@ -239,7 +241,7 @@ class RecedingHorizon:
         self.grid, self.cfg = grid, cfg
         self.backend = backend or cfg.backend
         solvers.qp.BACKENDS.get(self.backend)  # an unknown or missing backend fails now
-        self.qp_options = qp_options or QPOptions(eps_abs=1e-7, eps_rel=1e-7, max_iter=50000)
+        self.qp_options = qp_options or QP_OPTIONS
         self.T, self.N = len(self.paths) - 1, self.paths.shape[1]
         self.E = max(1, round(cfg.execution * cfg.horizon))
         self.radius = float(radius)
