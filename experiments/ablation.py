@@ -45,6 +45,7 @@ import numpy as np
 from mrfswarm.config import load_config
 from mrfswarm.discrete.planner import DiscreteProblem, StepOutcome, plan_discrete, step_model
 from mrfswarm.metrics import discrete_metrics
+from mrfswarm.pipeline import mrf_options
 from mrfswarm.scenario import build_scenario
 from solvers import mrf
 from solvers.errors import SolverNotFound
@@ -159,12 +160,12 @@ def _recorder(problem: DiscreteProblem, records: list[StepRecord]):
 
 def run_one(config: Path, method: str, max_steps: int | None = None, seed: int = 0) -> Run:
     """Plan one scenario's discrete stage with ``method`` and measure it."""
-    cfg = load_config(config, ["smoothing.enabled=false", f"mrf.optimizer={method}"])
+    cfg = load_config(config, ["smoothing.enabled=false", f"mrf.method={method}"])
     scn = build_scenario(cfg)
     problem = scn.discrete_problem()
     records: list[StepRecord] = []
     plan = plan_discrete(problem, method=method, max_steps=max_steps or cfg.mrf.max_steps, tol=cfg.mrf.tol,
-                         patience=cfg.mrf.patience, options=mrf.Options(seed=seed),
+                         patience=cfg.mrf.patience, options=mrf_options(cfg, seed),
                          on_step=_recorder(problem, records), progress=cfg.mrf.progress)
     if plan.stop_reason == "stalled":
         del records[plan.n_steps:]  # the planner drops the steps after the energy's minimum; so do we

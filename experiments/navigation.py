@@ -109,17 +109,16 @@ def run_case(args: tuple) -> tuple[dict, np.ndarray | None]:
     from mrfswarm.discrete.planner import SEPARATION_FACTOR, plan_discrete
     from mrfswarm.discrete.robot_outcomes import robot_outcomes
     from mrfswarm.metrics import min_separation
+    from mrfswarm.pipeline import mrf_options
     from mrfswarm.scenario import build_scenario
 
     variant, overrides, method, name, kind, seed, n, start_seed, path, keep_paths = args
-    cfg = load_config(path, ["smoothing.enabled=false", f"mrf.optimizer={method}", *overrides])
+    cfg = load_config(path, ["smoothing.enabled=false", f"mrf.method={method}", *overrides])
     t0 = time.perf_counter()
     scn = build_scenario(cfg, seed=start_seed)
     t1 = time.perf_counter()
-    from solvers import mrf
-
     plan = plan_discrete(scn.discrete_problem(), method=method, max_steps=cfg.mrf.max_steps, tol=cfg.mrf.tol,
-                         patience=cfg.mrf.patience, options=mrf.Options(seed=start_seed), progress=cfg.mrf.progress)
+                         patience=cfg.mrf.patience, options=mrf_options(cfg, start_seed), progress=cfg.mrf.progress)
     t2 = time.perf_counter()
     sep = SEPARATION_FACTOR * scn.morse.d_min
     robots = robot_outcomes(plan.paths[-1], scn.grid.free, scn.static, cfg.mrf.order, scn.grid.resolution, sep,

@@ -3,6 +3,8 @@
 Defaults are the paper's parameter table (Fernando & Liu, Table I), written here once.
 Unknown keys and out-of-range values raise :class:`ConfigError` naming the dotted key.
 Paths in a config are relative to the config file. ``--set a.b=v`` overrides any key.
+A key renamed since an earlier version (:data:`RENAMED_KEYS`) still loads under its new
+name, with a :class:`~mrfswarm.errors.DeprecatedKeyWarning`.
 """
 
 from __future__ import annotations
@@ -10,14 +12,17 @@ from __future__ import annotations
 import dataclasses
 import math
 import tomllib
+import warnings
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
-from mrfswarm.errors import ConfigError
+from mrfswarm.errors import ConfigError, DeprecatedKeyWarning
 from mrfswarm.file_input import read_text
 from mrfswarm.maps import LOADERS
 from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE
+from solvers.mrf import Options as MRFOptions
+from solvers.qp import Options as QPOptions
 
 SEAM_MODES = ("rest", "continuous")
 #: What resets the discrete stage's patience (see :func:`mrfswarm.discrete.planner.plan_discrete`).
@@ -32,6 +37,16 @@ REMOVED_KEYS = {
     "smoothing.corridor": "trajectories now fly in safe regions around the discrete moves "
                           "(smoothing.region_growth sets their size)",
     "smoothing.safety_distance": "the safety distance is twice scenario.robot_radius (metres)",
+}
+#: Keys of earlier versions that still load, and their current names (in the same section).
+RENAMED_KEYS = {
+    "mrf.optimizer": "mrf.method",  # the name solvers.mrf.minimize(method=) and plan_discrete(method=) use
+}
+#: Optional tables of solver options and the options class whose fields they may set. The
+#: config holds the fields given; the stage that solves puts them over its own options.
+SOLVER_OPTIONS: dict[str, type] = {
+    "mrf.options": MRFOptions,
+    "smoothing.qp_options": QPOptions,
 }
 
 
@@ -100,7 +115,12 @@ class ObstaclePotentialConfig:
 
 @dataclass(frozen=True)
 class MrfConfig:
-    """The discrete stage: optimizer, search order n, stopping.
+    """The discrete stage: MRF method, search order n, stopping.
+
+    ``method`` is a name of ``solvers.mrf.METHODS`` (``--mrf NAME`` is a shorthand for
+    ``--set mrf.method=NAME``); ``options`` (the table ``[mrf.options]``) sets fields of
+    :class:`solvers.mrf.Options` (``max_iter``, ``tol``, ``time_limit``, ...) for every
+    step's run of it.
 
     A step's label set is the free cells with dx^2 + dy^2 <= ``order``. The planner stops
     when one optimizer run lowers the swarm energy by less than ``tol`` times its value
@@ -118,7 +138,7 @@ class MrfConfig:
     cliques change and so can stall a large swarm that is still on its way.
     """
 
-    optimizer: str = "icm"
+    method: str = "icm"
     order: int = 2
     max_steps: int = 300
     tol: float = 1e-6
@@ -126,6 +146,7 @@ class MrfConfig:
     trim_backward: bool = False
     contested: str = "downhill"
     progress: str = "static"
+    options: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -141,7 +162,9 @@ class SmoothingConfig:
     jerk limit bounds how far a tracking controller lags (see :mod:`mrfswarm.simulation`).
     ``time_refinement`` re-optimizes each window's step durations (Ipopt) for snap +
     ``time_weight`` x flight time (snap units per second, per robot). ``check_rate_hz`` > 0
-    adds an independent sampled check of the whole flight at that rate.
+    adds an independent sampled check of the whole flight at that rate. ``qp_options`` (the
+    table ``[smoothing.qp_options]``) sets fields of :class:`solvers.qp.Options`
+    (``eps_abs``, ``eps_rel``, ``max_iter``, ...) over the stage's own for every QP solve.
     """
 
     enabled: bool = True
@@ -161,6 +184,7 @@ class SmoothingConfig:
     a_max: float = 4.0
     j_max: float = 4.0
     check_rate_hz: float = 0.0
+    qp_options: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -241,7 +265,7 @@ def _coerce(key: str, value: Any, hint: Any) -> Any:
         if not isinstance(value, str):
             raise ConfigError(f"{key} must be a string, got {value!r}")
         return value
-    if hint is dict:
+    if hint is dict or origin is dict:
         if not isinstance(value, dict):
             raise ConfigError(f"{key} must be a table, got {value!r}")
         return value
@@ -250,6 +274,31 @@ def _coerce(key: str, value: Any, hint: Any) -> Any:
             raise ConfigError(f"{key} must be a list of {len(args)} numbers, got {value!r}")
         return tuple(_coerce(f"{key}[{i}]", v, args[i]) for i, v in enumerate(value))
     raise TypeError(f"unsupported config annotation {hint!r} for {key}")  # a bug in this module, not user input
+
+
+def current_key(key: str) -> str:
+    """The dotted config ``key`` under its current name; an old name warns (:data:`RENAMED_KEYS`)."""
+    new = RENAMED_KEYS.get(key)
+    if new is None:
+        return key
+    warnings.warn(f"config key {key} is now {new}; {key} still loads, as {new}", DeprecatedKeyWarning, stacklevel=2)
+    return new
+
+
+def _current_names(data: dict) -> dict:
+    """TOML data with its renamed keys under their current names (warning once for each)."""
+    out = dict(data)
+    for old, new in RENAMED_KEYS.items():
+        section, key = old.split(".")
+        table = out.get(section)
+        if not isinstance(table, dict) or key not in table:
+            continue
+        if new.split(".")[1] in table:
+            raise ConfigError(f"{old} and {new} are both given; {old} is the old name of {new}: keep {new}")
+        table = dict(table)
+        table[current_key(old).split(".")[1]] = table.pop(key)
+        out[section] = table
+    return out
 
 
 def _build_section(name: str, cls: type, table: Any) -> Any:
@@ -262,8 +311,22 @@ def _build_section(name: str, cls: type, table: Any) -> Any:
             raise ConfigError(f"config key {name}.{key} was removed: {REMOVED_KEYS[f'{name}.{key}']}")
         if key not in known:
             raise ConfigError(f"unknown config key {name}.{key}; allowed: {', '.join(sorted(known))}")
-    values = {k: _coerce(f"{name}.{k}", v, hints[k]) for k, v in table.items()}
+    values = {k: _solver_options(f"{name}.{k}", v) if f"{name}.{k}" in SOLVER_OPTIONS
+              else _coerce(f"{name}.{k}", v, hints[k]) for k, v in table.items()}
     return cls(**values)
+
+
+def _solver_options(key: str, table: Any) -> dict[str, Any]:
+    """The fields a table of :data:`SOLVER_OPTIONS` gives, each checked against its annotation."""
+    if not isinstance(table, dict):
+        raise ConfigError(f"{key} must be a table, got {table!r}")
+    cls = SOLVER_OPTIONS[key]
+    hints = get_type_hints(cls)
+    known = [f.name for f in fields(cls)]
+    for k in table:
+        if k not in known:
+            raise ConfigError(f"unknown config key {key}.{k}; allowed: {', '.join(known)}")
+    return {k: _coerce(f"{key}.{k}", v, hints[k]) for k, v in table.items()}
 
 
 def _validate(cfg: Config) -> None:
@@ -316,6 +379,12 @@ def _validate(cfg: Config) -> None:
     need(sm.v_max > 0, "smoothing.v_max", sm.v_max, "must be > 0")
     need(sm.a_max > 0, "smoothing.a_max", sm.a_max, "must be > 0")
     need(sm.j_max > 0, "smoothing.j_max", sm.j_max, "must be > 0")
+    for key, cls in SOLVER_OPTIONS.items():  # the options class's own range checks
+        section, name = key.split(".")
+        try:
+            cls(**getattr(getattr(cfg, section), name))
+        except ValueError as e:
+            raise ConfigError(f"{key}: {e}") from None
     need(cfg.simulation.rate_hz >= 100, "simulation.rate_hz", cfg.simulation.rate_hz, "must be >= 100")
     need(cfg.simulation.backend in ("auto", "batched", "processes"), "simulation.backend", cfg.simulation.backend,
          "must be one of auto, batched, processes")
@@ -330,6 +399,7 @@ def from_dict(data: dict, base_dir: Path | str = ".") -> Config:
         Unknown key, wrong type or out-of-range value; the message names the key.
     """
     types = _section_types()
+    data = _current_names(data)
     for key in data:
         if key not in types:
             raise ConfigError(f"unknown config section {key!r}; allowed: {', '.join(types)}")
@@ -355,10 +425,15 @@ def parse_override(item: str) -> tuple[list[str], Any]:
 
 
 def apply_overrides(data: dict, overrides: list[str]) -> dict:
-    """Apply ``--set`` overrides to TOML data (nested tables created as needed)."""
+    """Apply ``--set`` overrides to TOML data (nested tables created as needed).
+
+    A renamed key sets its current name (:func:`current_key`), so that ``--set
+    mrf.optimizer=gibbs`` overrides ``method`` in a config that gives it.
+    """
     data = _deepcopy(data)
     for item in overrides:
         path, value = parse_override(item)
+        path = current_key(".".join(path)).split(".")
         node = data
         for part in path[:-1]:
             nxt = node.setdefault(part, {})
@@ -395,6 +470,7 @@ def load_config(path: str | Path | None = None, overrides: list[str] | None = No
         except tomllib.TOMLDecodeError as e:
             raise ConfigError(f"{p}: invalid TOML: {e}") from e
         base = p.resolve().parent
+    data = _current_names(data)  # before the overrides, which set current names
     if overrides:
         data = apply_overrides(data, overrides)
     return from_dict(data, base)

@@ -29,6 +29,14 @@ class UnsafeTrajectoryError(MrfswarmError, RuntimeError):
     """A trajectory failed the continuous safety check and could not be repaired."""
 
 
+class DeprecatedKeyWarning(FutureWarning):
+    """A config key under the name it had in an earlier version: it still loads, as its new name.
+
+    A :class:`FutureWarning`, which Python shows by default (a ``DeprecationWarning`` is
+    hidden outside ``__main__``): it speaks to whoever wrote the config, not to a developer.
+    """
+
+
 class PlanError(MrfswarmError):
     """A plan stopped after its discrete stage; ``result`` holds what was computed.
 
@@ -44,6 +52,7 @@ class PlanError(MrfswarmError):
 
 __all__ = [
     "ConfigError",
+    "DeprecatedKeyWarning",
     "InfeasibleError",
     "InvalidProblem",
     "MrfswarmError",

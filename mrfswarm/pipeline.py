@@ -97,7 +97,7 @@ class Result:
 
     @property
     def mrf(self) -> str:
-        return self.config.mrf.optimizer
+        return self.config.mrf.method
 
     @property
     def qp(self) -> str | None:
@@ -215,6 +215,9 @@ def _num(v: float | None) -> float | None:
 def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: str | None = None) -> Config:
     """A config object from a config or a path, with ``--mrf``/``--qp`` applied and checked.
 
+    ``mrf`` and ``qp`` are shorthands: ``mrf=NAME`` sets ``mrf.method`` and ``qp=NAME``
+    sets ``smoothing.backend``, over what the config gives.
+
     Raises
     ------
     SolverNotFound
@@ -225,10 +228,10 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     """
     cfg = config if isinstance(config, Config) else load_config(config)
     if mrf is not None:
-        cfg = cfg.replace(mrf=dataclasses.replace(cfg.mrf, optimizer=mrf))
+        cfg = cfg.replace(mrf=dataclasses.replace(cfg.mrf, method=mrf))
     if qp is not None:
         cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, backend=qp))
-    mrf_solvers.METHODS.get(cfg.mrf.optimizer)  # fail now, not after the map is loaded
+    mrf_solvers.METHODS.get(cfg.mrf.method)  # fail now, not after the map is loaded
     if cfg.smoothing.enabled:
         record = solvers.qp.BACKENDS.get(cfg.smoothing.backend)  # an unknown or missing QP backend fails now too
         if not record.capabilities.inequalities:
@@ -243,6 +246,19 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     return cfg
 
 
+def mrf_options(cfg: Config, seed: int | None = None) -> mrf_solvers.Options:
+    """The MRF method's options: the config's ``[mrf.options]`` over the defaults, ``seed`` (if given) over those."""
+    options = mrf_solvers.Options(**cfg.mrf.options)
+    return options if seed is None else dataclasses.replace(options, seed=seed)
+
+
+def qp_options(cfg: Config) -> solvers.qp.Options:
+    """The continuous stage's QP options: the config's ``[smoothing.qp_options]`` over the stage's own."""
+    from mrfswarm.continuous.receding_horizon import QP_OPTIONS
+
+    return dataclasses.replace(QP_OPTIONS, **cfg.smoothing.qp_options)
+
+
 def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None = None, seed: int | None = None,
          progress: bool | None = None, workers: int | None = None) -> Result:
     """Plan a scenario: the discrete stage, waypoint pruning, metrics.
@@ -252,9 +268,14 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     config
         A :class:`Config` or a path to a TOML config.
     mrf, qp
-        Override the MRF optimizer / QP backend.
+        Shorthands for the config keys ``mrf.method`` (the MRF method, a name of
+        ``solvers.mrf.METHODS``) and ``smoothing.backend`` (the QP backend, a name of
+        ``solvers.qp.BACKENDS``): given, they replace the config's value, as ``--mrf
+        NAME`` and ``--qp NAME`` stand for ``--set mrf.method=NAME`` and ``--set
+        smoothing.backend=NAME``.
     seed
-        Overrides the start sampling seed and the optimizer's seed (an integer >= 0).
+        Overrides the start sampling seed and the MRF method's (``mrf.options.seed``), an
+        integer >= 0.
     progress
         Show a progress bar (default: when stderr is a terminal).
     workers
@@ -280,13 +301,13 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     t0 = time.perf_counter()
     scn = build_scenario(cfg, seed)
     timings["scenario"] = time.perf_counter() - t0
-    options = mrf_solvers.Options(seed=0 if seed is None else seed)
+    options = mrf_options(cfg, seed)
     show = sys.stderr.isatty() if progress is None else progress
     from tqdm import tqdm
 
     with tqdm(total=cfg.mrf.max_steps, desc="MRF steps", unit="step", disable=not show, leave=False) as bar:
         t0 = time.perf_counter()
-        plan_d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.optimizer, max_steps=cfg.mrf.max_steps,
+        plan_d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.method, max_steps=cfg.mrf.max_steps,
                                tol=cfg.mrf.tol, patience=cfg.mrf.patience, options=options,
                                on_step=lambda t, out: bar.update(1), progress=cfg.mrf.progress)
         timings["discrete"] = time.perf_counter() - t0
@@ -325,7 +346,7 @@ def _continuous(result: Result, show: bool, workers: int | None = None) -> None:
 
     cfg = result.config
     rh = RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
-                         cfg.smoothing.backend, workers=workers)
+                         cfg.smoothing.backend, qp_options(cfg), workers=workers)
     with tqdm(total=len(rh.windows()), desc="smoothing", unit="window", disable=not show, leave=False) as bar:
         plan = rh.run(on_window=lambda w: bar.update(1))
     result.continuous = plan

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mrfswarm.config import Config, load_config, parse_override
+from mrfswarm.config import Config, current_key, load_config, parse_override
 from mrfswarm.errors import ConfigError, MrfswarmError, PlanError, SolversError
 
 log = logging.getLogger(__name__)
@@ -219,6 +219,23 @@ def grid_points(grid: Mapping[str, Sequence]) -> list[dict[str, Any]]:
             raise ConfigError(f"grid {key}: empty value list")
     keys = list(grid)
     return [dict(zip(keys, combo)) for combo in itertools.product(*(grid[k] for k in keys))]
+
+
+def current_grid(grid: Mapping[str, Sequence]) -> dict[str, Sequence]:
+    """``grid`` with renamed config keys under their current names (:func:`~mrfswarm.config.current_key`).
+
+    Raises
+    ------
+    ConfigError
+        A key given under both its old and its current name.
+    """
+    out: dict[str, Sequence] = {}
+    for key, values in grid.items():
+        new = current_key(key)
+        if new in out:
+            raise ConfigError(f"grid {key}: {new} is given twice (under its old name too)")
+        out[new] = values
+    return out
 
 
 def _slug(values: dict[str, Any], seed: int | None, limit: int = 60) -> str:
@@ -428,7 +445,8 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
         ``load_config(config, overrides + ["key=value" for each grid key])``.
     grid
         Config key (dotted, as ``--set``) -> values; the points are the Cartesian product,
-        row-major in the order of the keys (see :func:`grid_points`).
+        row-major in the order of the keys (see :func:`grid_points`). A renamed key
+        (``mrf.optimizer``) is swept, and tabulated, under its current name.
     out_dir
         Output folder: ``points/<index>_<slug>/result.json``, ``sweep.csv``, ``sweep.json``.
     scheduler
@@ -470,6 +488,7 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
     """
     config = Path(config)
     overrides = list(overrides)
+    grid = current_grid(grid)  # the table's columns carry the current names
     points = grid_points(grid)
     keys = list(grid)
     if seeds is not None:

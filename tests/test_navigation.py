@@ -31,7 +31,7 @@ from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.maps import read_movingai
 from mrfswarm.maps.synthetic import GENERATORS, generate
 from mrfswarm.metrics import min_separation
-from mrfswarm.pipeline import plan
+from mrfswarm.pipeline import mrf_options, plan
 from mrfswarm.scenario import Scenario, build_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -58,8 +58,8 @@ class MapRun:
 def run_map(name: str, *overrides: str) -> MapRun:
     cfg = load_config(MAPS / f"{name}.toml", [*DISCRETE, *overrides])
     scn = build_scenario(cfg)
-    d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.optimizer, max_steps=cfg.mrf.max_steps, tol=cfg.mrf.tol,
-                      patience=cfg.mrf.patience, progress=cfg.mrf.progress)
+    d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.method, max_steps=cfg.mrf.max_steps, tol=cfg.mrf.tol,
+                      patience=cfg.mrf.patience, options=mrf_options(cfg), progress=cfg.mrf.progress)
     robots = robot_outcomes(d.paths[-1], scn.grid.free, scn.static, cfg.mrf.order, scn.grid.resolution,
                             SEPARATION_FACTOR * scn.morse.d_min, d.stop_reason, scn.distances.path,
                             scn.goal_region_radius)

@@ -186,7 +186,7 @@ BAD = {
     "out of range": (["--grid", "mrf.order=2,0"], "mrf.order = 0: must be >= 1"),
     "Morse conditions": (["--grid", "interaction.k_a=14,3"],
                          "sweep point 1 (interaction.k_a=3): interaction.k_a = 3.0: must be > interaction.k_r = 4.0"),
-    "unknown optimizer": (["--grid", "mrf.optimizer=icm,nosuch"], "nosuch"),
+    "unknown method": (["--grid", "mrf.method=icm,nosuch"], "nosuch"),
     "bad seeds": (["--grid", "interaction.k=2", "--seeds", "0,x"], "--seeds"),
     "empty scheduler address": (["--grid", "interaction.k=2", "--scheduler", " "], "--scheduler: empty address"),
     "zero workers": (["--grid", "interaction.k=2", "--workers", "0"], "--workers 0"),
@@ -225,20 +225,20 @@ def test_dask_not_installed(tmp_path, capsys, monkeypatch):
 
 
 def test_parse_grid_literals():
-    g = parse_grid(["interaction.k=3,7", "interaction.k_a=8,14.5,1e1", "mrf.optimizer=icm,\"gibbs\"",
+    g = parse_grid(["interaction.k=3,7", "interaction.k_a=8,14.5,1e1", "mrf.method=icm,\"gibbs\"",
                     "mrf.trim_backward=true,false", "scenario.goal=[35,15], [30, 20.5]",
                     "scenario.start={center=[1,2], n_robots=3},{positions=[[1,1],[2,2]]}", "x.s='a,b',c"])
     assert g == {
         "interaction.k": [3, 7],
         "interaction.k_a": [8, 14.5, 10.0],
-        "mrf.optimizer": ["icm", "gibbs"],
+        "mrf.method": ["icm", "gibbs"],
         "mrf.trim_backward": [True, False],
         "scenario.goal": [[35, 15], [30, 20.5]],
         "scenario.start": [{"center": [1, 2], "n_robots": 3}, {"positions": [[1, 1], [2, 2]]}],
         "x.s": ["a,b", "c"],
     }
     assert [type(v) for v in g["interaction.k_a"]] == [int, float, float]
-    assert list(g) == ["interaction.k", "interaction.k_a", "mrf.optimizer", "mrf.trim_backward", "scenario.goal",
+    assert list(g) == ["interaction.k", "interaction.k_a", "mrf.method", "mrf.trim_backward", "scenario.goal",
                        "scenario.start", "x.s"]
 
 

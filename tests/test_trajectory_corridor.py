@@ -8,8 +8,8 @@ from mrfswarm.trajectory import (
     TIME_LAWS,
     Corridor,
     PolylineReference,
-    sample_taus,
-    sample_times,
+    corridor_sample_taus,
+    corridor_sample_times,
     segment_reference,
     solve_min_snap,
     time_law,
@@ -18,10 +18,22 @@ from mrfswarm.trajectory import (
 from solvers.errors import InvalidProblem
 
 
-def test_sample_times_are_interior_and_global():
-    np.testing.assert_allclose(sample_taus(3), [0.25, 0.5, 0.75])
-    t = sample_times([1.0, 2.0], 3, t0=10.0)
+def test_corridor_sample_times_are_interior_and_global():
+    np.testing.assert_allclose(corridor_sample_taus(3), [0.25, 0.5, 0.75])
+    t = corridor_sample_times([1.0, 2.0], 3, t0=10.0)
     np.testing.assert_allclose(t, [[10.25, 10.5, 10.75], [11.5, 12.0, 12.5]])
+
+
+def test_the_corridor_sample_times_have_one_name():
+    """No alias: the old general-sounding names are gone from the package."""
+    import mrfswarm.trajectory
+    import mrfswarm.trajectory.corridor
+
+    for module in (mrfswarm.trajectory, mrfswarm.trajectory.corridor):
+        assert not hasattr(module, "sample_times") and not hasattr(module, "sample_taus")
+    assert {"corridor_sample_times", "corridor_sample_taus"} <= set(mrfswarm.trajectory.__all__)
+    with pytest.raises(InvalidProblem, match="samples_per_piece must be >= 0, got -1"):
+        corridor_sample_times([1.0], -1)
 
 
 @pytest.mark.parametrize("name", list(TIME_LAWS))
@@ -62,7 +74,7 @@ def test_tube_from_callable_scalar_callable_and_array_agree():
     ref = segment_reference([0.0, 0.0], [3.0, 1.0], 0.0, 1.5)
     a = tube_corridor(ref, T, 4, 0.2)
     b = tube_corridor(lambda t: np.array([2.0 * float(t), float(t) * 2 / 3]), T, 4, 0.2)  # scalar-only callable
-    c = tube_corridor(ref(sample_times(T, 4)), T, 4, 0.2)
+    c = tube_corridor(ref(corridor_sample_times(T, 4)), T, 4, 0.2)
     for other in (b, c):
         np.testing.assert_allclose(other.lower, a.lower)
         np.testing.assert_allclose(other.upper, a.upper)
@@ -91,7 +103,7 @@ def test_box_corridor_holds_at_samples_with_infinite_sides():
     assert c.violation(free) > 0.01
     res = solve_min_snap(W, T, corridor=c, backend=solvers.qp.DEFAULT_BACKEND)
     assert c.violation(res.trajectory) < 1e-6
-    y = res.trajectory(sample_times(T, K))[..., 1]
+    y = res.trajectory(corridor_sample_times(T, K))[..., 1]
     assert y.min() == pytest.approx(-0.05, abs=1e-5)  # the bound is tight somewhere
     np.testing.assert_allclose(res.trajectory(res.trajectory.knots), W, atol=1e-6)
 
@@ -104,6 +116,6 @@ def test_tube_on_a_common_time_grid_with_offset_start():
     W = grid_p[4:8]
     T = np.ones(3)
     c = tube_corridor(ref, T, 5, 0.05, t0=4.0)
-    np.testing.assert_allclose((c.lower + c.upper)[0, :, 0] / 2, ref(4.0 + sample_times(T, 5)[0])[:, 0])
+    np.testing.assert_allclose((c.lower + c.upper)[0, :, 0] / 2, ref(4.0 + corridor_sample_times(T, 5)[0])[:, 0])
     res = solve_min_snap(W, T, corridor=c, backend=solvers.qp.DEFAULT_BACKEND)
     assert c.violation(res.trajectory) < 1e-6

@@ -9,9 +9,9 @@ from mrfswarm.trajectory import (
     MinSnapProblem,
     MinSnapSolver,
     PolylineReference,
+    corridor_sample_times,
     integral_squared_derivative,
     min_snap_qp,
-    sample_times,
     seam_jumps,
     tube_corridor,
 )
@@ -91,7 +91,7 @@ def test_constraint_rows_are_positions_derivatives_and_corridor_samples():
         g = rows[M + 1:M + 3] * norm.scale / norm.time_scale ** np.arange(1, 3)
         np.testing.assert_allclose(g, [traj(0.0, 1)[d], traj(0.0, 2)[d]], rtol=1e-9, atol=1e-9)
         samples = rows[-M * K:] * norm.scale + norm.center[d]
-        np.testing.assert_allclose(samples, traj(sample_times(p.durations, K))[..., d].ravel(), atol=1e-9)
+        np.testing.assert_allclose(samples, traj(corridor_sample_times(p.durations, K))[..., d].ravel(), atol=1e-9)
     # and the knot derivatives up to q-1 are shared: continuity by construction, for any x
     assert np.abs(seam_jumps(traj, 3)).max() < 1e-8 * np.abs(traj.coefficients).max()
 

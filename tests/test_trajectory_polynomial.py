@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from mrfswarm.trajectory import PiecewisePolynomial, concatenate, integral_squared_derivative, seam_jumps
-from mrfswarm.trajectory.polynomial import cost_hessian, tau_to_time, time_to_tau
+from mrfswarm.trajectory.polynomial import cost_hessian, piece_cost_gradients, piece_costs, tau_to_time, time_to_tau
 from solvers.errors import InvalidProblem
 
 
@@ -121,6 +121,43 @@ def test_integral_squared_derivative_matches_quadrature(q):
     num = sum(quad(lambda t: float(np.sum(tr(t, q) ** 2)), tr.knots[i], tr.knots[i + 1], epsabs=0, epsrel=1e-12)[0]
               for i in range(tr.pieces))
     assert integral_squared_derivative(tr, q) == pytest.approx(num, rel=1e-9)
+
+
+@pytest.mark.parametrize("D, q", [(7, 4), (9, 4), (5, 3), (7, 1)])
+def test_piece_costs_match_gauss_legendre_quadrature_on_short_and_long_pieces(D, q):
+    """Each piece's cost against Gauss-Legendre of |sigma^(q)|^2 with D + 1 nodes (exact to degree 2D + 1)."""
+    rng = np.random.default_rng(D * 10 + q)
+    T = np.array([0.01, 0.3, 1.0, 7.0, 100.0])
+    tr = PiecewisePolynomial(T, time_to_tau(rng.normal(size=(T.size, D + 1, 3)), 1.0 / T))  # tau-coefficients ~ 1
+    nodes, weights = np.polynomial.legendre.leggauss(D + 1)
+    expect = []
+    for i in range(tr.pieces):
+        t = tr.knots[i] + (nodes + 1) / 2 * T[i]
+        expect.append(T[i] / 2 * weights @ np.sum(tr(t, q) ** 2, axis=-1))
+    got = piece_costs(tr.tau_coefficients(), T, q)
+    np.testing.assert_allclose(got, expect, rtol=1e-9)
+    assert integral_squared_derivative(tr, q) == pytest.approx(sum(expect), rel=1e-9)
+
+
+@pytest.mark.parametrize("q", [1, 3, 4])
+def test_piece_cost_gradients_match_finite_differences(q):
+    rng = np.random.default_rng(20 + q)
+    c = rng.normal(size=(3, 8, 2))
+    T = np.array([0.5, 1.3, 2.2])
+    by_c, by_T = piece_cost_gradients(c, T, q)
+    h = 1e-6
+    for i, k, d in ((0, 7, 0), (1, 5, 1), (2, q, 0)):
+        up, down = c.copy(), c.copy()
+        up[i, k, d] += h
+        down[i, k, d] -= h
+        fd = (piece_costs(up, T, q) - piece_costs(down, T, q))[i] / (2 * h)
+        assert by_c[i, k, d] == pytest.approx(fd, rel=1e-6)
+    for i in range(3):
+        dT = np.zeros(3)
+        dT[i] = h * T[i]
+        fd = (piece_costs(c, T + dT, q) - piece_costs(c, T - dT, q))[i] / (2 * dT[i])
+        assert by_T[i] == pytest.approx(fd, rel=1e-6)
+    assert np.all(by_c[:, :q] == 0)  # coefficients below q do not reach the q-th derivative
 
 
 def test_cost_hessian_known_entries():

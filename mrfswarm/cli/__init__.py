@@ -4,7 +4,8 @@ Every module of this package that defines ``add_parser(subparsers)`` (which sets
 ``func``) is a subcommand; they are found, not listed. Every error the toolkit raises on purpose
 (:class:`~mrfswarm.errors.MrfswarmError` of the domain, and the numerical layer's, under their common root
 :class:`~solvers.errors.SolversError`: bad config, bad input, missing backend) becomes one line on stderr and
-exit code 2; no traceback.
+exit code 2; no traceback. A config key under an old name
+(:class:`~mrfswarm.errors.DeprecatedKeyWarning`) is one line on stderr too, and the command goes on.
 """
 
 from __future__ import annotations
@@ -14,9 +15,10 @@ import importlib
 import logging
 import pkgutil
 import sys
-from typing import NoReturn
+import warnings
+from typing import Any, NoReturn
 
-from mrfswarm.errors import SolversError
+from mrfswarm.errors import DeprecatedKeyWarning, SolversError
 
 
 class _Parser(argparse.ArgumentParser):
@@ -42,7 +44,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        rc = args.func(args)
+        with warnings.catch_warnings():  # restores showwarning on the way out
+            warnings.showwarning = _one_line(warnings.showwarning)
+            rc = args.func(args)
     except SolversError as e:  # MrfswarmError and the solvers layer's errors
         msg = str(e).splitlines()[0] if str(e) else type(e).__name__
         print(f"mrfswarm: error: {msg}", file=sys.stderr)
@@ -51,6 +55,19 @@ def main(argv: list[str] | None = None) -> int:
         print("mrfswarm: interrupted", file=sys.stderr)
         return 130
     return int(rc or 0)
+
+
+def _one_line(show: Any) -> Any:
+    """``warnings.showwarning`` that writes a :class:`DeprecatedKeyWarning` as one line, others as ``show`` does."""
+
+    def showwarning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                    file: Any = None, line: str | None = None) -> None:
+        if issubclass(category, DeprecatedKeyWarning):
+            print(f"mrfswarm: warning: {message}", file=sys.stderr)
+        else:
+            show(message, category, filename, lineno, file, line)
+
+    return showwarning
 
 
 if __name__ == "__main__":

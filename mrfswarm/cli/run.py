@@ -14,10 +14,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="plan a scenario and write result.json, paths, trajectories and figures")
     p.add_argument("config", type=Path, help="experiment config (TOML)")
     p.add_argument("--out", type=_args.output_dir, default=None, help="output folder (default: out/<config name>)")
-    p.add_argument("--mrf", default=None, help="MRF optimizer (see `mrfswarm solvers`)")
-    p.add_argument("--qp", default=None, help="QP backend for smoothing (see `mrfswarm solvers`)")
+    p.add_argument("--mrf", default=None, metavar="NAME",
+                   help="MRF method: shorthand for --set mrf.method=NAME (names: `mrfswarm solvers`)")
+    p.add_argument("--qp", default=None, metavar="NAME",
+                   help="QP backend of the continuous stage: shorthand for --set smoothing.backend=NAME "
+                        "(names: `mrfswarm solvers`)")
     p.add_argument("--seed", type=_args.seed, default=None,
-                   help="seed (integer >= 0) of the start sampling and the optimizer")
+                   help="seed (integer >= 0) of the start sampling and the MRF method")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key by dotted path, e.g. --set interaction.k=7 (repeatable)")
     p.add_argument("--workers", type=_positive_int, default=None,

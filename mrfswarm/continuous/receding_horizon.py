@@ -88,10 +88,11 @@ NOMINAL_ACCELERATION = 0.25
 #: Ipopt's settings for time refinement: each iteration solves the window's QP a few times; on
 #: corridor.toml 12 iterations keep nearly all of 25's gain (makespan 21.4 s against 21.3) at a fifth of the QPs.
 NLP_OPTIONS = QPOptions(eps_abs=1e-4, eps_rel=1e-4, max_iter=12)
-#: Options of the window QPs. No equilibration: the formulation scales its variables already (time
-#: normalized per window), and Ruiz scaling made piqp declare feasible windows infeasible (14 of 215
-#: QPs of a 100-robot crossing, each one a needless slower attempt or a rest-to-rest witness) and
-#: cost it 3x the iterations; osqp and clarabel also converge faster without it.
+#: Options of the window QPs unless the caller gives others (the config's [smoothing.qp_options] go over
+#: these). No equilibration: the formulation scales its variables already (time normalized per window),
+#: and Ruiz scaling made piqp declare feasible windows infeasible (14 of 215 QPs of a 100-robot
+#: crossing, each one a needless slower attempt or a rest-to-rest witness) and cost it 3x the
+#: iterations; osqp and clarabel also converge faster without it.
 QP_OPTIONS = QPOptions(eps_abs=1e-7, eps_rel=1e-7, max_iter=50000, scaling=False)
 #: Robots per chunk: independent groups are packed into QPs of about this many robots.
 CHUNK_ROBOTS = 64
@@ -222,7 +223,7 @@ class RecedingHorizon:
     backend
         QP backend name for every solve (default ``cfg.backend``).
     qp_options
-        Options of every QP solve.
+        Options of every QP solve (default :data:`QP_OPTIONS`).
     workers
         Processes that solve a window's independent chunks of robots at once (default:
         the machine's cores; used for swarms of ``PARALLEL_ROBOTS`` or more). The plan

@@ -27,7 +27,7 @@ Modules, one job each:
 """
 
 from mrfswarm.trajectory.banded import BandedSolution, solve_banded
-from mrfswarm.trajectory.corridor import Corridor, sample_taus, sample_times, tube_corridor
+from mrfswarm.trajectory.corridor import Corridor, corridor_sample_taus, corridor_sample_times, tube_corridor
 from mrfswarm.trajectory.min_snap import (
     CLOSED_FORM,
     MinSnapBatchSolver,
@@ -80,6 +80,8 @@ __all__ = [
     "check_waypoints",
     "concatenate",
     "constant_speed_durations",
+    "corridor_sample_taus",
+    "corridor_sample_times",
     "cost_and_gradient",
     "integral_squared_derivative",
     "max_derivative_norm",
@@ -89,8 +91,6 @@ __all__ = [
     "read_waypoints_csv",
     "refine_durations",
     "retime_toppra",
-    "sample_taus",
-    "sample_times",
     "scale_to_limits",
     "seam_jumps",
     "segment_reference",

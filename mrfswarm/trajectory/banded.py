@@ -48,7 +48,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.linalg import lapack
 
-from mrfswarm.trajectory.polynomial import cost_hessian, falling_factorials, piece_costs
+from mrfswarm.trajectory.polynomial import falling_factorials, piece_cost_gradients, piece_costs
 from mrfswarm.trajectory.problem import MinSnapProblem
 from solvers.errors import InvalidProblem, SolverError
 
@@ -260,11 +260,9 @@ def solve_banded(problem: MinSnapProblem, gradient: bool = False) -> BandedSolut
         raise SolverError("closed_form: non-finite solution", backend="closed_form", status="nonfinite")
     grad = None
     if gradient:
-        # adjoint: A^T lam = dJ/dc, with dJ/dc_i = 2 T_i^(1-2q) H c_i
-        w = T ** (1 - 2 * q)
-        dJdc = (2.0 * w[:, None, None] * np.einsum("kl,ild->ikd", cost_hessian(N - 1, q), coeffs)).reshape(pat.n, s.dim)
-        lam, info = lapack.dgbtrs(lu, pat.kl, pat.ku, dJdc, piv, trans=1)
-        grad = (1 - 2 * q) * costs / T
+        # adjoint: A^T lam = dJ/dc; the cost's own dependence on T at fixed c, then the system's
+        dJdc, grad = piece_cost_gradients(coeffs, T, q)
+        lam, info = lapack.dgbtrs(lu, pat.kl, pat.ku, dJdc.reshape(pat.n, s.dim), piv, trans=1)
         # d(entry)/dT: entry = const * (T_i / T_{i+1})^expo on knot i
         contrib = vals * pat.expo * np.einsum("ed,ed->e", lam[pat.row], X[pat.col])
         mask = pat.expo != 0

@@ -29,21 +29,21 @@ from solvers.errors import InvalidProblem
 Reference = Callable[[np.ndarray], np.ndarray]
 
 
-def sample_taus(samples_per_piece: int) -> np.ndarray:
+def corridor_sample_taus(samples_per_piece: int) -> np.ndarray:
     """(K,) normalized sample times ``(s + 1) / (K + 1)`` inside a piece."""
     if samples_per_piece < 0:
         raise InvalidProblem(f"samples_per_piece must be >= 0, got {samples_per_piece}")
     return np.arange(1, samples_per_piece + 1) / (samples_per_piece + 1)
 
 
-def sample_times(durations: np.ndarray, samples_per_piece: int, t0: float = 0.0) -> np.ndarray:
+def corridor_sample_times(durations: np.ndarray, samples_per_piece: int, t0: float = 0.0) -> np.ndarray:
     """(M, K) global times of the corridor samples for pieces of ``durations`` starting at ``t0``.
 
     :math:`t_{is} = t_0 + \\sum_{j<i} T_j + \\tau_s T_i`.
     """
     T = np.asarray(durations, dtype=float).reshape(-1)
     starts = t0 + np.concatenate(([0.0], np.cumsum(T)[:-1]))
-    return starts[:, None] + sample_taus(samples_per_piece)[None, :] * T[:, None]
+    return starts[:, None] + corridor_sample_taus(samples_per_piece)[None, :] * T[:, None]
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,7 +91,7 @@ class Corridor:
 
     def violation(self, trajectory) -> float:
         """Largest bound violation of ``trajectory`` at the sample times (0 when inside)."""
-        t = sample_times(trajectory.durations, self.samples_per_piece)
+        t = corridor_sample_times(trajectory.durations, self.samples_per_piece)
         p = trajectory.evaluate(t)
         return float(max(np.max(self.lower - p, initial=0.0), np.max(p - self.upper, initial=0.0)))
 
@@ -141,7 +141,7 @@ def tube_corridor(
     ----------
     reference
         Callable ``ref(t)`` on an array of global times returning ``(..., dim)``, or an
-        (M, K, dim) array of positions at :func:`sample_times` ``(durations, K, t0)``.
+        (M, K, dim) array of positions at :func:`corridor_sample_times` ``(durations, K, t0)``.
     durations
         (M,) piece durations.
     samples_per_piece
@@ -157,6 +157,6 @@ def tube_corridor(
     r = np.asarray(half_width, dtype=float)
     if not np.all(np.isfinite(r)) or np.any(r <= 0):
         raise InvalidProblem(f"tube half-width must be positive and finite, got {half_width}")
-    times = sample_times(durations, samples_per_piece, t0)
+    times = corridor_sample_times(durations, samples_per_piece, t0)
     ref = evaluate_reference(reference, times)
     return Corridor(ref - r, ref + r)

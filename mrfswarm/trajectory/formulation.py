@@ -66,7 +66,7 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
-from mrfswarm.trajectory.corridor import sample_taus
+from mrfswarm.trajectory.corridor import corridor_sample_taus
 from mrfswarm.trajectory.polynomial import cost_hessian, derivative_row
 from mrfswarm.trajectory.problem import MinSnapShape
 from solvers.qp import QPProblem
@@ -358,7 +358,7 @@ def _corridor_samples(shape: MinSnapShape, basis: _PieceBasis, Tp: _DurationPowe
     import casadi as ca
 
     K, M = shape.samples_per_piece, shape.pieces
-    VE = np.vander(sample_taus(K), shape.degree + 1, increasing=True) @ basis.E
+    VE = np.vander(corridor_sample_taus(K), shape.degree + 1, increasing=True) @ basis.E
     rows = []
     for s_ in range(K):
         row = 0

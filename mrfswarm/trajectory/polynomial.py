@@ -347,11 +347,27 @@ def piece_costs(c_tau: np.ndarray, durations: np.ndarray, order: int) -> np.ndar
 
     From the tau-coefficients ``c_tau`` (M, D+1, dim) of pieces of ``durations`` (M,):
     :math:`T_i^{1-2q} \\sum_d c_{id}^\\top H c_{id}` with :func:`cost_hessian`, in
-    normalized time, which stays accurate for short and long pieces alike. The one place
-    the cost integral is computed.
+    normalized time, which stays accurate for short and long pieces alike. The one numeric
+    definition of the cost integral (its derivatives: :func:`piece_cost_gradients`); the
+    QPs write the same form symbolically, in their own variables, from
+    :func:`cost_hessian` (:mod:`mrfswarm.trajectory.formulation`,
+    :mod:`mrfswarm.continuous.formulation`), and their tests check them against this one.
     """
     H = cost_hessian(c_tau.shape[1] - 1, order)
     return np.einsum("ikd,kl,ild->i", c_tau, H, c_tau) * np.asarray(durations, dtype=float) ** (1 - 2 * order)
+
+
+def piece_cost_gradients(c_tau: np.ndarray, durations: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """The partial derivatives of :func:`piece_costs`: (M, D+1, dim) by ``c_tau`` and (M,) by ``durations``.
+
+    With :math:`J_i = T_i^{1-2q} \\sum_d c_{id}^\\top H c_{id}`:
+    :math:`\\partial J_i / \\partial c_{id} = 2 T_i^{1-2q} H c_{id}` and, at fixed
+    tau-coefficients, :math:`\\partial J_i / \\partial T_i = (1-2q) J_i / T_i`.
+    """
+    T = np.asarray(durations, dtype=float)
+    Hc = np.einsum("kl,ild->ikd", cost_hessian(c_tau.shape[1] - 1, order), c_tau)
+    by_c = 2.0 * (T ** (1 - 2 * order))[:, None, None] * Hc
+    return by_c, (1 - 2 * order) * piece_costs(c_tau, T, order) / T
 
 
 def integral_squared_derivative(trajectory: PiecewisePolynomial, order: int) -> float:

@@ -1,0 +1,181 @@
+"""The config: one name per solver choice (``mrf.method``, ``smoothing.backend``), old names that still load."""
+
+import dataclasses
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import solvers.qp
+from mrfswarm.cli import main
+from mrfswarm.config import from_dict, load_config
+from mrfswarm.continuous.receding_horizon import QP_OPTIONS
+from mrfswarm.errors import ConfigError, DeprecatedKeyWarning
+from mrfswarm.pipeline import mrf_options, plan, qp_options, resolve_config
+from mrfswarm.sweep import run_sweep
+from solvers import mrf
+
+EXP = Path(__file__).resolve().parents[1] / "experiments"
+QUICK = ["smoothing.enabled=false", "mrf.max_steps=3"]
+
+
+def write(tmp_path: Path, body: str) -> Path:
+    p = tmp_path / "c.toml"
+    p.write_text(body)
+    return p
+
+
+def test_the_old_key_loads_as_method_with_one_warning(tmp_path):
+    with pytest.warns(DeprecatedKeyWarning, match=r"mrf\.optimizer is now mrf\.method") as caught:
+        cfg = load_config(write(tmp_path, '[mrf]\noptimizer = "gibbs"\n'))
+    assert cfg.mrf.method == "gibbs" and len(caught) == 1
+    assert cfg.to_dict()["mrf"]["method"] == "gibbs" and "optimizer" not in cfg.to_dict()["mrf"]
+
+
+def test_the_new_key_loads_without_a_warning(tmp_path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert load_config(write(tmp_path, '[mrf]\nmethod = "exact"\n')).mrf.method == "exact"
+
+
+def test_both_names_are_an_error_naming_both(tmp_path):
+    with pytest.raises(ConfigError, match=r"^mrf\.optimizer and mrf\.method are both given.*keep mrf\.method$"):
+        load_config(write(tmp_path, '[mrf]\noptimizer = "icm"\nmethod = "gibbs"\n'))
+    with pytest.raises(ConfigError, match="both given"):
+        from_dict({"mrf": {"method": "icm", "optimizer": "icm"}})
+
+
+def test_a_wrong_type_under_the_old_name_names_the_new_key():
+    with pytest.warns(DeprecatedKeyWarning), pytest.raises(ConfigError, match=r"mrf\.method must be a string, got 3"):
+        from_dict({"mrf": {"optimizer": 3}})
+
+
+@pytest.mark.parametrize("body, override, method, warned", [
+    ("", "mrf.optimizer=gibbs", "gibbs", 1),  # the old name overrides the default
+    ('[mrf]\nmethod = "icm"\n', "mrf.optimizer=gibbs", "gibbs", 1),  # ... and the new name in the file
+    ('[mrf]\noptimizer = "icm"\n', "mrf.method=exact", "exact", 1),  # the new name overrides the old one
+    ('[mrf]\noptimizer = "icm"\n', "mrf.optimizer=exact", "exact", 2),
+])
+def test_overrides_set_the_current_name(tmp_path, body, override, method, warned):
+    with pytest.warns(DeprecatedKeyWarning) as caught:
+        cfg = load_config(write(tmp_path, body), [override])
+    assert cfg.mrf.method == method and len(caught) == warned
+
+
+def test_run_with_the_old_key_warns_in_one_line_and_writes_the_new_one(tmp_path, capsys):
+    out = tmp_path / "o"
+    rc = main(["run", str(EXP / "corridor.toml"), "--out", str(out), "--set", "mrf.optimizer=gibbs",
+               *[a for s in QUICK for a in ("--set", s)]])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 0
+    assert err == ["mrfswarm: warning: config key mrf.optimizer is now mrf.method; mrf.optimizer still loads, as "
+                   "mrf.method"]
+    res = json.loads((out / "result.json").read_text())
+    assert res["mrf"] == "gibbs" and res["config"]["mrf"]["method"] == "gibbs" and "optimizer" not in res["config"]["mrf"]
+
+
+def test_an_unknown_method_is_one_line_naming_it(tmp_path, capsys):
+    rc = main(["run", str(EXP / "corridor.toml"), "--out", str(tmp_path / "o"), "--set", "mrf.method=nope"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and err[0].startswith("mrfswarm: error: ") and "'nope'" in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("flag, key, name", [("--mrf", "mrf.method", "exact"),
+                                             ("--qp", "smoothing.backend", "osqp")])
+def test_mrf_and_qp_flags_are_shorthands_for_set(flag, key, name):
+    by_flag = resolve_config(load_config(EXP / "free5.toml"), **{flag.strip("-"): name})
+    by_set = resolve_config(load_config(EXP / "free5.toml", [f"{key}={name}"]))
+    assert by_flag == by_set and by_flag != load_config(EXP / "free5.toml")
+
+
+def test_a_sweep_over_the_old_key_tabulates_the_new_name(tmp_path):
+    with pytest.warns(DeprecatedKeyWarning):
+        res = run_sweep(EXP / "free5.toml", {"mrf.optimizer": ["icm", "exact"]}, tmp_path / "s", workers=1,
+                        progress=False, overrides=QUICK)
+    assert "mrf.method" in res.columns and "mrf.optimizer" not in res.columns
+    assert [r["mrf.method"] for r in res.rows] == [r["mrf"] for r in res.rows] == ["icm", "exact"]
+    header = (tmp_path / "s" / "sweep.csv").read_text().splitlines()[0].split(",")
+    assert "mrf.method" in header and "mrf.optimizer" not in header
+
+
+def test_a_sweep_given_both_names_fails_before_running(tmp_path):
+    with pytest.warns(DeprecatedKeyWarning), pytest.raises(ConfigError, match=r"grid mrf\.optimizer: mrf\.method is "
+                                                                             r"given twice"):
+        run_sweep(EXP / "free5.toml", {"mrf.method": ["icm"], "mrf.optimizer": ["exact"]}, tmp_path / "s",
+                  workers=1, progress=False, overrides=QUICK)
+    assert not (tmp_path / "s").exists()
+
+
+# --- solver options from the config: [mrf.options], [smoothing.qp_options] ----------------------
+
+
+def test_mrf_options_reach_the_mrf_method(tmp_path):
+    """One ICM sweep per step: the reported iterations and the paths change."""
+    corridor = (EXP / "corridor.toml").read_text() + "\n[mrf.options]\nmax_iter = 1\n"
+    capped = plan(load_config(write(tmp_path, corridor), ["smoothing.enabled=false", "mrf.max_steps=10"]),
+                  progress=False)
+    default = plan(load_config(EXP / "corridor.toml", ["smoothing.enabled=false", "mrf.max_steps=10"]), progress=False)
+    assert capped.config.mrf.options == {"max_iter": 1}
+    assert max(s["iterations"] for s in default.discrete.steps) > 1
+    assert {s["iterations"] for s in capped.discrete.steps} == {1}
+    assert not np.array_equal(default.discrete.paths, capped.discrete.paths)
+
+
+def test_mrf_options_merge_under_the_seed():
+    cfg = load_config(None, ["mrf.options.max_iter=5", "mrf.options.seed=7", 'mrf.options.schedule="log"'])
+    assert cfg.mrf.options == {"max_iter": 5, "seed": 7, "schedule": "log"}
+    assert mrf_options(cfg) == mrf.Options(max_iter=5, seed=7, schedule="log")
+    assert mrf_options(cfg, seed=3) == mrf.Options(max_iter=5, seed=3, schedule="log")  # plan(seed=) wins
+    assert mrf_options(load_config(None)) == mrf.Options()
+
+
+def test_qp_options_go_over_the_stages_own_and_reach_every_solve(monkeypatch):
+    cfg = load_config(EXP / "free5.toml", ["simulation.enabled=false", "mrf.max_steps=3",
+                                           "smoothing.qp_options.eps_abs=1e-6", "smoothing.qp_options.max_iter=777"])
+    expected = dataclasses.replace(QP_OPTIONS, eps_abs=1e-6, max_iter=777)
+    assert qp_options(cfg) == expected and expected.eps_rel == QP_OPTIONS.eps_rel != expected.eps_abs
+    assert qp_options(load_config(None)) == QP_OPTIONS
+    seen = []
+    solve = solvers.qp.solve
+
+    def recording(problem, backend=None, options=None):
+        seen.append(options)
+        return solve(problem, backend, options)
+
+    monkeypatch.setattr(solvers.qp, "solve", recording)
+    plan(cfg, progress=False, workers=1)
+    assert seen and all(o == expected for o in seen)
+
+
+def test_set_reaches_the_options_tables_from_the_cli(tmp_path):
+    out = tmp_path / "o"
+    rc = main(["run", str(EXP / "free5.toml"), "--out", str(out), "--set", "mrf.options.max_iter=5",
+               "--set", "smoothing.qp_options.verbose=false", *[a for s in QUICK for a in ("--set", s)]])
+    assert rc == 0
+    res = json.loads((out / "result.json").read_text())
+    assert res["config"]["mrf"]["options"] == {"max_iter": 5}
+    assert res["config"]["smoothing"]["qp_options"] == {"verbose": False}
+
+
+@pytest.mark.parametrize("override, message", [
+    ("mrf.options.max_itr=5", "unknown config key mrf.options.max_itr; allowed: max_iter, tol, seed"),
+    ('mrf.options.max_iter="many"', "mrf.options.max_iter must be an integer, got 'many'"),
+    ("mrf.options.max_iter=2.5", "mrf.options.max_iter must be an integer, got 2.5"),
+    ("mrf.options.polish=1", "mrf.options.polish must be true or false, got 1"),
+    ("mrf.options.max_iter=0", "mrf.options: max_iter must be >= 1, got 0"),
+    ('mrf.options.schedule="linear"', "mrf.options: schedule must be 'geometric' or 'log', got 'linear'"),
+    ("mrf.options=3", "mrf.options must be a table, got 3"),
+    ("smoothing.qp_options.eps=1e-6", "unknown config key smoothing.qp_options.eps; allowed: eps_abs, eps_rel"),
+    ("smoothing.qp_options.eps_abs=true", "smoothing.qp_options.eps_abs must be a number, got True"),
+    ("smoothing.qp_options.time_limit=-1", "smoothing.qp_options: time_limit must be positive, got -1"),
+])
+def test_bad_solver_options_are_one_line_naming_the_key(tmp_path, capsys, override, message):
+    with pytest.raises(ConfigError) as e:
+        load_config(EXP / "free5.toml", [override])
+    assert str(e.value).startswith(message) and "\n" not in str(e.value), str(e.value)
+    rc = main(["run", str(EXP / "free5.toml"), "--out", str(tmp_path / "o"), "--set", override])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and err[0].startswith(f"mrfswarm: error: {message}"), err
