@@ -1,6 +1,7 @@
 """The continuous stage end to end: certified flights, seams, limits, exports, failures."""
 
 import json
+import math
 import re
 from functools import cache
 from pathlib import Path
@@ -253,3 +254,16 @@ def test_plans_are_the_same_with_one_or_several_workers(monkeypatch):
         np.testing.assert_array_equal(a.durations, b.durations)
         np.testing.assert_allclose(a.coefficients, b.coefficients, rtol=0, atol=1e-9)
     assert plans[0].certificate.ok and max(w.rounds for w in plans[0].windows) >= 1
+
+
+def test_chunks_are_alike_in_size_and_never_larger_than_asked():
+    """100 robots make two chunks of 50 (not 64 and 36: two workers would wait for the larger)."""
+    import mrfswarm.continuous.receding_horizon as rhm
+
+    for n in range(1, 400):
+        size = rhm.chunk_size(n)
+        chunks = math.ceil(n / size)
+        assert size <= rhm.CHUNK_ROBOTS and chunks == math.ceil(n / rhm.CHUNK_ROBOTS), n
+        assert n - (chunks - 1) * size >= size - chunks, n  # the last chunk nearly full
+    single = [np.array([i]) for i in range(100)]
+    assert [len(c) for c in rhm.pack_groups(single, rhm.chunk_size(100))] == [50, 50]

@@ -39,6 +39,7 @@ in their durations. The refined solution is accepted if it certifies and lowers 
 from __future__ import annotations
 
 import logging
+import math
 import os
 import time
 from collections.abc import Callable
@@ -96,8 +97,9 @@ NLP_OPTIONS = QPOptions(eps_abs=1e-4, eps_rel=1e-4, max_iter=12)
 QP_OPTIONS = QPOptions(eps_abs=1e-7, eps_rel=1e-7, max_iter=50000, scaling=False)
 #: Robots per chunk: independent groups are packed into QPs of about this many robots.
 CHUNK_ROBOTS = 64
-#: Swarms at least this large solve their chunks in worker processes (smaller ones gain nothing).
-PARALLEL_ROBOTS = 200
+#: Swarms at least this large (two chunks or more) solve their chunks in worker processes (forked, so
+#: cheap to start: 100 robots on 2 cores, smoothing 6.1 s -> 5.0 s).
+PARALLEL_ROBOTS = CHUNK_ROBOTS + 1
 #: Rounds of lazy constraint generation before every row is switched on.
 MAX_ROUNDS = 12
 #: Limits that need steps this many times slower than nominal are refused as unreachable.
@@ -328,7 +330,7 @@ class RecedingHorizon:
                 self.limit_rows[a:b] = True
                 todo[:] = True
             groups = interaction_groups(self.N, seps.select(self.active[cand] & todo[seps.first] & todo[seps.second]))
-            chunks = pack_groups([g for g in groups if todo[g[0]]], CHUNK_ROBOTS)
+            chunks = pack_groups([g for g in groups if todo[g[0]]], chunk_size(int(todo.sum())))
             specs = []
             for robots in chunks:
                 mine = np.zeros(self.N, dtype=bool)
@@ -586,6 +588,12 @@ def solve_window(spec: WindowSpec, durations: np.ndarray, backend: str, options:
     if gradient and sol.y is not None:
         grad = form.duration_gradient(sol.x, sol.y, durations)
     return Y, B, form.robot_objectives(x, durations), grad
+
+
+def chunk_size(n: int) -> int:
+    """Robots per chunk when ``n`` robots are solved: about ``CHUNK_ROBOTS``, the chunks alike in size
+    (100 robots make two chunks of 50, not 64 and 36, so two workers finish together)."""
+    return max(1, math.ceil(n / max(1, math.ceil(n / CHUNK_ROBOTS))))
 
 
 def pack_groups(groups: list[np.ndarray], size: int) -> list[np.ndarray]:
