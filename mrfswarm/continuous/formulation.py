@@ -321,6 +321,8 @@ class WindowFormulation:
     def __init__(self, spec: WindowSpec) -> None:
         self.spec = spec
         pm = self.maps = piece_maps(spec.degree, spec.derivative)
+        self._k_key: bytes | None = None
+        self._k_val = np.zeros(0)
         M, G, D, q, nz = spec.steps, spec.robots, spec.degree, spec.derivative, pm.nz
         self.per_dim = (M + 1) * pm.stride - (pm.stride - q)  # y_0, b_0, ..., y_M
         self.n = 2 * G * self.per_dim
@@ -409,13 +411,20 @@ class WindowFormulation:
         self._P = _block_diagonal_map(_block_cost_map(D, q, M, self.per_dim), 2 * G)
 
     # ------------------------------------------------------------------ QP
+    def _k(self, durations: np.ndarray) -> np.ndarray:
+        """The pieces' coefficients at ``durations`` (the last ones kept: a solve asks for the QP, then the costs)."""
+        key = np.asarray(durations, dtype=float).tobytes()
+        if self._k_key != key:
+            self._k_key, self._k_val = key, self.maps.evaluate(self.normalized(durations))
+        return self._k_val
+
     def normalized(self, durations: np.ndarray) -> np.ndarray:
         """Durations (seconds) in the window's time unit."""
         return np.asarray(durations, dtype=float) / self.spec.time_scale
 
     def qp(self, durations: np.ndarray) -> QPProblem:
         """The QP for step ``durations`` (seconds, (M,))."""
-        k = self.maps.evaluate(self.normalized(durations))
+        k = self._k(durations)
         (ai, ap, SA), (pi, pp, SP) = self._A, self._P
         A = sp.csc_matrix((SA @ k, ai, ap), shape=(self.m, self.n))
         P = sp.csc_matrix((SP @ k, pi, pp), shape=(self.n, self.n))
@@ -423,14 +432,14 @@ class WindowFormulation:
 
     def objective(self, x: np.ndarray, durations: np.ndarray) -> float:
         """The snap integral (physical units) of solution ``x`` at ``durations``."""
-        k = self.maps.evaluate(self.normalized(durations))
+        k = self._k(durations)
         pi, pp, SP = self._P
         P = sp.csc_matrix((SP @ k, pi, pp), shape=(self.n, self.n))
         return float(0.5 * x @ (P @ x)) * self.spec.time_scale ** (1 - 2 * self.spec.derivative)
 
     def robot_objectives(self, x: np.ndarray, durations: np.ndarray) -> np.ndarray:
         """(G,) each robot's snap integral (physical units) in solution ``x``."""
-        k = self.maps.evaluate(self.normalized(durations))
+        k = self._k(durations)
         pi, pp, SP = self._P
         P = sp.csc_matrix((SP @ k, pi, pp), shape=(self.n, self.n))
         per_var = 0.5 * x * (P @ x)  # P is block diagonal per robot
