@@ -166,6 +166,8 @@ def test_set_reaches_the_options_tables_from_the_cli(tmp_path):
     ("mrf.options.max_iter=2.5", "mrf.options.max_iter must be an integer, got 2.5"),
     ("mrf.options.polish=1", "mrf.options.polish must be true or false, got 1"),
     ("mrf.options.max_iter=0", "mrf.options: max_iter must be >= 1, got 0"),
+    ("mrf.options.seed=-3", "mrf.options: seed must be >= 0, got -3"),
+    ("smoothing.qp_options.scaling=3", "smoothing.qp_options.scaling must be true or false, got 3"),
     ('mrf.options.schedule="linear"', "mrf.options: schedule must be 'geometric' or 'log', got 'linear'"),
     ("mrf.options=3", "mrf.options must be a table, got 3"),
     ("smoothing.qp_options.eps=1e-6", "unknown config key smoothing.qp_options.eps; allowed: eps_abs, eps_rel"),

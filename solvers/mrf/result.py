@@ -66,6 +66,8 @@ class Options:
             raise ValueError(f"max_iter must be >= 1, got {self.max_iter}")
         if not self.tol >= 0:
             raise ValueError(f"tol must be >= 0, got {self.tol}")
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0, got {self.seed}")
         if self.time_limit is not None and not self.time_limit > 0:
             raise ValueError(f"time_limit must be positive, got {self.time_limit}")
         if self.temperature is not None and not (0 < self.temperature < float("inf")):
