@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import csv
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,8 +13,8 @@ from mrfswarm.config import load_config
 from mrfswarm.discrete.planner import plan_discrete
 from mrfswarm.scenario import build_scenario
 from solvers import mrf
+from support.repository import EXPERIMENTS
 
-ROOT = Path(__file__).resolve().parents[1]
 METHODS = ["icm", "trws", "gibbs"]
 STEPS = 4
 
@@ -77,7 +76,7 @@ def test_bound_lies_below_every_step_energy(outputs):
 
 def test_final_energy_matches_an_independent_run(outputs):
     _, _, rows, _ = outputs
-    cfg = load_config(ROOT / "experiments" / "corridor.toml")
+    cfg = load_config(EXPERIMENTS / "corridor.toml")
     problem = build_scenario(cfg).discrete_problem()
     for r in rows:
         plan = plan_discrete(problem, method=r["method"], max_steps=STEPS, tol=cfg.mrf.tol, patience=cfg.mrf.patience,

@@ -16,8 +16,8 @@ from mrfswarm.errors import ConfigError, DeprecatedKeyWarning
 from mrfswarm.pipeline import mrf_options, plan, qp_options, resolve_config
 from mrfswarm.sweep import run_sweep
 from solvers import mrf
+from support.repository import EXPERIMENTS
 
-EXP = Path(__file__).resolve().parents[1] / "experiments"
 QUICK = ["smoothing.enabled=false", "mrf.max_steps=3"]
 
 
@@ -66,7 +66,7 @@ def test_overrides_set_the_current_name(tmp_path, body, override, method, warned
 
 def test_run_with_the_old_key_warns_in_one_line_and_writes_the_new_one(tmp_path, capsys):
     out = tmp_path / "o"
-    rc = main(["run", str(EXP / "corridor.toml"), "--out", str(out), "--set", "mrf.optimizer=gibbs",
+    rc = main(["run", str(EXPERIMENTS / "corridor.toml"), "--out", str(out), "--set", "mrf.optimizer=gibbs",
                *[a for s in QUICK for a in ("--set", s)]])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 0
@@ -77,7 +77,7 @@ def test_run_with_the_old_key_warns_in_one_line_and_writes_the_new_one(tmp_path,
 
 
 def test_an_unknown_method_is_one_line_naming_it(tmp_path, capsys):
-    rc = main(["run", str(EXP / "corridor.toml"), "--out", str(tmp_path / "o"), "--set", "mrf.method=nope"])
+    rc = main(["run", str(EXPERIMENTS / "corridor.toml"), "--out", str(tmp_path / "o"), "--set", "mrf.method=nope"])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and err[0].startswith("mrfswarm: error: ") and "'nope'" in err[0], err
     assert not (tmp_path / "o").exists()
@@ -86,14 +86,14 @@ def test_an_unknown_method_is_one_line_naming_it(tmp_path, capsys):
 @pytest.mark.parametrize("flag, key, name", [("--mrf", "mrf.method", "exact"),
                                              ("--qp", "smoothing.backend", "osqp")])
 def test_mrf_and_qp_flags_are_shorthands_for_set(flag, key, name):
-    by_flag = resolve_config(load_config(EXP / "free5.toml"), **{flag.strip("-"): name})
-    by_set = resolve_config(load_config(EXP / "free5.toml", [f"{key}={name}"]))
-    assert by_flag == by_set and by_flag != load_config(EXP / "free5.toml")
+    by_flag = resolve_config(load_config(EXPERIMENTS / "free5.toml"), **{flag.strip("-"): name})
+    by_set = resolve_config(load_config(EXPERIMENTS / "free5.toml", [f"{key}={name}"]))
+    assert by_flag == by_set and by_flag != load_config(EXPERIMENTS / "free5.toml")
 
 
 def test_a_sweep_over_the_old_key_tabulates_the_new_name(tmp_path):
     with pytest.warns(DeprecatedKeyWarning):
-        res = run_sweep(EXP / "free5.toml", {"mrf.optimizer": ["icm", "exact"]}, tmp_path / "s", workers=1,
+        res = run_sweep(EXPERIMENTS / "free5.toml", {"mrf.optimizer": ["icm", "exact"]}, tmp_path / "s", workers=1,
                         progress=False, overrides=QUICK)
     assert "mrf.method" in res.columns and "mrf.optimizer" not in res.columns
     assert [r["mrf.method"] for r in res.rows] == [r["mrf"] for r in res.rows] == ["icm", "exact"]
@@ -104,7 +104,7 @@ def test_a_sweep_over_the_old_key_tabulates_the_new_name(tmp_path):
 def test_a_sweep_given_both_names_fails_before_running(tmp_path):
     with pytest.warns(DeprecatedKeyWarning), pytest.raises(ConfigError, match=r"grid mrf\.optimizer: mrf\.method is "
                                                                              r"given twice"):
-        run_sweep(EXP / "free5.toml", {"mrf.method": ["icm"], "mrf.optimizer": ["exact"]}, tmp_path / "s",
+        run_sweep(EXPERIMENTS / "free5.toml", {"mrf.method": ["icm"], "mrf.optimizer": ["exact"]}, tmp_path / "s",
                   workers=1, progress=False, overrides=QUICK)
     assert not (tmp_path / "s").exists()
 
@@ -114,10 +114,10 @@ def test_a_sweep_given_both_names_fails_before_running(tmp_path):
 
 def test_mrf_options_reach_the_mrf_method(tmp_path):
     """One ICM sweep per step: the reported iterations and the paths change."""
-    corridor = (EXP / "corridor.toml").read_text() + "\n[mrf.options]\nmax_iter = 1\n"
+    corridor = (EXPERIMENTS / "corridor.toml").read_text() + "\n[mrf.options]\nmax_iter = 1\n"
     capped = plan(load_config(write(tmp_path, corridor), ["smoothing.enabled=false", "mrf.max_steps=10"]),
                   progress=False)
-    default = plan(load_config(EXP / "corridor.toml", ["smoothing.enabled=false", "mrf.max_steps=10"]), progress=False)
+    default = plan(load_config(EXPERIMENTS / "corridor.toml", ["smoothing.enabled=false", "mrf.max_steps=10"]), progress=False)
     assert capped.config.mrf.options == {"max_iter": 1}
     assert max(s["iterations"] for s in default.discrete.steps) > 1
     assert {s["iterations"] for s in capped.discrete.steps} == {1}
@@ -133,7 +133,7 @@ def test_mrf_options_merge_under_the_seed():
 
 
 def test_qp_options_go_over_the_stages_own_and_reach_every_solve(monkeypatch):
-    cfg = load_config(EXP / "free5.toml", ["simulation.enabled=false", "mrf.max_steps=3",
+    cfg = load_config(EXPERIMENTS / "free5.toml", ["simulation.enabled=false", "mrf.max_steps=3",
                                            "smoothing.qp_options.eps_abs=1e-6", "smoothing.qp_options.max_iter=777"])
     expected = dataclasses.replace(QP_OPTIONS, eps_abs=1e-6, max_iter=777)
     assert qp_options(cfg) == expected and expected.eps_rel == QP_OPTIONS.eps_rel != expected.eps_abs
@@ -152,7 +152,7 @@ def test_qp_options_go_over_the_stages_own_and_reach_every_solve(monkeypatch):
 
 def test_set_reaches_the_options_tables_from_the_cli(tmp_path):
     out = tmp_path / "o"
-    rc = main(["run", str(EXP / "free5.toml"), "--out", str(out), "--set", "mrf.options.max_iter=5",
+    rc = main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(out), "--set", "mrf.options.max_iter=5",
                "--set", "smoothing.qp_options.verbose=false", *[a for s in QUICK for a in ("--set", s)]])
     assert rc == 0
     res = json.loads((out / "result.json").read_text())
@@ -176,8 +176,8 @@ def test_set_reaches_the_options_tables_from_the_cli(tmp_path):
 ])
 def test_bad_solver_options_are_one_line_naming_the_key(tmp_path, capsys, override, message):
     with pytest.raises(ConfigError) as e:
-        load_config(EXP / "free5.toml", [override])
+        load_config(EXPERIMENTS / "free5.toml", [override])
     assert str(e.value).startswith(message) and "\n" not in str(e.value), str(e.value)
-    rc = main(["run", str(EXP / "free5.toml"), "--out", str(tmp_path / "o"), "--set", override])
+    rc = main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(tmp_path / "o"), "--set", override])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and err[0].startswith(f"mrfswarm: error: {message}"), err

@@ -1,7 +1,5 @@
 """The paper's scenarios through the public API (discrete stage)."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
@@ -9,14 +7,14 @@ from scipy.spatial import ConvexHull
 import mrfswarm
 from mrfswarm.discrete.safety import discrete_violations
 from mrfswarm.pipeline import plan
+from support.repository import EXPERIMENTS
 
-EXP = Path(__file__).resolve().parents[1] / "experiments"
 DISCRETE = ["smoothing.enabled=false"]
 
 
 @pytest.mark.parametrize("name", ["corridor", "blocks", "corridor10"])
 def test_swarm_reaches_the_goal_region(name):
-    r = plan(mrfswarm.load_config(EXP / f"{name}.toml", DISCRETE))
+    r = plan(mrfswarm.load_config(EXPERIMENTS / f"{name}.toml", DISCRETE))
     assert r.discrete.converged and r.metrics.reached_goal
     assert r.metrics.final_goal_distance <= r.config.scenario.goal_radius
     assert r.metrics.min_separation >= 1.0 - 1e-9
@@ -27,7 +25,7 @@ def test_swarm_reaches_the_goal_region(name):
 def test_free_space_five_robots_settle_into_pentagons():
     """The paper's Fig. 6a claim, over 20 sampled starts: converged within a few steps, near-equal
     nearest-neighbour distances, and a pentagon in most runs (a centred square otherwise)."""
-    cfg = mrfswarm.load_config(EXP / "free5.toml", DISCRETE)
+    cfg = mrfswarm.load_config(EXPERIMENTS / "free5.toml", DISCRETE)
     pentagons = 0
     for seed in range(20):
         r = plan(cfg, seed=seed)
@@ -42,7 +40,7 @@ def test_free_space_five_robots_settle_into_pentagons():
 
 
 def test_free_space_pentagon_from_config():
-    r = plan(mrfswarm.load_config(EXP / "free5.toml", DISCRETE))
+    r = plan(mrfswarm.load_config(EXPERIMENTS / "free5.toml", DISCRETE))
     assert r.discrete.converged and r.discrete.n_steps <= 10
     assert r.metrics.reached_goal is None
     final = r.discrete_paths_world()[-1]
@@ -54,18 +52,18 @@ def test_free_space_pentagon_from_config():
 
 
 def test_a_circulating_swarm_stops_as_stalled():
-    r = plan(mrfswarm.load_config(EXP / "blocks12.toml", DISCRETE + ["mrf.patience=15"]))
+    r = plan(mrfswarm.load_config(EXPERIMENTS / "blocks12.toml", DISCRETE + ["mrf.patience=15"]))
     assert r.discrete.stop_reason == "stalled" and not r.discrete.converged
     e = r.discrete.energy
     assert np.argmin(e) == len(e) - 1  # the plan ends at the swarm energy's minimum
     assert len(r.discrete.steps) == len(e) - 1 == r.discrete.n_steps
     assert all(len(v) == r.discrete.n_steps for v in r.discrete.timings.values())
-    longer = plan(mrfswarm.load_config(EXP / "blocks12.toml", DISCRETE + ["mrf.patience=15", "mrf.max_steps=300"]))
+    longer = plan(mrfswarm.load_config(EXPERIMENTS / "blocks12.toml", DISCRETE + ["mrf.patience=15", "mrf.max_steps=300"]))
     assert longer.discrete.n_steps == r.discrete.n_steps  # deterministic
     assert r.metrics.reached_goal
 
 
 def test_paths_are_in_metres_in_the_map_frame():
-    r = plan(mrfswarm.load_config(EXP / "corridor.toml", DISCRETE + ["mrf.max_steps=3"]))
+    r = plan(mrfswarm.load_config(EXPERIMENTS / "corridor.toml", DISCRETE + ["mrf.max_steps=3"]))
     w = r.discrete_paths_world()
     assert w[0].tolist() == [[4, 16], [4, 18], [4, 20], [4, 22], [4, 24]]

@@ -1,12 +1,11 @@
 """Quadrotors (RotorPy) flying the planned trajectories: tracking bound and separation."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 import mrfswarm
 from mrfswarm.pipeline import plan
+from support.repository import EXPERIMENTS
 
 pytest.importorskip("rotorpy")
 
@@ -16,7 +15,6 @@ from scipy import signal  # noqa: E402
 
 from mrfswarm.simulation import drag, fly, tracking_bound, tracking_gain  # noqa: E402
 
-EXP = Path(__file__).resolve().parents[1] / "experiments"
 #: Crazyflie 2.x: 92 mm between opposite motors, so two vehicles touch below about 0.1 m apart.
 CRAZYFLIE_DIAMETER = 0.1
 
@@ -45,7 +43,7 @@ def test_tracking_gain_of_the_linear_model():
 def test_the_linear_model_explains_rotorpys_tracking_error():
     """The justification of the bound: the linearized loop, driven by the reference's jerk and by
     rotor drag at the reference's speed, predicts the flown error."""
-    r = plan(mrfswarm.load_config(EXP / "free5.toml", ["simulation.enabled=false"]))
+    r = plan(mrfswarm.load_config(EXPERIMENTS / "free5.toml", ["simulation.enabled=false"]))
     sys_j, sys_d, _ = linear_model()
     c1, c2 = drag("crazyflie")
     assert c1 == pytest.approx(0.244, abs=0.01) and c2 == 0.0
@@ -66,7 +64,7 @@ def test_the_linear_model_explains_rotorpys_tracking_error():
 
 @pytest.mark.slow
 def test_flown_corridor_keeps_the_separation_within_the_bound():
-    r = plan(mrfswarm.load_config(EXP / "corridor.toml"))
+    r = plan(mrfswarm.load_config(EXPERIMENTS / "corridor.toml"))
     f, c = r.flight, r.continuous
     assert f.tracking_bound == pytest.approx(tracking_bound(c.j_max, c.v_max))
     assert f.max_tracking_error <= f.tracking_bound

@@ -1,18 +1,15 @@
 """Flight backends: the batched RotorPy simulation (torch, optional) against one simulation per robot."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 import mrfswarm
 from mrfswarm.errors import ConfigError, SolverNotFound
+from support.repository import EXPERIMENTS
 
 pytest.importorskip("rotorpy")
 
 from mrfswarm import simulation
-
-EXP = Path(__file__).resolve().parents[1] / "experiments"
 
 
 def test_backend_names_and_missing_modules(monkeypatch):
@@ -35,7 +32,7 @@ def test_config_rejects_an_unknown_backend():
 @pytest.fixture(scope="module")
 def trajectories():
     pytest.importorskip("torch")
-    r = mrfswarm.plan(mrfswarm.load_config(EXP / "free5.toml", ["simulation.enabled=false"]), progress=False)
+    r = mrfswarm.plan(mrfswarm.load_config(EXPERIMENTS / "free5.toml", ["simulation.enabled=false"]), progress=False)
     return r.continuous.trajectories[:3], r.continuous.j_max, r.config.scenario.altitude
 
 
@@ -57,7 +54,7 @@ def test_batched_swarm_flight_stays_within_the_tracking_bound(trajectories):
     threads = torch.get_num_threads()
     from mrfswarm.scenario import build_scenario
 
-    grid = build_scenario(mrfswarm.load_config(EXP / "free5.toml")).grid
+    grid = build_scenario(mrfswarm.load_config(EXPERIMENTS / "free5.toml")).grid
     speed = max(float(np.linalg.norm(tr.evaluate(np.linspace(0, tr.duration, 2001), 1), axis=1).max()) for tr in trs)
     f = simulation.fly_swarm(trs, alt, grid, 100.0, jerk=jerk, speed=speed, backend="batched")
     assert torch.get_num_threads() == threads and torch.get_default_dtype() == torch.float32

@@ -4,7 +4,6 @@ import csv
 import json
 import math
 import sys
-from pathlib import Path
 
 import pytest
 from hypothesis import given
@@ -15,9 +14,9 @@ from mrfswarm.config import load_config
 from mrfswarm.errors import ConfigError
 from mrfswarm.pipeline import plan
 from mrfswarm.sweep import SchedulerError, is_timing_column, parse_grid, run_sweep, toml_literal
+from support.repository import EXPERIMENTS
 
-ROOT = Path(__file__).resolve().parents[1]
-FREE5 = ROOT / "experiments" / "free5.toml"
+FREE5 = EXPERIMENTS / "free5.toml"
 FAST = ["smoothing.enabled=false", "mrf.max_steps=8"]
 GRID = {"interaction.k_a": [10, 14], "interaction.k_r": [2.0, 4.0]}
 GOAL_GRID = {"scenario.goal": [[30, 20], [12, 12]], "interaction.k": [2, 3]}  # (12, 12) is inside a block

@@ -3,10 +3,10 @@
 Four classes (:mod:`mrfswarm.maps.synthetic`): rooms joined by 2-3-cell doorways, U/C
 traps facing the swarm, forests of 10-20 % single cells, mazes with 2-3-cell corridors.
 Seeds 1-4 of each class, with 5, 10, 20 and 50 robots: 16 maps and configs, every one
-tested (``tests/test_navigation.py``: with the default config every robot reaches the
-goal region and the swarm ends cohesive; with the paper's Euclidean field, which maps
-trap it). ``experiments/navigation.py`` studies seeds 1-8 of each class (32 maps), the
-first 16 of which are these.
+tested (``tests/discrete/test_navigation.py``: with the default config every robot
+reaches the goal region and the swarm ends cohesive; with the paper's Euclidean field,
+which maps trap it). ``experiments/navigation.py`` studies seeds 1-8 of each class (32
+maps), the first 16 of which are these.
 
     python experiments/maps/generate.py            # rewrite the 16 maps and configs
     python experiments/maps/generate.py --check    # exit 1 if a file differs from what it would write

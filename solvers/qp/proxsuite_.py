@@ -14,11 +14,11 @@ so the rows of the standard form are split: ``l == u`` rows go to ``A x = b``, t
 other rows with a finite side to ``l <= C x <= u`` with the open side clipped to
 ``+-1e20`` (ProxQP's infinity), and rows free on both sides are dropped.
 
-Tuning (measured, see ``tests/test_qp_backends.py``): by default ProxQP stops on the
-primal and dual residuals alone, which leaves complementarity loose — on a 3-variable
-problem with ``eps_abs = 1e-9`` a variable that should sit on its bound stayed 2e-5
-away. We therefore turn on ``check_duality_gap`` with the gap tolerances set to the
-residual ones; then the solution is accurate to about ``eps_abs``.
+Tuning (measured, see ``tests/solvers/qp/test_backends.py``): by default ProxQP stops on
+the primal and dual residuals alone, which leaves complementarity loose — on a
+3-variable problem with ``eps_abs = 1e-9`` a variable that should sit on its bound
+stayed 2e-5 away. We therefore turn on ``check_duality_gap`` with the gap tolerances set
+to the residual ones; then the solution is accurate to about ``eps_abs``.
 
 The dense API is used for small problems (``n <= DENSE_MAX_N``), the sparse API above:
 on random QPs with 1.5 n rows the dense API solved 3x faster at n = 50 and 5x at n = 200

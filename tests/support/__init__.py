@@ -2,6 +2,7 @@
 
 - :mod:`support.fields`: static fields of random maps;
 - :mod:`support.qp_reference`: QPs with known optima;
+- :mod:`support.repository`: where the repository's files are (root, experiments, test data);
 - :mod:`support.swarms`: random swarms on random maps;
 - :mod:`support.trajectories`: random waypoints and the min-snap references.
 

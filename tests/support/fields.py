@@ -13,8 +13,8 @@ def random_map_static(free: np.ndarray, goal: np.ndarray | None, start: np.ndarr
     """rho_S of a random map with ``distance`` ("geodesic" or "euclidean").
 
     A random map can cut robots off from the goal; the geodesic field is ``inf`` there
-    (the planner refuses such a start, tested in test_navigation.py), so those draws fall
-    back to the paper's straight-line field, which is finite everywhere.
+    (the planner refuses such a start, tested in discrete/test_navigation.py), so those
+    draws fall back to the paper's straight-line field, which is finite everywhere.
     """
     prob = (~free).astype(float)
     s = static_field(prob, goal, 1.0, GoalPotentialConfig(distance=distance), ObstaclePotentialConfig(), order)

@@ -1,6 +1,6 @@
 """References for the trajectory tests: random waypoints, a sparse KKT solve and an exact rational solve.
 
-``tests/test_trajectory_support.py`` checks the references themselves.
+``tests/trajectory/test_support.py`` checks the references themselves.
 """
 
 from fractions import Fraction

@@ -3,7 +3,6 @@
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,8 +20,7 @@ from mrfswarm.trajectory import (
     solve_min_snap,
 )
 from solvers.errors import SolverError
-
-ROOT = Path(__file__).resolve().parents[1]
+from support.repository import ROOT
 
 
 def write(tmp_path, text, name="w.csv"):

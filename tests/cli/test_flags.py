@@ -2,15 +2,14 @@
 
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
 from mrfswarm.cli import main
+from support.repository import EXPERIMENTS
 
-ROOT = Path(__file__).resolve().parents[1]
-FREE5 = str(ROOT / "experiments" / "free5.toml")
-CORRIDOR = str(ROOT / "experiments" / "corridor.toml")
+FREE5 = str(EXPERIMENTS / "free5.toml")
+CORRIDOR = str(EXPERIMENTS / "corridor.toml")
 
 # (argv after the program name, a pattern of the one-line message); FILE is a regular file,
 # OUT a fresh folder, WP a waypoints CSV

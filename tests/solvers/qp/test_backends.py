@@ -11,7 +11,6 @@ import dataclasses
 import subprocess
 import sys
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,10 +20,10 @@ from solvers import qp
 from solvers.errors import InfeasibleError, InvalidProblem, SolverError, SolverNotFound
 from solvers.registry import Registry
 from support import qp_reference as ref_problems
+from support.repository import ROOT, TEST_DATA
 
 NAMES = qp.BACKENDS.names()
 REFERENCES = ref_problems.all_references()
-ROOT = Path(__file__).resolve().parents[1]
 
 # agreement demanded of every backend with default Options (eps 1e-8)
 OBJ_RTOL = 1e-6
@@ -506,7 +505,7 @@ def _window_qp() -> qp.QPProblem:
     Cut down from a 1000-robot crossing where PIQP, equilibrating it first (its default),
     declared it primal infeasible after 8 iterations.
     """
-    d = np.load(ROOT / "tests" / "data" / "window_qp_4_robots.npz")
+    d = np.load(TEST_DATA / "window_qp_4_robots.npz")
     n = len(d["q"])
     P = sp.csc_matrix((d["P_data"], d["P_indices"], d["P_indptr"]), shape=(n, n))
     A = sp.csc_matrix((d["A_data"], d["A_indices"], d["A_indptr"]), shape=tuple(d["shape_A"]))

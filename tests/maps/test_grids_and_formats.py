@@ -12,8 +12,9 @@ from hypothesis import strategies as st
 from mrfswarm.config import load_config
 from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.maps import OccupancyGrid, load_map, read_movingai, read_ros, save_movingai, save_ros
+from support.repository import TEST_DATA
 
-DATA = Path(__file__).parent / "data" / "maps"
+MAP_FILES = TEST_DATA / "maps"
 
 
 def cells(mask: np.ndarray) -> set[tuple[int, int]]:
@@ -259,7 +260,7 @@ def test_ascii_with_placement():
 
 def test_movingai_fixture():
     """small.map: '@' at row 0 col 1, 'T' at row 1 col 2, 'O' at row 2 col 4; G, S, W free."""
-    g = load_map({"kind": "movingai", "path": "small.map"}, DATA)
+    g = load_map({"kind": "movingai", "path": "small.map"}, MAP_FILES)
     assert g.shape == (5, 4) and g.resolution == 1.0 and g.origin == (0.0, 0.0)
     assert cells(g.occupied) == {(1, 0), (2, 1), (4, 2)}
     assert g.is_free(np.array([[4, 1], [0, 2], [1, 2]])).all()  # G, S, W (water is free for flyers)
@@ -295,7 +296,7 @@ def test_movingai_save_drops_placement_with_warning(tmp_path, caplog):
 
 def test_ros_p2_fixture():
     """Top image row dark -> occupied[:, H-1]; unknown (205) -> 0.5 -> occupied; bottom-right dark -> (3, 0)."""
-    g = load_map({"kind": "ros", "path": "small_p2.yaml"}, DATA)
+    g = load_map({"kind": "ros", "path": "small_p2.yaml"}, MAP_FILES)
     assert g.shape == (4, 3) and g.resolution == 0.5
     assert g.origin == (-0.75, 2.25)  # ROS origin is the corner of cell (0, 0): centre = corner + res/2
     assert np.array_equal(g.occupied[:, 2], [True] * 4)
@@ -308,7 +309,7 @@ def test_ros_p2_fixture():
 
 
 def test_ros_p5_fixture_block_origin_list():
-    g = read_ros(DATA / "small_p5.yaml")
+    g = read_ros(MAP_FILES / "small_p5.yaml")
     assert g.shape == (3, 2) and g.origin == (0.5, 0.5)
     assert cells(g.occupied) == {(1, 1), (0, 0)}
 

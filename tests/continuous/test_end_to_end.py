@@ -4,7 +4,6 @@ import json
 import math
 import re
 from functools import cache
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,14 +15,14 @@ from mrfswarm.continuous import RecedingHorizon
 from mrfswarm.pipeline import plan
 from mrfswarm.trajectory import read_uav_csv, seam_jumps
 from mrfswarm.trajectory.bernstein import control_points
+from support.repository import EXPERIMENTS
 
-EXP = Path(__file__).resolve().parents[1] / "experiments"
 NO_SIM = ["simulation.enabled=false"]
 
 
 @cache
 def run(name: str, *overrides: str):
-    return plan(mrfswarm.load_config(EXP / f"{name}.toml", NO_SIM + list(overrides)))
+    return plan(mrfswarm.load_config(EXPERIMENTS / f"{name}.toml", NO_SIM + list(overrides)))
 
 
 def full_stops(c, rate_hz=100.0, below=0.05):
@@ -93,7 +92,7 @@ def test_time_refinement_flies_faster():
 
 def test_uav_csv_exports_evaluate_back(tmp_path):
     out = tmp_path / "out"
-    rc = main(["run", str(EXP / "free5.toml"), "--out", str(out), "--set", "simulation.enabled=false"])
+    rc = main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(out), "--set", "simulation.enabled=false"])
     assert rc == 0
     res = json.loads((out / "result.json").read_text())
     r = run("free5")
@@ -113,7 +112,7 @@ def test_uav_csv_exports_evaluate_back(tmp_path):
 
 
 def test_progress_is_quiet_off_a_terminal(tmp_path, capsys):
-    main(["run", str(EXP / "free5.toml"), "--out", str(tmp_path / "o"), "--set", "simulation.enabled=false"])
+    main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(tmp_path / "o"), "--set", "simulation.enabled=false"])
     err = capsys.readouterr().err
     assert "MRF steps" not in err and "smoothing" not in err
 
@@ -132,7 +131,7 @@ def test_progress_is_quiet_off_a_terminal(tmp_path, capsys):
     ('smoothing.backend="nope"', r"unknown QP backend 'nope'"),
 ])
 def test_bad_smoothing_settings(override, pattern, tmp_path, capsys):
-    rc = main(["run", str(EXP / "free5.toml"), "--out", str(tmp_path / "o"), "--set", override])
+    rc = main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(tmp_path / "o"), "--set", override])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1
     assert re.search(pattern, err[0]), err[0]
@@ -140,7 +139,7 @@ def test_bad_smoothing_settings(override, pattern, tmp_path, capsys):
 
 def test_limits_no_timing_can_meet_keep_the_discrete_outputs(tmp_path, capsys):
     out = tmp_path / "o"
-    rc = main(["run", str(EXP / "free5.toml"), "--out", str(out), "--set", "simulation.enabled=false",
+    rc = main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(out), "--set", "simulation.enabled=false",
                "--set", "smoothing.v_max=1e-5"])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "no timing meets v_max = 1e-05 m/s" in err[0] and str(out) in err[0]
@@ -154,7 +153,7 @@ def test_a_failed_plan_carries_what_was_computed():
     from mrfswarm.errors import PlanError, UnsafeTrajectoryError
 
     with pytest.raises(PlanError, match="no timing meets v_max") as info:
-        plan(mrfswarm.load_config(EXP / "free5.toml", ["simulation.enabled=false", "smoothing.v_max=1e-5"]))
+        plan(mrfswarm.load_config(EXPERIMENTS / "free5.toml", ["simulation.enabled=false", "smoothing.v_max=1e-5"]))
     result = info.value.result
     assert isinstance(info.value.__cause__, UnsafeTrajectoryError)
     assert result.failure == str(info.value) and result.continuous is None and result.discrete.n_steps > 0
@@ -196,7 +195,7 @@ def test_a_solver_that_returns_garbage_is_caught_and_the_flight_stays_safe(monke
         return type(sol)(**{**sol.__dict__, "x": x})
 
     monkeypatch.setattr(solvers.qp, "solve", noisy)
-    r = plan(mrfswarm.load_config(EXP / "free5.toml", NO_SIM))
+    r = plan(mrfswarm.load_config(EXPERIMENTS / "free5.toml", NO_SIM))
     c = r.continuous
     assert "witness" in {w.attempt for w in c.windows}
     failed = [f for w in c.windows for f in w.failed]
@@ -208,7 +207,7 @@ def test_plans_in_threads_agree():
     """Formulations and compiled pieces are shared; threads planning at once must not interfere."""
     import concurrent.futures as cf
 
-    cfg = mrfswarm.load_config(EXP / "corridor.toml", NO_SIM)
+    cfg = mrfswarm.load_config(EXPERIMENTS / "corridor.toml", NO_SIM)
     ref = plan(cfg).continuous
     t = np.linspace(0.0, ref.makespan_s, 400)
     with cf.ThreadPoolExecutor(4) as ex:

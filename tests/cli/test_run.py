@@ -10,9 +10,7 @@ import numpy as np
 import pytest
 
 from mrfswarm.cli import main
-
-ROOT = Path(__file__).resolve().parents[1]
-EXP = ROOT / "experiments"
+from support.repository import EXPERIMENTS
 
 CORRIDOR_MAP = """map = { kind = "boxes", size = [40, 40], boxes = [
     { center = [19.5, 32.5], size = [18, 16] }, { center = [19.5, 9.5], size = [18, 16] }] }"""
@@ -26,7 +24,7 @@ def write_config(tmp_path: Path, body: str) -> Path:
 
 def test_run_discrete_outputs(tmp_path):
     out = tmp_path / "out"
-    rc = main(["run", str(EXP / "corridor.toml"), "--out", str(out), "--set", "smoothing.enabled=false"])
+    rc = main(["run", str(EXPERIMENTS / "corridor.toml"), "--out", str(out), "--set", "smoothing.enabled=false"])
     assert rc == 0
     res = json.loads((out / "result.json").read_text())
     for key in ("n_robots", "mrf_steps", "converged", "reached_goal", "swarm_energy", "min_separation_discrete",
@@ -46,7 +44,7 @@ def test_run_discrete_outputs(tmp_path):
 
 def test_set_mrf_and_seed_flags(tmp_path):
     out = tmp_path / "o"
-    rc = main(["run", str(EXP / "free5.toml"), "--out", str(out), "--mrf", "exact", "--seed", "3",
+    rc = main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(out), "--mrf", "exact", "--seed", "3",
                "--set", "smoothing.enabled=false", "--set", "mrf.max_steps=4"])
     assert rc == 0
     res = json.loads((out / "result.json").read_text())
@@ -111,7 +109,7 @@ def test_missing_config_file(capsys):
 
 def test_discrete_paths_csv_matches_result(tmp_path):
     out = tmp_path / "out"
-    main(["run", str(EXP / "free5.toml"), "--out", str(out), "--set", "smoothing.enabled=false"])
+    main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(out), "--set", "smoothing.enabled=false"])
     data = np.loadtxt(out / "discrete_paths.csv", delimiter=",", skiprows=1)
     res = json.loads((out / "result.json").read_text())
     last = data[data[:, 0] == res["mrf_steps"]][:, 2:]

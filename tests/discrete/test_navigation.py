@@ -6,7 +6,6 @@ with 2-3-cell doorways, U/C traps facing the swarm, forests, mazes; 5-50 robots.
 
 from dataclasses import dataclass
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -33,9 +32,9 @@ from mrfswarm.maps.synthetic import GENERATORS, generate
 from mrfswarm.metrics import min_separation
 from mrfswarm.pipeline import mrf_options, plan
 from mrfswarm.scenario import Scenario, build_scenario
+from support.repository import EXPERIMENTS
 
-ROOT = Path(__file__).resolve().parents[1]
-MAPS = ROOT / "experiments" / "maps"
+MAPS = EXPERIMENTS / "maps"
 MAP_CONFIGS = sorted(p.stem for p in MAPS.glob("*.toml"))
 DISCRETE = ["smoothing.enabled=false"]
 EUCLIDEAN = 'goal_potential.distance="euclidean"'
@@ -355,7 +354,7 @@ def test_the_discrete_stage_refuses_a_start_with_an_infinite_field():
 def test_the_robot_left_behind_is_reported():
     """The paper's Fig. 4 map with the paper's field: four robots at the goal, one left behind a
     block, 21 m from the others (what 'converged' used to hide); the default field brings it."""
-    r = plan(load_config(ROOT / "experiments" / "combined_field.toml", DISCRETE), progress=False)
+    r = plan(load_config(EXPERIMENTS / "combined_field.toml", DISCRETE), progress=False)
     s = r.summary()
     assert s["stop_reason"] == "trapped" and not s["converged"] and not s["reached_goal"]
     left = [x for x in s["robots"] if not x["at_goal"]]
@@ -364,7 +363,7 @@ def test_the_robot_left_behind_is_reported():
     assert left[0]["nearest_neighbour_m"] > SEPARATION_FACTOR * r.scenario.morse.d_min
     assert s["robots_separated"] == 1 and s["steps_with_separated_robots"] > 0
     assert s["robots"][4]["final"] == [42.0, 15.0]
-    geo = plan(load_config(ROOT / "experiments" / "combined_field.toml",
+    geo = plan(load_config(EXPERIMENTS / "combined_field.toml",
                            [*DISCRETE, 'goal_potential.distance="geodesic"']), progress=False).summary()
     assert geo["robots_at_goal"] == 5 and geo["robots_separated"] == 0
 
@@ -406,7 +405,7 @@ def test_defaults_navigate_and_paper_configs_pin_the_papers_rules():
     assert (cfg.goal_potential.distance, cfg.mrf.contested, cfg.mrf.progress) == ("geodesic", "downhill", "static")
     for name in ("corridor", "blocks", "corridor10", "blocks12", "free5", "free10", "example5", "single_obstacle",
                  "combined_field", "swarm_size"):
-        c = load_config(ROOT / "experiments" / f"{name}.toml")
+        c = load_config(EXPERIMENTS / f"{name}.toml")
         assert (c.goal_potential.distance, c.mrf.contested, c.mrf.progress) == ("euclidean", "nearest", "energy")
 
 
