@@ -163,3 +163,17 @@ def test_piece_stack_maps():
     matrix = control_point_matrix(7, 2, 4)
     assert np.array_equal(map_coefficients_in_order(matrix, c).transpose(1, 0, 2), old)  # the sums einsum forms
     np.testing.assert_allclose(map_coefficients(matrix, c).transpose(1, 0, 2), old, rtol=0, atol=1e-12)
+
+
+def test_region_violation_is_the_einsum_sum():
+    rng = np.random.default_rng(5)
+    ang = rng.uniform(0, np.pi, (4, 7))
+    axes = np.stack([np.stack([np.cos(ang), np.sin(ang)], -1), np.stack([-np.sin(ang), np.cos(ang)], -1)], axis=-2)
+    axes[:, :3] = np.eye(2)  # boxes and oriented rectangles
+    lower = rng.uniform(-1, 0, (4, 7, 2))
+    regions = Regions(axes, lower, lower + rng.uniform(0.5, 2, (4, 7, 2)), np.zeros((4, 7), bool), 0.25)
+    points = rng.normal(0, 1.5, (4, 7, 8, 2))
+    points[:, :2] = lower[:, :2, None] + rng.uniform(0, 0.5, (4, 2, 8, 2))  # inside their boxes
+    s = np.einsum("tnka,tnpa->tnpk", axes, points)
+    viol = np.maximum(np.maximum(lower[:, :, None] - s, s - regions.upper[:, :, None]).max(axis=(-1, -2)), 0.0)
+    assert np.array_equal(regions.violation(points), viol) and viol.max() > 0 and viol.min() == 0
