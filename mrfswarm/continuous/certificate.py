@@ -35,7 +35,14 @@ import numpy as np
 from mrfswarm.continuous.formulation import LIMIT_PARTS
 from mrfswarm.continuous.regions import Regions, near_pairs
 from mrfswarm.geometry import point_segment_distance
-from mrfswarm.trajectory.bernstein import tau_control_points
+from mrfswarm.trajectory.bernstein import control_point_matrix
+from mrfswarm.trajectory.piece_stack import (
+    PIECE_CHUNK,
+    map_coefficients,
+    map_coefficients_in_order,
+    squared_norms,
+    stacked_tau_coefficients,
+)
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial
 
 
@@ -107,7 +114,14 @@ def certify_pieces(cps: list[np.ndarray], regions: Regions, distance: float,
     limits
         (v_max, a_max, j_max).
     """
-    P = cps[0]
+    norms = [np.linalg.norm(cps[r], axis=-1).max(axis=-1) for r in (1, 2, 3)]
+    return _certify(cps[0], norms, regions, distance, limits)
+
+
+def _certify(P: np.ndarray, limit_norms: list[np.ndarray], regions: Regions, distance: float,
+             limits: tuple[float, float, float]) -> Certificate:
+    """:func:`certify_pieces` from the position control points (N, M, K, 2) and, per limit,
+    the (N, M) largest control-point norm of each piece."""
     M = P.shape[1]
     problems = []
     viol = regions.violation(P.transpose(1, 0, 2, 3))  # (M, N)
@@ -116,8 +130,7 @@ def certify_pieces(cps: list[np.ndarray], regions: Regions, distance: float,
         j, i = (int(v) for v in np.unravel_index(int(np.argmax(viol)), viol.shape))
         problems.append(f"robot {i} leaves its region in step {j} by {worst:.3g} m")
     bounds = []
-    for r, lim, name in zip((1, 2, 3), limits, ("speed", "acceleration", "jerk")):
-        norms = np.linalg.norm(cps[r], axis=-1).max(axis=-1)  # (N, M)
+    for norms, lim, name in zip(limit_norms, limits, ("speed", "acceleration", "jerk")):
         top = float(norms.max(initial=0.0))
         bounds.append(top)
         if top > lim:
@@ -143,9 +156,38 @@ def certify_pieces(cps: list[np.ndarray], regions: Regions, distance: float,
 
 def control_point_stack(trajectories: list[PiecewisePolynomial]) -> list[np.ndarray]:
     """[P, V, A, J] control points (N, M, K_r, 2) of trajectories that share their knots."""
-    c = np.stack([tr.tau_coefficients() for tr in trajectories])  # (N, M, D+1, 2)
-    T = trajectories[0].durations
-    return [tau_control_points(c, r, 1 if r == 0 else LIMIT_PARTS) / T[None, :, None, None] ** r for r in range(4)]
+    N, T = len(trajectories), trajectories[0].durations
+    c = stacked_tau_coefficients(trajectories)  # (K, N M, 2)
+    out = []
+    for r in range(4):
+        cp = map_coefficients_in_order(control_point_matrix(len(c) - 1, r, 1 if r == 0 else LIMIT_PARTS), c)
+        out.append(np.ascontiguousarray(cp.reshape(len(cp), N, len(T), 2).transpose(1, 2, 0, 3)) / T[None, :, None, None] ** r)
+    return out
+
+
+def _limit_norms(c: np.ndarray, T: np.ndarray, order: int) -> np.ndarray:
+    """(N M,) the largest norm of each piece's control points of the ``order``-th time derivative.
+
+    ``c`` (K, N M, 2) are the tau-coefficients of pieces robot after robot, all on the
+    durations ``T`` (M,). The norms come from matrix products (fast, but their last bits
+    may differ from ``np.einsum``'s), taken
+    :data:`~mrfswarm.trajectory.piece_stack.PIECE_CHUNK` pieces at a time so the control
+    points of all pieces (384 MB for 1000 robots and 300 steps) never exist at once; the
+    pieces within 1e-6 of the largest (rounding is some 1e-13) are then recomputed in the
+    order of :func:`~mrfswarm.trajectory.bernstein.tau_control_points`, so the largest norm
+    and where it is are those of :func:`control_point_stack` exactly.
+    """
+    matrix = control_point_matrix(len(c) - 1, order, LIMIT_PARTS)
+    Tr = T ** order
+    M, out = len(T), np.empty(c.shape[1])
+    for s in range(0, c.shape[1], PIECE_CHUNK):
+        e = min(s + PIECE_CHUNK, c.shape[1])
+        out[s:e] = squared_norms(map_coefficients(matrix, c[:, s:e])).max(axis=0)
+    out = np.sqrt(out) / Tr[np.arange(len(out)) % M]  # sqrt is monotone: the largest norm
+    top = np.flatnonzero(out >= out.max(initial=0.0) * (1 - 1e-6))
+    cp = map_coefficients_in_order(matrix, c[:, top]) / Tr[top % M, None]
+    out[top] = np.sqrt(squared_norms(cp).max(axis=0))
+    return out
 
 
 def certify(trajectories: list[PiecewisePolynomial], knot_times: np.ndarray, regions: Regions, distance: float,
@@ -153,9 +195,16 @@ def certify(trajectories: list[PiecewisePolynomial], knot_times: np.ndarray, reg
     """Certify whole flights: one piece per step, on the common time grid ``knot_times``.
 
     Adds to :func:`certify_pieces` the check that the pieces really are the steps: every
-    trajectory's knots are ``knot_times`` (to 1e-9 s).
+    trajectory's knots are ``knot_times`` (to 1e-9 s). The result is that of
+    ``certify_pieces(control_point_stack(trajectories), ...)``, without the limits'
+    control points of all pieces at once (see :func:`_limit_norms`).
     """
     for i, tr in enumerate(trajectories):
         if tr.pieces != len(knot_times) - 1 or not np.allclose(tr.knots, knot_times, rtol=0, atol=1e-9):
             return Certificate(False, [f"robot {i}'s pieces do not follow the common time grid"])
-    return certify_pieces(control_point_stack(trajectories), regions, distance, limits)
+    N, T = len(trajectories), trajectories[0].durations
+    c = stacked_tau_coefficients(trajectories)  # (K, N M, 2)
+    P = map_coefficients_in_order(control_point_matrix(len(c) - 1), c)
+    P = np.ascontiguousarray(P.reshape(len(P), N, len(T), 2).transpose(1, 2, 0, 3))  # (N, M, K, 2)
+    norms = [_limit_norms(c, T, r).reshape(N, len(T)) for r in (1, 2, 3)]
+    return _certify(P, norms, regions, distance, limits)

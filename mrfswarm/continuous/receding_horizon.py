@@ -74,7 +74,8 @@ from mrfswarm.errors import UnsafeTrajectoryError
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.maps.obstacles import ObstacleIndex
 from mrfswarm.trajectory import PiecewisePolynomial
-from mrfswarm.trajectory.bernstein import tau_control_points
+from mrfswarm.trajectory.bernstein import control_point_matrix
+from mrfswarm.trajectory.piece_stack import map_coefficients
 from mrfswarm.trajectory.retiming import max_derivative_norm_all
 from solvers.errors import SolverError
 from solvers.qp import Options as QPOptions
@@ -388,8 +389,10 @@ class RecedingHorizon:
         z = np.concatenate([Y[:, :-1], Y[:, 1:], B], axis=2)  # (N, M, nz, 2)
         scale = durations[:, None] ** pm.rpow[None, :]
         c = pm.E @ (z * scale[None, :, :, None])  # (K, nz) @ (N, M, nz, 2): one product per piece
+        ck = np.moveaxis(c, 2, 0)  # coefficient first: each map below is one matrix product over every piece
         T = durations[None, :, None, None]
-        return [tau_control_points(c, r, 1 if r == 0 else LIMIT_PARTS) / T**r for r in range(4)]
+        return [np.moveaxis(map_coefficients(control_point_matrix(c.shape[2] - 1, r, 1 if r == 0 else LIMIT_PARTS), ck),
+                            0, 2) / T**r for r in range(4)]
 
     def _certify(self, sol: _Solution, a: int) -> Certificate:
         tic = time.perf_counter()
@@ -628,45 +631,73 @@ def exact_min_separation(trajectories: list[PiecewisePolynomial], reach: float, 
     """The exact smallest distance between two robots over trajectories on one time grid.
 
     Pairs whose control-point boxes in a step stay ``reach`` apart are skipped (``reach``
-    grows until the minimum is below it); for the others the minimum of :math:`|p_i(t) - p_k(t)|` over each piece is found at the
-    piece's ends or at a real root of the derivative of its square. Steps are taken
-    ``block`` at a time (memory stays that of a few steps: all at once took 4.3 GB for
-    1000 robots and 300 steps), and a pair whose control points cannot come nearer than
-    the best distance found so far is not solved for.
+    grows until the minimum is below it); for the others the minimum of :math:`|p_i(t) - p_k(t)|`
+    over each piece is found at the piece's ends or at a real root of the derivative of
+    its square. Two passes over the steps, at least ``block`` steps at a time (and enough for
+    :data:`~mrfswarm.trajectory.piece_stack.PIECE_CHUNK` pieces: memory stays that of a few
+    steps at a thousand robots):
+
+    1. an upper bound: the smallest distance of two robots at 9 times of a step, over the
+       pairs whose boxes come nearer than ``reach`` and than the bound so far (no other
+       pair can lower it), keeping those pairs;
+    2. the exact minimum over the kept pairs whose boxes, then whose relative control
+       points' hull (a lower bound per pair and step), come within the final bound.
+
+    On a 1000-robot crossing of 300 steps, pass 1 meets 11 thousand (pair, step) and
+    pass 2 bounds 8 thousand by their hull, where the million within ``reach`` all were
+    before.
     """
     from mrfswarm.continuous.certificate import hull_distance_from_origin
     from mrfswarm.continuous.regions import near_pairs
+    from mrfswarm.trajectory.bernstein import control_point_matrix
+    from mrfswarm.trajectory.piece_stack import PIECE_CHUNK, map_coefficients, squared_norms, stacked_tau_coefficients
     from mrfswarm.trajectory.retiming import piece_extrema
 
-    if len(trajectories) < 2:
+    N = len(trajectories)
+    if N < 2:
         return float("inf")
-    C = np.stack([tr.tau_coefficients() for tr in trajectories])  # (N, M, D+1, 2)
-    P = tau_control_points(C, 0, 1)  # (N, M, D+1, 2) position control points
-    lo, hi = P.min(axis=2), P.max(axis=2)
-    span = float(np.ptp(P.reshape(-1, 2), axis=0).max()) + reach
+    M = trajectories[0].pieces
+    C = stacked_tau_coefficients(trajectories)  # (K, N M, 2), robot after robot
+    K = len(C)
+    C = C.reshape(K, N, M, 2)
+    P = map_coefficients(control_point_matrix(K - 1), C)  # (K, N, M, 2) position control points
+    lo, hi = P.min(axis=0), P.max(axis=0)  # (N, M, 2)
+    span = float((hi.max(axis=(0, 1)) - lo.min(axis=(0, 1))).max()) + reach
     tau = np.linspace(0.0, 1.0, 9)
-    V = tau[:, None] ** np.arange(C.shape[2])[None, :]  # (9, D+1)
-    M = P.shape[1]
+    V = tau[:, None] ** np.arange(K)[None, :]  # (9, K)
+    tol = 1e-9  # rounding: a bound attained at a piece's end
+    steps = max(block, -(-PIECE_CHUNK // N))
+
+    def box_gap(i: np.ndarray, k: np.ndarray, j: np.ndarray | int) -> np.ndarray:
+        return np.linalg.norm(np.maximum(0.0, np.maximum(lo[i, j] - hi[k, j], lo[k, j] - hi[i, j])), axis=-1)
+
     while True:  # pairs left out are >= reach apart, so the minimum is exact once it is <= reach
-        best = np.inf
-        for j0 in range(0, M, block):
-            rel_c, rel_p = [], []
-            for j in range(j0, min(j0 + block, M)):
-                pairs = near_pairs(lo[:, j], hi[:, j], reach)
-                rel_c.append(C[pairs[:, 0], j] - C[pairs[:, 1], j])
-                rel_p.append(P[pairs[:, 0], j] - P[pairs[:, 1], j])
-            rc, rp = np.concatenate(rel_c), np.concatenate(rel_p)
-            if not len(rc):
-                continue
-            best = min(best, float(np.linalg.norm(np.einsum("sk,pkd->psd", V, rc), axis=-1).min()))  # sampled: upper
-            lower = hull_distance_from_origin(rp)  # control points: a lower bound per pair and step
-            keep = lower <= best + 1e-9 * (1.0 + best)  # rounding: a bound attained at a piece's end
-            if keep.any():
-                vals, _ = piece_extrema(rc[keep], minimum=True)
-                best = min(best, float(vals.min()))
+        best, found = np.inf, []
+        for j0 in range(0, M, steps):
+            j1 = min(j0 + steps, M)
+            X = map_coefficients(V, C[:, :, j0:j1])  # (9, N, b, 2) positions at the 9 times
+            for j in range(j0, j1):
+                pairs = near_pairs(lo[:, j], hi[:, j], min(reach, best))
+                i, k = pairs[:, 0], pairs[:, 1]
+                near = box_gap(i, k, j) < best
+                i, k = i[near], k[near]
+                if len(i):
+                    best = min(best, float(np.sqrt(squared_norms(X[:, i, j - j0] - X[:, k, j - j0]).min())))
+                    found.append(np.stack([i, k, np.full(len(i), j)]))
         if best <= reach or reach > span:
-            return best
+            break
         reach *= 4
+    if not found:
+        return best
+    i, k, j = np.concatenate(found, axis=1)
+    i, k, j = (v[box_gap(i, k, j) <= best + tol * (1.0 + best)] for v in (i, k, j))
+    lower = hull_distance_from_origin((P[:, i, j] - P[:, k, j]).transpose(1, 0, 2))  # a lower bound per pair
+    keep = lower <= best + tol * (1.0 + best)
+    if keep.any():
+        i, k, j = i[keep], k[keep], j[keep]
+        vals, _ = piece_extrema(np.ascontiguousarray((C[:, i, j] - C[:, k, j]).transpose(1, 0, 2)), minimum=True)
+        best = min(best, float(vals.min()))
+    return best
 
 
 def sampled_clearance(trajectories: list[PiecewisePolynomial], grid: OccupancyGrid, per_piece: int = 16) -> float | None:

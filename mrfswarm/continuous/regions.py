@@ -126,7 +126,10 @@ class Regions:
         numpy.ndarray
             (T, N): the largest slab violation (metres) over the K points.
         """
-        s = np.einsum("tnka,tnpa->tnpk", self.axes, points)
+        # s[t, n, p, k] = axes[t, n, k] . points[t, n, p], as einsum("tnka,tnpa->tnpk") sums it (bit for bit),
+        # written out: einsum took a quarter of certifying 1000 robots over 300 steps
+        ax = self.axes[:, :, None, :, :]
+        s = ax[..., 0] * points[..., None, 0] + ax[..., 1] * points[..., None, 1]
         out = np.maximum(self.lower[:, :, None, :] - s, s - self.upper[:, :, None, :])
         return np.maximum(out.max(axis=(-1, -2)), 0.0)
 

@@ -76,6 +76,19 @@ def subdivision_matrix(degree: int, parts: int) -> np.ndarray:
     return out
 
 
+@lru_cache(maxsize=64)
+def control_point_matrix(degree: int, order: int = 0, parts: int = 1) -> np.ndarray:
+    """(parts (D+1-r), D+1) matrix from tau-coefficients to the control points of :func:`tau_control_points`.
+
+    Read-only.
+    """
+    M = difference_matrix(degree, order) @ monomial_to_bernstein(degree)
+    if parts > 1:
+        M = subdivision_matrix(degree - order, parts) @ M
+    M.setflags(write=False)
+    return M
+
+
 def tau_control_points(tau_coefficients: np.ndarray, order: int = 0, parts: int = 1) -> np.ndarray:
     """Control points of the ``order``-th tau-derivative of pieces given by tau-coefficients.
 
@@ -94,14 +107,8 @@ def tau_control_points(tau_coefficients: np.ndarray, order: int = 0, parts: int 
     numpy.ndarray
         (..., parts (D+1-r), dim).
     """
-    D = tau_coefficients.shape[-2] - 1
-    M = difference_matrix(D, order) @ monomial_to_bernstein(D)
-    if parts > 1:
-        M = subdivision_matrix(D - order, parts) @ M
-    c = np.asarray(tau_coefficients)
-    # one matrix product over every piece and coordinate (an einsum over the stack was 5-20x slower)
-    flat = np.moveaxis(c, -2, -1).reshape(-1, D + 1) @ M.T
-    return np.moveaxis(flat.reshape(*c.shape[:-2], c.shape[-1], M.shape[0]), -1, -2)
+    M = control_point_matrix(tau_coefficients.shape[-2] - 1, order, parts)
+    return np.einsum("mk,...kd->...md", M, tau_coefficients)
 
 
 def control_points(trajectory: PiecewisePolynomial, order: int = 0, parts: int = 1) -> np.ndarray:

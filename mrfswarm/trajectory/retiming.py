@@ -73,7 +73,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from mrfswarm.trajectory.bernstein import tau_control_points
+from mrfswarm.trajectory.bernstein import control_point_matrix
+from mrfswarm.trajectory.piece_stack import PIECE_CHUNK, map_coefficients, squared_norms, stacked_tau_coefficients
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial
 from mrfswarm.trajectory.problem import DEFAULT_DERIVATIVE
 from solvers.errors import InvalidProblem, SolverNotFound
@@ -131,16 +132,25 @@ def max_derivative_norm_all(trajectories: list[PiecewisePolynomial], order: int)
 
     Only pieces whose control-point bound (the largest control-point norm, an upper bound
     on the piece's maximum) exceeds the largest sampled value (a lower bound on the
-    answer) are solved exactly, so the cost is a few evaluations per piece.
+    answer) are solved exactly, so the cost is a few evaluations per piece: the samples
+    and control points of all pieces are a few matrix products
+    (:mod:`~mrfswarm.trajectory.piece_stack`).
     """
-    c = np.concatenate([tr.derivative(order).tau_coefficients() for tr in trajectories])  # (P, n, dim)
+    c = stacked_tau_coefficients(trajectories, order)  # (n, P, dim); values in tau equal values in t
+    n, P = c.shape[:2]
     tau = np.linspace(0.0, 1.0, 9)
-    sampled = np.linalg.norm(np.einsum("sk,pkd->psd", tau[:, None] ** np.arange(c.shape[1]), c), axis=-1).max()
-    bound = np.linalg.norm(tau_control_points(c), axis=-1).max(axis=1)
+    W = np.vstack([tau[:, None] ** np.arange(n), control_point_matrix(n - 1)])  # values at tau, control points
+    sampled2 = -np.inf
+    bound2 = np.empty(P)
+    for s in range(0, P, PIECE_CHUNK):
+        sq = squared_norms(map_coefficients(W, c[:, s:s + PIECE_CHUNK]))  # (9 + n, p)
+        sampled2 = max(sampled2, float(sq[:len(tau)].max()))
+        bound2[s:s + PIECE_CHUNK] = sq[len(tau):].max(axis=0)
+    sampled, bound = np.sqrt(sampled2), np.sqrt(bound2)  # sqrt is monotone: the max of the norms
     keep = bound >= sampled
     if not keep.any():
         return float(sampled)
-    vals, _ = piece_extrema(c[keep])
+    vals, _ = piece_extrema(np.ascontiguousarray(c[:, keep].transpose(1, 0, 2)))
     return float(max(sampled, vals.max()))
 
 

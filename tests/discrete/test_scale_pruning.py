@@ -51,3 +51,63 @@ def test_prune_paths_on_a_planned_crossing():
     assert [g.tolist() for g in prune_paths(plan.paths, free, 4)] == [r.tolist() for r in ref]
     assert sum(len(r) for r in ref) < len(ref) * len(plan.paths)  # something was pruned
     assert sum(len(r) for r in ref) > len(ref) * len(horizon_bounds(len(plan.paths) - 1, 4)) + len(ref)  # not all
+
+
+@pytest.mark.parametrize("seed", range(10, 30))
+def test_prune_paths_dense_swarms_equal_all_pairs(seed):
+    """Crowded small maps (most chords meet another robot's moves), the real horizon of 8 steps among others."""
+    rng = np.random.default_rng(seed)
+    W = int(rng.integers(6, 14))
+    n = int(rng.integers(2, W * W // 3))
+    paths, free = wandering(rng, n, int(rng.integers(1, 18)), W=W, H=W, order=int(rng.choice([1, 2, 4])))
+    for horizon in (1, 2, int(rng.integers(3, 10)), 8):
+        ref = prune_paths_brute_force(paths, free, horizon)
+        assert [g.tolist() for g in prune_paths(paths, free, horizon)] == [r.tolist() for r in ref]
+
+
+def _prune_both(paths, horizon, free=None):
+    paths = np.asarray(paths)
+    free = np.ones((8, 8), bool) if free is None else free
+    ref = [r.tolist() for r in prune_paths_brute_force(paths, free, horizon)]
+    assert [g.tolist() for g in prune_paths(paths, free, horizon)] == ref
+    return ref
+
+
+def test_chord_crossing_a_move_between_cells():
+    """Robot 0's chord (0,0)-(2,1) meets robot 1's move (1,1)-(1,0) at (1, 0.5), a point on no cell."""
+    a = [(0, 0), (1, 0), (2, 1)]
+    b = [(1, 1), (1, 0), (1, 0)]
+    assert _prune_both(np.stack([a, b], axis=1), 2)[0] == [0, 1, 2]
+    c = [(1, 2), (1, 3), (1, 3)]  # moved away: the chord is free
+    assert _prune_both(np.stack([a, c], axis=1), 2)[0] == [0, 2]
+
+
+def test_chord_from_a_cell_another_robot_passes_over():
+    """Robot 1 jumps (0,1)-(2,1) over (1,1), where robot 0's chord starts: they touch; one cell higher they do not."""
+    a = [(1, 1), (2, 2), (3, 3)]
+    for b, expected in (([(0, 1), (2, 1), (2, 0)], [0, 1, 2]), ([(0, 0), (2, 0), (3, 0)], [0, 2])):
+        assert _prune_both(np.stack([a, b], axis=1), 2)[0] == expected
+
+
+def test_chord_through_a_cell_visited_at_another_time():
+    """Robot 1 stood on (1,0) at step 0, robot 0's chord (0,0)-(2,0) passes it later: blocked (the trajectory, not the time)."""
+    a = [(0, 0), (1, 1), (2, 0)]
+    b = [(1, 0), (1, 2), (1, 3)]
+    assert _prune_both(np.stack([a, b], axis=1), 2)[0] == [0, 1, 2]
+
+
+def test_own_cells_and_standing_still_do_not_block():
+    """A robot returning to its cells, and robots that never move (zero-length chords), keep only the horizon's ends."""
+    a = [(0, 0), (1, 0), (2, 0), (1, 0), (0, 0)]
+    still = [(5, 5)] * 5
+    got = _prune_both(np.stack([a, still], axis=1), 4)
+    assert got == [[0, 4], [0, 4]]
+
+
+def test_one_robot_no_steps_and_a_blocked_map():
+    free = np.ones((8, 8), bool)
+    free[1:3, 1] = False
+    assert _prune_both([[(0, 0)]], 3) == [[0]]  # no steps
+    assert _prune_both(np.zeros((1, 3, 2), int) + np.arange(3)[None, :, None], 8) == [[0], [0], [0]]
+    walk = np.array([(0, 0), (1, 0), (2, 0), (3, 1), (3, 2)])[:, None]
+    assert _prune_both(walk, 4, free) == [[0, 2, 3, 4]]  # (0,0)-(3,2) and (0,0)-(3,1) come too near the wall, (0,0)-(2,0) keeps half a cell
