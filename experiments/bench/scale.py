@@ -109,7 +109,8 @@ def exponent(ns: list[int], ts: list[float]) -> float:
     return float(np.polyfit(x, y, 1)[0])
 
 
-def figure(rows: list[dict], slopes: dict[str, float], path: Path, stages: tuple[str, ...] = STAGES) -> None:
+def figure(rows: list[dict], slopes: dict[str, float], path: Path, stages: tuple[str, ...] = STAGES,
+           base: str = "") -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -133,8 +134,8 @@ def figure(rows: list[dict], slopes: dict[str, float], path: Path, stages: tuple
     ax.set_xlabel("robots N")
     ax.set_ylabel("seconds")
     what = "both stages" if "smoothing" in stages else "discrete stage only"
-    base = next((r.get("baseline_ref") for r in rows if r["code"] == "baseline"), None)
-    ax.set_title(f"free-space crossing, {what}" + (f" (dotted: {base})" if base else ""))
+    has_base = any(r["code"] == "baseline" for r in rows)
+    ax.set_title(f"free-space crossing, {what}" + (f" (dotted: {base})" if base and has_base else ""))
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -190,7 +191,7 @@ def main() -> None:
         for s, v in slopes.items():
             w.writerow([s, round(v, 3), args.sizes])
     print(f"wrote {args.out} and {exps}")
-    figure(rows, slopes, args.out.with_suffix(".png"), stages)
+    figure(rows, slopes, args.out.with_suffix(".png"), stages, args.baseline)
 
 
 if __name__ == "__main__":
