@@ -92,8 +92,8 @@ NOMINAL_ACCELERATION = 0.25
 NLP_OPTIONS = QPOptions(eps_abs=1e-4, eps_rel=1e-4, max_iter=12)
 #: Options of the window QPs unless the caller gives others (the config's [smoothing.qp_options] go over
 #: these). No equilibration: the formulation scales its variables already (time normalized per window),
-#: and Ruiz scaling made piqp declare feasible windows infeasible (14 of 215 QPs of a 100-robot
-#: crossing, each one a needless slower attempt or a rest-to-rest witness) and cost it 3x the
+#: and Ruiz scaling made piqp declare feasible windows infeasible (14 of 220 sampled QPs of a
+#: 100-robot crossing and a 1000-robot window, each one a needless slower attempt or a rest-to-rest witness) and cost it 3x the
 #: iterations; osqp and clarabel also converge faster without it.
 QP_OPTIONS = QPOptions(eps_abs=1e-7, eps_rel=1e-7, max_iter=50000, scaling=False)
 #: Robots per chunk: independent groups are packed into QPs of about this many robots.
