@@ -158,11 +158,13 @@ def control_point_stack(trajectories: list[PiecewisePolynomial]) -> list[np.ndar
     """[P, V, A, J] control points (N, M, K_r, 2) of trajectories that share their knots."""
     N, T = len(trajectories), trajectories[0].durations
     c = stacked_tau_coefficients(trajectories)  # (K, N M, 2)
-    out = []
-    for r in range(4):
-        cp = map_coefficients_in_order(control_point_matrix(len(c) - 1, r, 1 if r == 0 else LIMIT_PARTS), c)
-        out.append(np.ascontiguousarray(cp.reshape(len(cp), N, len(T), 2).transpose(1, 2, 0, 3)) / T[None, :, None, None] ** r)
-    return out
+    return [_robot_major(map_coefficients_in_order(control_point_matrix(len(c) - 1, r, 1 if r == 0 else LIMIT_PARTS), c),
+                         N, len(T)) / T[None, :, None, None] ** r for r in range(4)]
+
+
+def _robot_major(points: np.ndarray, N: int, M: int) -> np.ndarray:
+    """Control points (K, N M, 2) of pieces robot after robot, as (N, M, K, 2)."""
+    return np.ascontiguousarray(points.reshape(len(points), N, M, 2).transpose(1, 2, 0, 3))
 
 
 def _limit_norms(c: np.ndarray, T: np.ndarray, order: int) -> np.ndarray:
@@ -204,7 +206,6 @@ def certify(trajectories: list[PiecewisePolynomial], knot_times: np.ndarray, reg
             return Certificate(False, [f"robot {i}'s pieces do not follow the common time grid"])
     N, T = len(trajectories), trajectories[0].durations
     c = stacked_tau_coefficients(trajectories)  # (K, N M, 2)
-    P = map_coefficients_in_order(control_point_matrix(len(c) - 1), c)
-    P = np.ascontiguousarray(P.reshape(len(P), N, len(T), 2).transpose(1, 2, 0, 3))  # (N, M, K, 2)
+    P = _robot_major(map_coefficients_in_order(control_point_matrix(len(c) - 1), c), N, len(T))
     norms = [_limit_norms(c, T, r).reshape(N, len(T)) for r in (1, 2, 3)]
     return _certify(P, norms, regions, distance, limits)

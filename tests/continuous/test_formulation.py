@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 import solvers.qp
 from mrfswarm.config import SmoothingConfig
@@ -147,3 +148,27 @@ def test_the_relative_corridor_is_what_keeps_them_apart():
     assert not rh._certify(sol, a).ok  # and the certificate sees it
     plan = rh.run()  # the run stays safe: the window falls back until it is certified
     assert plan.windows[0].attempt != "nominal" and plan.certificate.ok and plan.min_separation >= 0.5
+
+
+def test_the_linear_time_sparse_map_equals_the_sorting_one_and_falls_back_on_shared_positions():
+    """``_distinct_sparse_map`` (SciPy's counting sort) gives the pattern and map of ``_sparse_map``;
+    entries that share a position (which its shortcut cannot order) take ``_sparse_map``'s route."""
+    from mrfswarm.continuous.formulation import _distinct_sparse_map, _sparse_map
+
+    rng = np.random.default_rng(3)
+    shape, n_k = (40, 30), 12
+    positions = rng.choice(shape[0] * shape[1], 300, replace=False)
+    rows, cols = positions % shape[0], positions // shape[0]
+    kidx, coef = rng.integers(0, n_k, 300), rng.normal(size=300)
+    k = rng.normal(size=n_k)
+    rows_dup, cols_dup = np.concatenate([rows, rows[:50]]), np.concatenate([cols, cols[:50]])
+    kidx_dup, coef_dup = np.concatenate([kidx, rng.integers(0, n_k, 50)]), np.concatenate([coef, rng.normal(size=50)])
+    for args in ((rows, cols, kidx, coef), (rows_dup, cols_dup, kidx_dup, coef_dup)):
+        (ai, ap, SA), (bi, bp, SB) = _distinct_sparse_map(*args, shape, n_k), _sparse_map(*args, shape, n_k)
+        assert np.array_equal(ai, bi) and np.array_equal(ap, bp)
+        np.testing.assert_allclose(SA @ k, SB @ k, rtol=1e-14, atol=1e-14)
+    # and the sum of the duplicated entries is there (the matrix, not only its pattern)
+    ai, ap, SA = _distinct_sparse_map(rows_dup, cols_dup, kidx_dup, coef_dup, shape, n_k)
+    dense = np.zeros(shape)
+    np.add.at(dense, (rows_dup, cols_dup), coef_dup * k[kidx_dup])
+    np.testing.assert_allclose(sp.csc_matrix((SA @ k, ai, ap), shape=shape).toarray(), dense, atol=1e-13)
