@@ -1,9 +1,10 @@
 """The certificate: what the continuous stage's safety proof rests on, checked exactly.
 
 The proof (see :mod:`mrfswarm.continuous.regions`): all robots fly one polynomial piece
-per discrete step on one time grid; a piece lies in the convex hull of its Bernstein
-control points, and its derivatives in the hulls of theirs. So the flight is safe for
-all t when
+per discrete step on one time grid (a piece spanning several steps is split at them
+first: :mod:`mrfswarm.continuous.merge_pieces`); a piece lies in the convex hull of its
+Bernstein control points, and its derivatives in the hulls of theirs. So the flight is
+safe for all t when
 
 1. every region keeps at least the robot radius from every occupied cell and from the
    map's edge (:func:`~mrfswarm.continuous.regions.region_clearance`, exact; checked
@@ -33,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mrfswarm.continuous.formulation import LIMIT_PARTS
+from mrfswarm.continuous.merge_pieces import step_pieces
 from mrfswarm.continuous.regions import Regions, near_pairs
 from mrfswarm.geometry import point_segment_distance
 from mrfswarm.trajectory.bernstein import control_point_matrix
@@ -194,16 +196,19 @@ def _limit_norms(c: np.ndarray, T: np.ndarray, order: int) -> np.ndarray:
 
 def certify(trajectories: list[PiecewisePolynomial], knot_times: np.ndarray, regions: Regions, distance: float,
             limits: tuple[float, float, float]) -> Certificate:
-    """Certify whole flights: one piece per step, on the common time grid ``knot_times``.
+    """Certify whole flights on the common time grid ``knot_times`` (the steps').
 
-    Adds to :func:`certify_pieces` the check that the pieces really are the steps: every
-    trajectory's knots are ``knot_times`` (to 1e-9 s). The result is that of
-    ``certify_pieces(control_point_stack(trajectories), ...)``, without the limits'
-    control points of all pieces at once (see :func:`_limit_norms`).
+    A piece may span several steps (:mod:`mrfswarm.continuous.merge_pieces`): every
+    trajectory's knots must be step times (to 1e-9 s), and its pieces are split at the
+    steps (the restrictions are linear in the coefficients: the subdivided control
+    points), so each step is certified exactly as a piece of its own. With one piece per
+    step the result is that of ``certify_pieces(control_point_stack(trajectories), ...)``,
+    without the limits' control points of all pieces at once (see :func:`_limit_norms`).
     """
-    for i, tr in enumerate(trajectories):
-        if tr.pieces != len(knot_times) - 1 or not np.allclose(tr.knots, knot_times, rtol=0, atol=1e-9):
-            return Certificate(False, [f"robot {i}'s pieces do not follow the common time grid"])
+    split = step_pieces(trajectories, knot_times)
+    if isinstance(split, str):
+        return Certificate(False, [split])
+    trajectories = split
     N, T = len(trajectories), trajectories[0].durations
     c = stacked_tau_coefficients(trajectories)  # (K, N M, 2)
     P = _robot_major(map_coefficients_in_order(control_point_matrix(len(c) - 1), c), N, len(T))

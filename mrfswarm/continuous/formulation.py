@@ -66,7 +66,7 @@ import scipy.sparse as sp
 from mrfswarm.continuous.regions import Regions
 from mrfswarm.trajectory.bernstein import difference_matrix, monomial_to_bernstein, subdivision_matrix
 from mrfswarm.trajectory.formulation import hermite_basis
-from mrfswarm.trajectory.polynomial import PiecewisePolynomial, cost_hessian, tau_to_time
+from mrfswarm.trajectory.polynomial import PiecewisePolynomial, cost_hessian, derivative_row, tau_to_time
 from solvers.qp import QPProblem
 
 log = logging.getLogger(__name__)
@@ -133,6 +133,14 @@ class PieceMaps:
             self.rows.append(Dr.shape[0])
             self.k_offset.append(start)
             start += Dr.shape[0] * self.nz
+        # Taylor coefficients q..D at tau = 0 and tau = 1 (the r-th time derivative over r!): two pieces that
+        # meet in them (and in 0..q-1, shared knot variables) are one polynomial (merge_pieces)
+        self.taylor_orders = D + 1 - q
+        taylor = ca.vertcat(*[ca.mtimes(ca.DM(derivative_row(D, r, tau)[None, :] / math.factorial(r)), c) / T**r
+                              for tau in (0.0, 1.0) for r in range(q, D + 1)])
+        blocks.append(ca.vec(ca.densify(ca.jacobian(taylor, z))))
+        self.t_offset = start
+        start += 2 * self.taylor_orders * self.nz
         cost = T ** (1 - 2 * q) * ca.mtimes([c.T, ca.DM(cost_hessian(D, q)), c])
         Hc = ca.densify(ca.hessian(cost, z)[0])
         blocks.append(ca.vec(Hc))
@@ -149,6 +157,7 @@ class PieceMaps:
         k |= np.asarray(self.function(1.61)).ravel() != 0
         self.masks = [k[o:o + rows * self.nz].reshape(self.nz, rows).T for o, rows in zip(self.k_offset, self.rows)]
         self.h_mask = k[self.h_offset:].reshape(self.nz, self.nz)
+        self.t_mask = k[self.t_offset:self.h_offset].reshape(self.nz, 2 * self.taylor_orders).T
 
     def mapped(self, M: int):
         """``function`` mapped over M pieces (cached)."""
@@ -181,6 +190,12 @@ class PieceMaps:
         """Index into ``k`` of the cost coefficient (a, b) (symmetric: the lower pair is used)."""
         lo, hi = np.minimum(a, b), np.maximum(a, b)
         return piece * self.size + self.h_offset + hi * self.nz + lo
+
+    def t_index(self, piece, end, order, a):
+        """Index into ``k`` of local variable a's coefficient in the Taylor coefficient ``order`` (q..D) at
+        the piece's start (``end`` 0) or end (``end`` 1)."""
+        row = end * self.taylor_orders + order - self.derivative
+        return piece * self.size + self.t_offset + a * 2 * self.taylor_orders + row
 
     def tau_coefficients(self, z: np.ndarray, durations: np.ndarray) -> np.ndarray:
         """(M, D+1, dim) tau-coefficients from local variables ``z`` (M, nz, dim) and durations (M,)."""
@@ -224,6 +239,9 @@ class WindowSpec:
     limit_mask
         (M, G, 3) bool: which (step, robot, derivative order) get limit rows (None: all).
         The window loop adds them lazily, where a solution without them exceeds a limit.
+    merged
+        (M - 1,) bool: the pieces of steps j and j + 1 are one polynomial (every robot's;
+        :mod:`mrfswarm.continuous.merge_pieces`). None: no piece spans two steps.
     """
 
     degree: int
@@ -241,6 +259,7 @@ class WindowSpec:
     time_scale: float
     margin: float = 1e-6
     limit_mask: np.ndarray | None = None
+    merged: np.ndarray | None = None
 
     @property
     def steps(self) -> int:
@@ -389,6 +408,20 @@ class WindowFormulation:
             n_rows = first_rows  # the second robot's entries share the same rows
             add((0,), ridx, col(ps[Pi], Dd, pj[Pi], Aa), pm.k_index(pj[Pi], 0, Mm, Aa), -nrm[Pi, Dd], keep, 0.0, 0.0)
             n_rows = first_rows + P * (D + 1)
+        # merged pieces: pieces j and j + 1 share their Taylor coefficients q..D at the knot between them
+        # (0..q-1 they share by construction), so they are one polynomial; rows (knot, g, d, order)
+        J = np.flatnonzero(spec.merged) if spec.merged is not None else np.zeros(0, dtype=int)
+        if len(J):
+            nt = pm.taylor_orders
+            Jm, Gi, Dd, Rr, Aa = np.ix_(np.arange(len(J)), np.arange(G), np.arange(2), np.arange(nt), np.arange(nz))
+            ridx = ((Jm * G + Gi) * 2 + Dd) * nt + Rr
+            first_rows = n_rows
+            add((len(J), G, 2, nt), ridx, col(Gi, Dd, J[Jm], Aa), pm.t_index(J[Jm], 1, q + Rr, Aa), 1.0,
+                pm.t_mask[nt + Rr, Aa], 0.0, 0.0)
+            n_rows = first_rows  # the next piece's entries share the same rows
+            add((0,), ridx, col(Gi, Dd, J[Jm] + 1, Aa), pm.t_index(J[Jm] + 1, 0, q + Rr, Aa), -1.0,
+                pm.t_mask[Rr, Aa], 0.0, 0.0)
+            n_rows = first_rows + len(J) * G * 2 * nt
         # ends: the start state and rest at the end
         start = np.asarray(spec.start, dtype=float).copy()  # (G, q, 2)
         start[:, 0] -= origin
