@@ -165,6 +165,9 @@ class SmoothingConfig:
     adds an independent sampled check of the whole flight at that rate. ``qp_options`` (the
     table ``[smoothing.qp_options]``) sets fields of :class:`solvers.qp.Options`
     (``eps_abs``, ``eps_rel``, ``max_iter``, ...) over the stage's own for every QP solve.
+    ``max_pieces`` > 0 caps each robot's polynomial pieces (a Crazyflie holds 31): a flight of
+    more steps flies several steps per piece where needed (0: one piece per step; see
+    :mod:`mrfswarm.continuous.merge_pieces`).
     """
 
     enabled: bool = True
@@ -184,6 +187,7 @@ class SmoothingConfig:
     a_max: float = 4.0
     j_max: float = 4.0
     check_rate_hz: float = 0.0
+    max_pieces: int = 31
     qp_options: dict[str, Any] = field(default_factory=dict)
 
 
@@ -376,6 +380,7 @@ def _validate(cfg: Config) -> None:
     need(sm.time_weight > 0, "smoothing.time_weight", sm.time_weight, "must be > 0")
     need(sm.check_rate_hz == 0 or sm.check_rate_hz >= 100, "smoothing.check_rate_hz", sm.check_rate_hz,
          "must be 0 (off) or >= 100")
+    need(sm.max_pieces >= 0, "smoothing.max_pieces", sm.max_pieces, "must be >= 0 (0: one piece per step)")
     need(sm.v_max > 0, "smoothing.v_max", sm.v_max, "must be > 0")
     need(sm.a_max > 0, "smoothing.a_max", sm.a_max, "must be > 0")
     need(sm.j_max > 0, "smoothing.j_max", sm.j_max, "must be > 0")

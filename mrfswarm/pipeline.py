@@ -143,6 +143,7 @@ class Result:
                 "at_goal": r.at_goal,
                 "separated": r.separated,
                 "stop_reason": r.stop_reason,
+                **({} if c is None else {"pieces": int(c.pieces_per_robot[r.robot])}),
             } for r in robots],
             "separation_threshold_m": SEPARATION_FACTOR * self.scenario.morse.d_min,
             "steps_with_separated_robots": int(sum(s.get("separated", 0) > 0 for s in self.discrete.steps)),
@@ -179,6 +180,14 @@ class Result:
                                            "j": cert.limit_bounds[2]},
                     "near_pairs_checked": cert.near_pairs,
                     "clearance_lower_bound_m": self.config.scenario.robot_radius,
+                },
+                "pieces_per_robot": [int(p) for p in c.pieces_per_robot],
+                "piece_limit": {
+                    "max_pieces": c.max_pieces,
+                    "fits": c.pieces_fit,
+                    "robots_over": [i for i, p in enumerate(c.pieces_per_robot) if c.max_pieces and p > c.max_pieces],
+                    "steps_per_piece_max": int(np.diff(c.piece_steps).max(initial=1)) if c.piece_steps is not None
+                    else 1,
                 },
                 "windows": len(c.windows),
                 "window_attempts": {name: sum(w.attempt == name for w in c.windows)

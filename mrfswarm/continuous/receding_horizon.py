@@ -60,6 +60,14 @@ from mrfswarm.continuous.formulation import (
     hermite_trajectory,
     piece_maps,
 )
+from mrfswarm.continuous.merge_pieces import (
+    block_sizes,
+    merge_trajectories,
+    merged_knots,
+    project_blocks,
+    step_pieces,
+    window_pieces,
+)
 from mrfswarm.continuous.regions import (
     Regions,
     Separations,
@@ -126,6 +134,9 @@ class WindowRecord:
         Relative safe corridors switched on in the accepted solution.
     refined
         The time refinement was accepted.
+    piece_steps
+        Steps of each polynomial piece the window flies (all ones: one piece per step;
+        :mod:`mrfswarm.continuous.merge_pieces`).
     cost
         Snap integral of the window's accepted solution (all robots).
     durations
@@ -143,6 +154,12 @@ class WindowRecord:
     cost: float = 0.0
     solve_s: float = 0.0
     durations: np.ndarray | None = None
+    piece_steps: list[int] = field(default_factory=list)
+
+    @property
+    def pieces(self) -> int:
+        """Polynomial pieces the window flies (per robot)."""
+        return len(self.piece_steps)
 
 
 @dataclass
@@ -152,10 +169,17 @@ class ContinuousPlan:
     Attributes
     ----------
     trajectories
-        One 2-D :class:`PiecewisePolynomial` per robot, one piece per discrete step, all on
-        the time grid ``knot_times``.
+        One 2-D :class:`PiecewisePolynomial` per robot, all on one time grid: the knots
+        ``knot_times[piece_steps]``, one piece per step or, where ``smoothing.max_pieces``
+        needed it, per several steps.
     knot_times
         (T + 1,) the time each discrete step is reached.
+    piece_steps
+        (P + 1,) the step at which each piece starts, and T.
+    max_pieces
+        ``smoothing.max_pieces`` (0: no limit).
+    pieces_per_robot
+        Each robot's number of pieces.
     regions, separations
         The safe regions and relative safe corridors the trajectories were planned in.
     windows
@@ -188,10 +212,18 @@ class ContinuousPlan:
     min_clearance: float | None
     sampled: SampledCheck | None = None
     timings: dict[str, float] = field(default_factory=dict)
+    piece_steps: np.ndarray | None = None
+    max_pieces: int = 0
+    pieces_per_robot: list[int] = field(default_factory=list)
 
     @property
     def makespan_s(self) -> float:
         return float(self.knot_times[-1])
+
+    @property
+    def pieces_fit(self) -> bool:
+        """Every robot has at most ``max_pieces`` pieces (True without a limit)."""
+        return self.max_pieces == 0 or max(self.pieces_per_robot, default=0) <= self.max_pieces
 
     def positions(self, times: np.ndarray) -> np.ndarray:
         """(S, N, 2) every robot's position at ``times``."""
@@ -291,8 +323,10 @@ class RecedingHorizon:
             a = c
         return out
 
-    def _spec(self, a: int, b: int, robots: np.ndarray, start: np.ndarray, pairs: np.ndarray) -> WindowSpec:
-        """The problem data of ``robots`` over steps a..b with the corridors ``pairs`` (indices into the plan's)."""
+    def _spec(self, a: int, b: int, robots: np.ndarray, start: np.ndarray, pairs: np.ndarray,
+              merged: np.ndarray | None = None) -> WindowSpec:
+        """The problem data of ``robots`` over steps a..b with the corridors ``pairs`` (indices into the plan's)
+        and the knots ``merged`` inside pieces that span several steps."""
         cfg = self.cfg
         local = np.full(self.N, -1)
         local[robots] = np.arange(len(robots))
@@ -302,10 +336,10 @@ class RecedingHorizon:
             pair_step=seps.step - a, pair_first=local[seps.first], pair_second=local[seps.second],
             pair_normal=seps.normal, distance=self.distance, start=start[robots], end=self.X[b, robots],
             origin=self.X[a, robots], limits=self.limits, time_scale=float(np.exp(np.log(self.nominal[a:b]).mean())),
-            margin=MARGIN, limit_mask=self.limit_rows[a:b, robots])
+            margin=MARGIN, limit_mask=self.limit_rows[a:b, robots], merged=merged)
 
     def _solve(self, a: int, b: int, start: np.ndarray, durations: np.ndarray, rec: WindowRecord,
-               gradient: bool = False) -> tuple[_Solution | None, str]:
+               gradient: bool = False, merged: np.ndarray | None = None) -> tuple[_Solution | None, str]:
         """The window's QP at ``durations``, its corridor and limit rows added lazily.
 
         A round solves the robots whose constraint set changed (robots linked by the
@@ -336,7 +370,7 @@ class RecedingHorizon:
             for robots in chunks:
                 mine = np.zeros(self.N, dtype=bool)
                 mine[robots] = True
-                specs.append(self._spec(a, b, robots, start, cand[self.active[cand] & mine[seps.first]]))
+                specs.append(self._spec(a, b, robots, start, cand[self.active[cand] & mine[seps.first]], merged))
             results = self._map(solve_window, [(spec, durations, self.backend, self.qp_options, gradient)
                                                for spec in specs])
             rec.rounds += 1
@@ -415,7 +449,14 @@ class RecedingHorizon:
             B[:, :pb - a] = psol.B[:, a - pa:]
         return _Solution(Y, B, durations)
 
-    def _plan_window(self, a: int, c: int, b: int, start: np.ndarray, prev: tuple | None) -> tuple[_Solution, WindowRecord]:
+    def _plan_window(self, a: int, c: int, b: int, start: np.ndarray, prev: tuple | None,
+                     pieces: int | None = None) -> tuple[_Solution, WindowRecord]:
+        """Plan steps a..b (fly a..c) in ``pieces`` polynomial pieces over a..c (default: one per step).
+
+        Every duration of the ladder is tried with the pieces asked for; if none is
+        certified, with twice as many, and so on up to one piece per step, whose last
+        resort is the witness (:mod:`mrfswarm.continuous.merge_pieces`).
+        """
         rec = WindowRecord(a=a, c=c, b=b)
         tic = time.perf_counter()
         nominal, slow = self.nominal[a:b], self.witness[a:b]
@@ -433,18 +474,25 @@ class RecedingHorizon:
             factor *= SLOWDOWN
             attempts.append((f"slower x{factor:.3g}",
                              np.concatenate([base[:overlap], np.minimum(base[overlap:] * factor, target)])))
-        chosen = None
-        for name, durations in attempts:
-            sol, why = self._solve(a, b, start, durations, rec)
-            if sol is not None:
-                cert = self._certify(sol, a)
-                if cert.ok:
-                    chosen, rec.attempt = sol, name
-                    break
-                why = "; ".join(cert.problems[:2])
-            rec.failed.append(f"{name}: {why}")
-            log.info("window %d..%d, %s durations rejected: %s", a, b, name, why)
+        chosen, merged, flown = None, None, c - a
+        for p in _piece_options(flown if pieces is None else pieces, flown):
+            sizes = block_sizes(flown, p)
+            merged = merged_knots(sizes, b - a) if p < flown else None
+            label = f"{p} pieces, " if p < flown else ""
+            for name, durations in attempts:
+                sol, why = self._solve(a, b, start, durations, rec, merged=merged)
+                if sol is not None:
+                    cert = self._certify(sol, a)
+                    if cert.ok:
+                        chosen, rec.attempt, rec.piece_steps = sol, name, [int(g) for g in sizes]
+                        break
+                    why = "; ".join(cert.problems[:2])
+                rec.failed.append(f"{label}{name}: {why}")
+                log.info("window %d..%d, %s%s durations rejected: %s", a, b, label, name, why)
+            if chosen is not None:
+                break
         if chosen is None:
+            merged, rec.piece_steps = None, [1] * flown
             durations = np.concatenate([base[:overlap], target])
             chosen = self._witness(a, b, durations, prev)
             cert = self._certify(chosen, a)
@@ -453,12 +501,13 @@ class RecedingHorizon:
                                             f"({'; '.join(cert.problems[:2])}); attempts: {'; '.join(rec.failed)}")
             rec.attempt = "witness"
         if self.cfg.time_refinement and rec.attempt != "witness":
-            chosen = self._refine(chosen, a, start, rec)
+            chosen = self._refine(chosen, a, start, rec, merged)
         rec.cost, rec.durations = chosen.cost, chosen.durations
         rec.solve_s = time.perf_counter() - tic
         return chosen, rec
 
-    def _refine(self, sol: _Solution, a: int, start: np.ndarray, rec: WindowRecord) -> _Solution:
+    def _refine(self, sol: _Solution, a: int, start: np.ndarray, rec: WindowRecord,
+                merged: np.ndarray | None = None) -> _Solution:
         """The window's step durations as the variables of an NLP (Ipopt), from the QP's.
 
         The objective is the window problem's optimum at given durations plus
@@ -483,7 +532,8 @@ class RecedingHorizon:
             key = np.asarray(T, dtype=float).tobytes()
             if key not in solved:
                 self.active, self.limit_rows = base[0].copy(), base[1].copy()
-                solved[key] = self._solve(a, b, start, np.asarray(T, dtype=float), rec, gradient=True)[0]
+                solved[key] = self._solve(a, b, start, np.asarray(T, dtype=float), rec, gradient=True,
+                                          merged=merged)[0]
                 rows[key] = (self.active, self.limit_rows)
             return solved[key]
 
@@ -532,14 +582,16 @@ class RecedingHorizon:
         if T == 0:  # nobody moved: hover in place for a moment
             hover = [PiecewisePolynomial(np.array([1.0]), np.concatenate(
                 [self.X[0, i][None, None, :], np.zeros((1, cfg.degree, 2))], axis=1)) for i in range(N)]
-            return self._finish(hover, np.array([0.0, 1.0]), [], tic)
+            return self._finish(hover, np.array([0.0, 1.0]), [], tic, np.array([0, 1]))
         Y = np.zeros((T + 1, N, q, 2))
         Y[0, :, 0] = self.X[0]
         B = np.zeros((T, N, pm.nz - 2 * q, 2))
         durations = np.zeros(T)
-        records, prev = [], None
+        records, prev, used = [], None, 0
         for a, c, b in self.windows():
-            sol, rec = self._plan_window(a, c, b, Y[a], prev)
+            pieces = window_pieces(c - a, T - a, cfg.max_pieces - used) if cfg.max_pieces else None
+            sol, rec = self._plan_window(a, c, b, Y[a], prev, pieces)
+            used += rec.pieces
             Y[a:c + 1] = sol.Y[:, :c - a + 1].transpose(1, 0, 2, 3)
             B[a:c] = sol.B[:, :c - a].transpose(1, 0, 2, 3)
             durations[a:c] = sol.durations[:c - a]
@@ -549,27 +601,37 @@ class RecedingHorizon:
                 on_window(rec)
         trajectories = [hermite_trajectory(Y[:, i], B[:, i], durations, cfg.degree, q) for i in range(N)]
         knots = np.concatenate([[0.0], np.cumsum(durations)])
-        return self._finish(trajectories, knots, records, tic)
+        sizes = [g for rec in records for g in rec.piece_steps]
+        return self._finish(merge_trajectories(trajectories, np.array(sizes), q), knots, records, tic,
+                            np.concatenate([[0], np.cumsum(sizes)]))
 
     def _finish(self, trajectories: list[PiecewisePolynomial], knots: np.ndarray, records: list[WindowRecord],
-                tic: float) -> ContinuousPlan:
+                tic: float, piece_steps: np.ndarray) -> ContinuousPlan:
         smoothing_s = time.perf_counter() - tic - self._check_s
         t0 = time.perf_counter()
         regions = self.regions if self.T else _hover_regions(self.X[0], self.radius)
         cert = certify(trajectories, knots, regions, self.distance, self.limits)
         if not cert.ok:  # each window was certified; the whole must be too (a bug otherwise, never a silent output)
             raise UnsafeTrajectoryError(f"assembled trajectories not certified: {cert.problems[0]}")
-        v, acc, jerk = (max_derivative_norm_all(trajectories, k) for k in (1, 2, 3))
-        min_sep = exact_min_separation(trajectories, 2 * self.grid.resolution)
-        clearance = sampled_clearance(trajectories, self.grid)
+        steps = step_pieces(trajectories, knots)  # the same curves, one piece per step: what the checks expect
+        assert not isinstance(steps, str), steps  # certify split them just now
+        v, acc, jerk = (max_derivative_norm_all(steps, k) for k in (1, 2, 3))
+        min_sep = exact_min_separation(steps, 2 * self.grid.resolution)
+        clearance = sampled_clearance(steps, self.grid)
         sampled = None
         if self.cfg.check_rate_hz > 0:
             times = uniform_times(0.0, float(knots[-1]), self.cfg.check_rate_hz)
             pts = np.stack([tr.evaluate(times) for tr in trajectories], axis=1)
             sampled = check_positions(times, pts, self.grid)
         check_s = time.perf_counter() - t0 + self._check_s
+        pieces = [tr.pieces for tr in trajectories]
+        max_pieces = self.cfg.max_pieces
+        if max_pieces and max(pieces) > max_pieces:
+            log.warning("%d robots fly more than smoothing.max_pieces = %d pieces (up to %d, %d steps): the flight "
+                        "does not fit", sum(p > max_pieces for p in pieces), max_pieces, max(pieces), self.T)
         return ContinuousPlan(trajectories, knots, regions, self.seps, records, cert, v, acc, jerk, min_sep, clearance,
-                              sampled, {"regions": self.regions_s, "smoothing": smoothing_s, "checking": check_s})
+                              sampled, {"regions": self.regions_s, "smoothing": smoothing_s, "checking": check_s},
+                              np.asarray(piece_steps), max_pieces, pieces)
 
 
 def solve_window(spec: WindowSpec, durations: np.ndarray, backend: str, options: QPOptions,
@@ -587,10 +649,20 @@ def solve_window(spec: WindowSpec, durations: np.ndarray, backend: str, options:
         return str(e)
     x = form.exact_ends(sol.x)
     Y, B = form.unpack(x)
+    if spec.merged is not None:  # the merge rows are met to the solver's tolerance: make them exact
+        Y, B = project_blocks(Y, B, durations, spec.merged, spec.degree, spec.derivative)
     grad = None
     if gradient and sol.y is not None:
         grad = form.duration_gradient(sol.x, sol.y, durations)
     return Y, B, form.robot_objectives(x, durations), grad
+
+
+def _piece_options(pieces: int, steps: int) -> list[int]:
+    """Pieces to try for ``steps`` steps, from ``pieces`` up: doubling, then one per step."""
+    out = [max(1, min(pieces, steps))]
+    while out[-1] < steps:
+        out.append(min(2 * out[-1], steps))
+    return out
 
 
 def chunk_size(n: int) -> int:

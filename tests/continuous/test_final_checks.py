@@ -18,6 +18,7 @@ import pytest
 import mrfswarm
 from mrfswarm.continuous.certificate import certify, control_point_stack
 from mrfswarm.continuous.formulation import hermite_trajectory
+from mrfswarm.continuous.merge_pieces import step_pieces
 from mrfswarm.continuous.receding_horizon import exact_min_separation
 from mrfswarm.continuous.regions import Regions
 from mrfswarm.discrete.pruning import prune_paths, prune_paths_brute_force
@@ -90,10 +91,16 @@ def crossing():
 
 def test_a_planned_crossing(crossing):
     c = crossing.continuous
-    assert_same_checks(c.trajectories, c.regions, 2 * crossing.config.scenario.robot_radius)
-    assert exact_min_separation(c.trajectories, 2.0) == c.min_separation
+    # its pieces span several steps (a Crazyflie's 31 pieces); the checks are the steps'
+    assert c.pieces_per_robot[0] < len(c.knot_times) - 1
+    steps = step_pieces(c.trajectories, c.knot_times)
+    distance = 2 * crossing.config.scenario.robot_radius
+    assert certify(c.trajectories, c.knot_times, c.regions, distance, LIMITS) == \
+        certify(steps, c.knot_times, c.regions, distance, LIMITS)
+    assert_same_checks(steps, c.regions, distance)
+    assert exact_min_separation(steps, 2.0) == c.min_separation
     tight = (c.v_max * 0.9, c.a_max * 0.9, c.j_max * 0.9)  # every limit fails, the same robot and step named
-    assert_same_checks(c.trajectories, c.regions, 0.8, tight)
+    assert_same_checks(steps, c.regions, 0.8, tight)
 
 
 def test_pruning_a_planned_crossing(crossing):
