@@ -30,7 +30,11 @@ combination of those coefficients, ``P.data = S_P k(T)``, ``A.data = S_A k(T)``,
   a regular octagon inscribed in the disc of radius ``v_max`` (``a_max``, ``j_max``), so
   the derivative's norm stays below the limit for all t;
 - the window's ends: the start state (position and derivatives 1..q-1) and rest at the
-  end position.
+  end position;
+- where a piece spans several steps (``WindowSpec.merged``): the Taylor coefficients of
+  orders q..D of the two pieces meeting at a merged knot are equal, so that they are one
+  polynomial (:mod:`mrfswarm.continuous.merge_pieces`); every row above stays on each
+  step's piece, which is then that polynomial's restriction to the step.
 
 All region, corridor and limit rows are tightened by ``margin`` (metres, or a relative
 ``margin`` on limits) so that a solution within a solver's tolerance still satisfies the

@@ -24,6 +24,13 @@ the new steps slowed (x1.5 at a time) up to the witness durations; and if the so
 still fails, the witness itself is flown. A window therefore never fails for lack of a
 feasible point; only a certificate that rejects the witness (a bug) stops a run, loudly.
 
+Pieces per robot (``smoothing.max_pieces``, :mod:`mrfswarm.continuous.merge_pieces`): when
+the steps left exceed the pieces left, a window flies its E steps in fewer pieces (its
+share of the pieces left), every robot the same; if no duration of the ladder gives a
+certified merged window, it is planned with twice the pieces, and so on down to one piece
+per step (and its witness). The trajectories are assembled from the step pieces and each
+block merged into one piece; the certificate splits them at the steps again.
+
 Certification. Every accepted window, and the assembled flight, is certified by
 :func:`~mrfswarm.continuous.certificate.certify_pieces` (regions, relative hulls,
 limits: exact, on control points); the regions' clearance from obstacles is checked once.
