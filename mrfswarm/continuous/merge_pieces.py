@@ -272,3 +272,20 @@ def step_pieces(trajectories: list[PiecewisePolynomial], knot_times: np.ndarray)
         for i, s in zip(members, split):
             out[i] = PiecewisePolynomial(dT, tau_to_time(s, dT))
     return [tr for tr in out if tr is not None]
+
+
+def step_times(piece_knots: np.ndarray, knot_times: np.ndarray, piece_steps: np.ndarray) -> np.ndarray:
+    """The step times of a flight whose pieces were retimed to ``piece_knots`` (P + 1,).
+
+    The plan's piece p spans steps ``piece_steps[p]..piece_steps[p+1]`` over its knots
+    ``knot_times[piece_steps]``; each step time inside it is moved with the piece's
+    affine retiming (rounded knots of an export), so every robot's curve still splits at
+    the same times and step k's region still holds where the plan put it.
+    """
+    knot_times, piece_steps = np.asarray(knot_times, dtype=float), np.asarray(piece_steps)
+    old = knot_times[piece_steps]
+    piece = np.clip(np.searchsorted(piece_steps, np.arange(len(knot_times)), side="right") - 1, 0, len(old) - 2)
+    scale = np.diff(piece_knots) / np.diff(old)
+    out = piece_knots[piece] + (knot_times - old[piece]) * scale[piece]
+    out[piece_steps] = piece_knots  # the pieces' own knots exactly
+    return out

@@ -100,6 +100,10 @@ log = logging.getLogger(__name__)
 
 #: Tightening of the QP's region and corridor rows (metres) and, relatively, of its limits.
 MARGIN = 1e-6
+#: The same in windows with pieces spanning several steps: projecting a solution onto one polynomial
+#: per block (merge_pieces.project_blocks) moves control points by the solver's tolerance on the merge
+#: rows, amplified by the block (up to 2.4e-6 m measured on a slow 8-step window), which MARGIN did not cover.
+MERGED_MARGIN = 1e-5
 #: The nominal time grid speeds up and slows down at this fraction of a_max.
 NOMINAL_ACCELERATION = 0.25
 #: Ipopt's settings for time refinement: each iteration solves the window's QP a few times; on
@@ -343,7 +347,8 @@ class RecedingHorizon:
             pair_step=seps.step - a, pair_first=local[seps.first], pair_second=local[seps.second],
             pair_normal=seps.normal, distance=self.distance, start=start[robots], end=self.X[b, robots],
             origin=self.X[a, robots], limits=self.limits, time_scale=float(np.exp(np.log(self.nominal[a:b]).mean())),
-            margin=MARGIN, limit_mask=self.limit_rows[a:b, robots], merged=merged)
+            margin=MARGIN if merged is None else MERGED_MARGIN, limit_mask=self.limit_rows[a:b, robots],
+            merged=merged)
 
     def _solve(self, a: int, b: int, start: np.ndarray, durations: np.ndarray, rec: WindowRecord,
                gradient: bool = False, merged: np.ndarray | None = None) -> tuple[_Solution | None, str]:
