@@ -132,6 +132,13 @@ class MrfConfig:
     it): ``"downhill"`` (default), the one whose static field it lowers most;
     ``"nearest"``, the lower index (the paper's scenario configs), which can lock a crowd
     up in a corridor (:mod:`mrfswarm.discrete.label_sets`).
+    ``follow`` (default true) lets a robot take the cell another robot leaves in the
+    same step, when their moves keep them one cell apart (a queue moves as a whole);
+    false is the paper's rule (cells where robots stand are no candidates), set by the
+    paper's scenario configs.
+    ``arrival`` (default true) ends the plan at the first step with every robot in the
+    goal region (stop reason ``"arrived"``); false lets the swarm settle into its
+    formation until the energy converges, as the paper does (its scenario configs).
     ``progress`` says what resets the patience: ``"static"`` (default), a new minimum of
     the swarm energy or of the robots' static field sum; ``"energy"``, of the swarm
     energy only (the paper's scenario configs), which jumps whenever the k-NN graph's
@@ -145,6 +152,8 @@ class MrfConfig:
     patience: int = 20
     trim_backward: bool = False
     contested: str = "downhill"
+    follow: bool = True
+    arrival: bool = True
     progress: str = "static"
     options: dict[str, Any] = field(default_factory=dict)
 
@@ -153,7 +162,10 @@ class MrfConfig:
 class SmoothingConfig:
     """The continuous stage (min-snap smoothing on safe regions in a receding horizon).
 
-    ``speed`` (m/s) sets the nominal step durations of the common time grid;
+    The step durations of the common time grid come from the robots' motion and the
+    limits (each robot near ``v_max`` on a straight run, slower into turns and waits;
+    :func:`mrfswarm.continuous.time_grid.motion_durations`); ``speed`` (m/s), when given,
+    sets them instead from each step's longest move at that cruise speed (the earlier default, 1.25);
     ``region_growth`` (cells) how far each robot's obstacle-free box may grow around its
     discrete move; ``horizon`` steps are planned per window and ``execution`` of them
     flown; ``seam`` is ``continuous`` (continuous up to jerk across windows) or ``rest``
@@ -173,7 +185,7 @@ class SmoothingConfig:
     backend: str = "piqp"
     degree: int = DEFAULT_DEGREE
     derivative: int = DEFAULT_DERIVATIVE
-    speed: float = 1.25
+    speed: float | None = None
     region_growth: float = 1.0
     horizon: int = 8
     execution: float = 0.5
@@ -368,7 +380,7 @@ def _validate(cfg: Config) -> None:
     need(sm.degree >= 2 * sm.derivative - 1, "smoothing.degree", sm.degree,
          f"must be >= 2 * smoothing.derivative - 1 = {2 * sm.derivative - 1}")
     need(1 <= sm.derivative <= 6, "smoothing.derivative", sm.derivative, "must be in 1..6")
-    need(sm.speed > 0, "smoothing.speed", sm.speed, "must be > 0")
+    need(sm.speed is None or sm.speed > 0, "smoothing.speed", sm.speed, "must be > 0 (or left out: from the limits)")
     need(sm.region_growth >= 0, "smoothing.region_growth", sm.region_growth, "must be >= 0")
     need(sm.horizon >= 1, "smoothing.horizon", sm.horizon, "must be >= 1")
     need(0 < sm.execution <= 1, "smoothing.execution", sm.execution, "must be in (0, 1]")

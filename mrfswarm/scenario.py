@@ -73,6 +73,7 @@ class Scenario:
             order=c.mrf.order,
             trim_backward=c.mrf.trim_backward,
             contested=c.mrf.contested,
+            follow=c.mrf.follow,
             goal_distance=self.distances.field if self.distances is not None and c.goal_potential.distance == "geodesic"
             else None,
             goal_path=None if self.distances is None else self.distances.path,
