@@ -170,7 +170,7 @@ def run_one(config: Path, method: str, max_steps: int | None = None, seed: int =
                          arrival=cfg.mrf.arrival)
     if plan.stop_reason == "stalled":
         del records[plan.n_steps:]  # the planner drops the steps after the energy's minimum; so do we
-    m = discrete_metrics(plan.paths, scn.grid.occupied, scn.grid.resolution, scn.goal, cfg.scenario.goal_radius)
+    m = discrete_metrics(plan.paths, scn.grid.occupied, scn.grid.resolution, scn.goal, scn.goal_radius)
     gaps = np.array([r.gap for r in records])
     missed = np.array([r.missed for r in records])
     opt = np.array([r.opt_gap for r in records if np.isfinite(r.optimum)])

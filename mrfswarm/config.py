@@ -58,16 +58,17 @@ class ScenarioConfig:
     :func:`mrfswarm.discrete.start.start_cells`; ``robot_radius`` (metres, below half a cell) is
     each robot's size: trajectories keep it from obstacles and twice it (the safety
     distance) from each other; ``goal_radius`` defines "reached the goal":
-    the swarm's centroid within this many metres of the goal. A robot is *at the goal*
+    the swarm's centroid within this many metres of the goal (unset: 3 cells, 3 m at the
+    paper's 1 m cells; :func:`mrfswarm.scenario.goal_radius_m`). A robot is *at the goal*
     within ``goal_radius`` plus the free-path radius that holds 4 free cells per robot
     (:mod:`mrfswarm.discrete.robot_outcomes`). Without a goal there is no
     goal potential (the paper's free-space formation experiments, rho_S = 0 there).
     """
 
     map: dict = field(default_factory=lambda: {"kind": "free", "size": [20, 20]})
-    start: dict = field(default_factory=lambda: {"center": [5.0, 5.0], "n_robots": 5, "sigma": 2.0, "seed": 0})
+    start: dict = field(default_factory=lambda: {"center": [5.0, 5.0], "n_robots": 5, "seed": 0})
     goal: tuple[float, float] | None = None
-    goal_radius: float = 3.0
+    goal_radius: float | None = None
     altitude: float = 1.0
     robot_radius: float = 0.25
 
@@ -78,6 +79,8 @@ class InteractionConfig:
 
     rho'_I(d) = -a exp(-d / k_a) + b exp(-d / k_r); rho_I = rho'_I + zeta. ``zeta``
     ``None`` means 1.01 |rho'_I(d_min)|, the smallest round value the paper allows.
+    ``k_a`` and ``k_r`` are in cells, as the paper's table is at its 1 m cells (d_min =
+    8.42 cells; :mod:`mrfswarm.discrete.potentials`).
     """
 
     a: float = 0.7
@@ -90,7 +93,7 @@ class InteractionConfig:
 
 @dataclass(frozen=True)
 class GoalPotentialConfig:
-    """rho_G(p) = a exp(d(p) / k).
+    """rho_G(p) = a exp(d(p) / k), ``k`` in cells (20 m at the paper's 1 m cells).
 
     ``distance`` is how d is measured: ``"geodesic"`` (default), the length of the
     shortest free path to the goal, with the obstacle potential climbed on the way
@@ -351,7 +354,7 @@ def _validate(cfg: Config) -> None:
     s = cfg.scenario
     kind = s.map.get("kind")
     need(kind in LOADERS, "scenario.map.kind", kind, f"must be one of {', '.join(LOADERS)}")
-    need(s.goal_radius > 0, "scenario.goal_radius", s.goal_radius, "must be > 0")
+    need(s.goal_radius is None or s.goal_radius > 0, "scenario.goal_radius", s.goal_radius, "must be > 0 (metres)")
     need(s.altitude > 0, "scenario.altitude", s.altitude, "must be > 0")
     need(s.robot_radius > 0, "scenario.robot_radius", s.robot_radius, "must be > 0 (metres)")
     i = cfg.interaction

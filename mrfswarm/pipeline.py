@@ -313,7 +313,7 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
                                arrival=cfg.mrf.arrival)
         timings["discrete"] = time.perf_counter() - t0
     metrics = discrete_metrics(plan_d.paths, scn.grid.occupied, scn.grid.resolution, scn.goal,
-                               cfg.scenario.goal_radius)
+                               scn.goal_radius)
     result = Result(config=cfg, scenario=scn, discrete=plan_d, metrics=metrics, pruned=[], timings_s=timings)
     try:
         if plan_d.n_steps == 0 and metrics.reached_goal is False:

@@ -310,8 +310,13 @@ def test_a_goal_too_far_for_k_is_a_clear_error(tmp_path):
     cfg = tmp_path / "c.toml"
     cfg.write_text('[scenario]\nmap = { kind = "free", size = [60, 5] }\nstart = { positions = [[1, 2], [2, 2]] }\n'
                    "goal = [58, 2]\n[interaction]\nk = 1\n[goal_potential]\nk = 0.05\n")
-    with pytest.raises(ScenarioError, match=r"goal_potential.k = 0.05 is too small .* use k >= 0\.084"):
+    with pytest.raises(ScenarioError, match=r"goal_potential.k = 0.05 cells is too small .* use k >= 0\.084"):
         plan(load_config(cfg, DISCRETE))
+    # k counts cells: the same map at 0.25 m cells (goal 14.25 m away) needs the same k
+    fine = ['scenario.map = { kind = "free", size = [60, 5], resolution = 0.25 }',
+            "scenario.start = { positions = [[0.25, 0.5], [0.5, 0.5]] }", "scenario.goal = [14.5, 0.5]"]
+    with pytest.raises(ScenarioError, match=r"lie 59 cells from the goal .* use k >= 0\.084"):
+        plan(load_config(cfg, DISCRETE + fine))
 
 
 # --- unreachable robots and goals --------------------------------------------------------------
