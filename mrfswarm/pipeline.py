@@ -70,7 +70,7 @@ class Result:
     flight: SwarmFlight | None = None
     timings_s: dict[str, float] = field(default_factory=dict)
     failure: str | None = None
-    _crazyflie: dict | None = field(default=None, init=False, repr=False, compare=False)
+    _crazyflie: tuple | None = field(default=None, init=False, repr=False, compare=False)
 
     def smoothed(self) -> ContinuousPlan:
         """The continuous plan of a run that has one.
@@ -116,7 +116,11 @@ class Result:
         """The ``crazyflie`` section of ``result.json`` (:func:`mrfswarm.export.crazyflie_memory.memory_report`),
         computed once: each robot's pieces and bytes in a Crazyflie's memory, raw and compressed, and the
         compressed flight's certificate. None without a continuous plan."""
-        if self._crazyflie is None and self.continuous is not None:
+        return self._crazyflie_export()[0]
+
+    def _crazyflie_export(self) -> tuple:
+        """(the ``crazyflie`` section, the :class:`~mrfswarm.export.cflib_.Compressed` flight or None), cached."""
+        if self._crazyflie is None:
             from mrfswarm.export.crazyflie_memory import memory_report
 
             self._crazyflie = memory_report(self)

@@ -352,6 +352,8 @@ def parse_compressed(data: bytes) -> tuple[list[int], list[tuple[int, list[list[
         if ms == 0:
             return start, segments
         counts = [_COUNTS[(types >> (2 * a)) & 3] for a in range(4)]
+        if at + 2 * sum(counts) > len(data):
+            raise ExportError("compressed trajectory data ends inside a segment, without its zero-duration end segment")
         values = list(struct.unpack_from(f"<{sum(counts)}h", data, at))
         at += 2 * sum(counts)
         axes, i = [], 0

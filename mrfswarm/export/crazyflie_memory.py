@@ -35,18 +35,19 @@ SAMPLES_PER_PIECE = 16
 """Samples per piece of the measured float32 errors."""
 
 
-def memory_report(result: Result) -> dict[str, Any] | None:
-    """The ``crazyflie`` section of ``result.json``; None without a continuous plan.
+def memory_report(result: Result) -> tuple[dict[str, Any] | None, cflib_.Compressed | None]:
+    """The ``crazyflie`` section of ``result.json`` (None without a continuous plan) and the
+    compressed flight it certifies (None if there is none).
 
     Without ``cflib`` installed the section is ``{"error": "..."}`` (what to install): the
     sizes are ``cflib``'s packing, not a formula of ours.
     """
     if result.continuous is None:
-        return None
+        return None, None
     try:
         cflib_.cflib_mem()
     except ExportError as e:
-        return {"error": str(e)}
+        return {"error": str(e)}, None
     c = result.continuous
     cfg = result.config
     altitude = cfg.scenario.altitude
@@ -67,8 +68,9 @@ def memory_report(result: Result) -> dict[str, Any] | None:
         "all_fit_raw": all(r["fits_raw"] for r in robots),
         "max_raw_float32_error_m": max(r["raw_float32_error_m"] for r in robots),
     }
+    comp = None
     try:
-        compressed = _compressed(result, taus, robots)
+        compressed, comp = _compressed(result, taus, robots)
     except ExportError as e:  # the flight does not fit the format: say so, per robot too
         for r in robots:
             r.update({"bytes_compressed": None, "fits_compressed": False, "compressed_certified": False})
@@ -78,10 +80,11 @@ def memory_report(result: Result) -> dict[str, Any] | None:
                     "all_fit_compressed": all(r["fits_compressed"] for r in robots),
                     "compressed": compressed})
     out["robots"] = robots
-    return out
+    return out, comp
 
 
-def _compressed(result: Result, taus: np.ndarray, robots: list[dict[str, Any]]) -> dict[str, Any]:
+def _compressed(result: Result, taus: np.ndarray,
+                robots: list[dict[str, Any]]) -> tuple[dict[str, Any], cflib_.Compressed]:
     """Pack, decode and certify the compressed flight; fill each robot's entry, return the swarm's."""
     from mrfswarm.continuous.certificate import certify, control_point_stack, hull_distance_from_origin
     from mrfswarm.continuous.regions import near_pairs
@@ -149,4 +152,4 @@ def _compressed(result: Result, taus: np.ndarray, robots: list[dict[str, Any]]) 
             "limit_upper_bounds": {"v": cert.limit_bounds[0], "a": cert.limit_bounds[1], "j": cert.limit_bounds[2]},
         },
         "not_certified_robots": [r["robot"] for r in robots if not r["compressed_certified"]],
-    }
+    }, comp
