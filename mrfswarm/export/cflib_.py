@@ -343,7 +343,8 @@ def parse_compressed(data: bytes) -> tuple[list[int], list[tuple[int, list[list[
     if len(data) < COMPRESSED_START_BYTES:
         raise ExportError(f"compressed trajectory data too short: {len(data)} bytes")
     start = list(struct.unpack_from("<4h", data, 0))
-    at, segments = COMPRESSED_START_BYTES, []
+    at = COMPRESSED_START_BYTES
+    segments: list[tuple[int, list[list[int]]]] = []
     while True:
         if at + 3 > len(data):
             raise ExportError("compressed trajectory data ends without its zero-duration end segment")

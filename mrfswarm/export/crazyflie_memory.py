@@ -128,9 +128,9 @@ def _compressed(result: Result, taus: np.ndarray,
                 d = hull_distance_from_origin(P[pairs[:, 0], j] - P[pairs[:, 1], j])
                 np.minimum.at(separation, pairs[:, 0], d)
                 np.minimum.at(separation, pairs[:, 1], d)
-    for i, r in enumerate(robots):
+    for i, entry in enumerate(robots):
         n = comp.n_bytes(i)
-        r.update({
+        entry.update({
             "bytes_compressed": n, "fits_compressed": n <= cflib_.MEMORY_BYTES,
             "compressed_certified": bool(on_grid and clearance[i] >= radius and separation[i] >= distance
                                          and within[i]),

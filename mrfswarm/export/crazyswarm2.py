@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import shutil
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -63,7 +64,8 @@ def write_crazyswarm2(starts: np.ndarray, out: Path) -> list[Path]:
         "# Crazyswarm2 robots of this mrfswarm run: cf<k> flies trajectories/robot_<k-1>.csv (see fly.py)\n"
         + yaml.safe_dump(crazyflies_config(starts), sort_keys=False)))]
     for folder, script in (("crazyswarm2", "fly.py"), ("crazyflie", "cflib_upload.py")):
-        written.append(atomic_write(out / folder / script, lambda p, s=script: shutil.copyfile(SCRIPTS / s, p)))
+        source = SCRIPTS / script
+        written.append(atomic_write(out / folder / script, partial(shutil.copyfile, source)))
     return written
 
 
