@@ -499,8 +499,9 @@ class RecedingHorizon:
         solves the window QP (lazy rows and all); its gradient is exact, by the envelope
         theorem, from the QP's multipliers and the symbolic pieces' derivative in T
         (:meth:`~mrfswarm.continuous.formulation.WindowFormulation.duration_gradient`).
-        Durations where the QP has no solution are not a number (a backend with
-        ``nan_step_back`` shortens its step there). Bounds: each step between a fifth of
+        Durations where the QP has no solution are not a number: Ipopt shortens its step
+        there, and :func:`solvers.nlp.minimize` makes the other backends do the same
+        (:mod:`solvers.nlp.evaluation`). Bounds: each step between a fifth of
         its nominal duration (at least 1 ms) and twice its witness or nominal one, and
         around ``sol``'s durations.
 
