@@ -71,6 +71,7 @@ class Result:
     flight: SwarmFlight | None = None
     timings_s: dict[str, float] = field(default_factory=dict)
     failure: str | None = None
+    _crazyflie: tuple | None = field(default=None, init=False, repr=False, compare=False)
 
     def smoothed(self) -> ContinuousPlan:
         """The continuous plan of a run that has one.
@@ -117,6 +118,20 @@ class Result:
         return robot_outcomes(self.discrete.paths[-1], scn.grid.free, scn.static, self.config.mrf.order,
                               scn.grid.resolution, SEPARATION_FACTOR * scn.morse.d_min, self.discrete.stop_reason,
                               None if d is None else d.path, scn.goal_region_radius)
+
+    def crazyflie_memory(self) -> dict | None:
+        """The ``crazyflie`` section of ``result.json`` (:func:`mrfswarm.export.crazyflie_memory.memory_report`),
+        computed once: each robot's pieces and bytes in a Crazyflie's memory, raw and compressed, and the
+        compressed flight's certificate. None without a continuous plan."""
+        return self._crazyflie_export()[0]
+
+    def _crazyflie_export(self) -> tuple:
+        """(the ``crazyflie`` section, the :class:`~mrfswarm.export.cflib_.Compressed` flight or None), cached."""
+        if self._crazyflie is None:
+            from mrfswarm.export.crazyflie_memory import memory_report
+
+            self._crazyflie = memory_report(self)
+        return self._crazyflie
 
     def discrete_paths_world(self) -> np.ndarray:
         """(T + 1, N, 2) discrete paths in metres."""
@@ -212,6 +227,7 @@ class Result:
             "guaranteed_separation_m": None if f.tracking_bound is None
             else 2 * self.config.scenario.robot_radius - 2 * f.tracking_bound,
         }
+        out["crazyflie"] = self.crazyflie_memory()
         out["config"] = self.config.to_dict()
         return out
 
@@ -328,10 +344,11 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         t0 = time.perf_counter()
         plan_d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.method, max_steps=cfg.mrf.max_steps,
                                tol=cfg.mrf.tol, patience=cfg.mrf.patience, options=options,
-                               on_step=lambda t, out: bar.update(1), progress=cfg.mrf.progress)
+                               on_step=lambda t, out: bar.update(1), progress=cfg.mrf.progress,
+                               arrival=cfg.mrf.arrival)
         timings["discrete"] = time.perf_counter() - t0
     metrics = discrete_metrics(plan_d.paths, scn.grid.occupied, scn.grid.resolution, scn.goal,
-                               cfg.scenario.goal_radius)
+                               scn.goal_radius)
     result = Result(config=cfg, scenario=scn, discrete=plan_d, metrics=metrics, pruned=[], timings_s=timings)
     try:
         if plan_d.n_steps == 0 and metrics.reached_goal is False:

@@ -72,7 +72,7 @@ from mrfswarm.continuous.regions import (
     separations,
 )
 from mrfswarm.continuous.sampled_check import SampledCheck, check_positions, uniform_times
-from mrfswarm.continuous.time_grid import nominal_durations, witness_durations
+from mrfswarm.continuous.time_grid import motion_durations, nominal_durations, witness_durations
 from mrfswarm.errors import UnsafeTrajectoryError
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.maps.obstacles import ObstacleIndex
@@ -89,8 +89,25 @@ log = logging.getLogger(__name__)
 
 #: Tightening of the QP's region and corridor rows (metres) and, relatively, of its limits.
 MARGIN = 1e-6
-#: The nominal time grid speeds up and slows down at this fraction of a_max.
+#: With a cruise ``speed`` given, the nominal time grid speeds up and slows down at this fraction of a_max.
 NOMINAL_ACCELERATION = 0.25
+#: Without one (the default), each robot's speed profile cruises at this fraction of v_max: the rest is the
+#: room the smooth trajectory needs around the profile's corners (min-snap overshoots a trapezoid's speed).
+CRUISE = 0.9
+#: ... and accelerates at this fraction of what the limits allow over a speed change (see motion_acceleration).
+ACCELERATION = 1.0
+
+
+def motion_acceleration(v_max: float, a_max: float, j_max: float) -> float:
+    r"""The acceleration of the default speed profiles: a_max, or less where jerk limits it.
+
+    A jerk-limited change of speed by v_max takes at least :math:`2\sqrt{v_{max}/j_{max}}`
+    (an S-curve with no constant-acceleration phase), an average acceleration of
+    :math:`\sqrt{v_{max} j_{max}}/2`; the profiles use :data:`ACCELERATION` of the smaller of that and a_max.
+    """
+    return ACCELERATION * min(a_max, 0.5 * math.sqrt(v_max * j_max))
+
+
 #: The time refinement's NLP settings: each iteration solves the window's QP a few times; on
 #: corridor.toml 12 Ipopt iterations keep nearly all of 25's gain (makespan 21.4 s against 21.3) at a fifth of the QPs.
 NLP_OPTIONS = NLPOptions(tol=1e-4, max_iter=12)
@@ -107,8 +124,10 @@ CHUNK_ROBOTS = 64
 PARALLEL_ROBOTS = CHUNK_ROBOTS + 1
 #: Rounds of lazy constraint generation before every row is switched on.
 MAX_ROUNDS = 12
-#: Limits that need steps this many times slower than nominal are refused as unreachable.
+#: Limits that need steps this many times longer than at REFERENCE_SPEED are refused as unreachable.
 MAX_SLOWDOWN = 1e3
+#: m/s; see MAX_SLOWDOWN.
+REFERENCE_SPEED = 1.0
 #: Factor by which new steps are slowed per attempt after the nominal ones fail.
 SLOWDOWN = 1.5
 
@@ -296,15 +315,22 @@ class RecedingHorizon:
             raise UnsafeTrajectoryError(f"robot {i}'s safe region in step {j} comes {clearance[j, i]:.3f} m from "
                                         f"an obstacle (radius {self.radius:g} m): the discrete move is unsafe")
         self.seps = separations(self.X, self.regions, self.distance)
-        self.nominal = nominal_durations(self.paths, grid.resolution, cfg.speed, NOMINAL_ACCELERATION * cfg.a_max)
+        if cfg.speed is None:
+            self.nominal = motion_durations(self.paths, grid.resolution, CRUISE * cfg.v_max,
+                                            motion_acceleration(cfg.v_max, cfg.a_max, cfg.j_max))
+        else:
+            self.nominal = nominal_durations(self.paths, grid.resolution, cfg.speed, NOMINAL_ACCELERATION * cfg.a_max)
         self.witness = np.maximum(self.nominal, witness_durations(
             self.paths, grid.resolution, self.limits, cfg.degree, cfg.derivative, MARGIN))
-        slow = self.witness / np.maximum(self.nominal, 1e-12)
+        # the reference: each step's longest move (at least a cell) at REFERENCE_SPEED, whatever the limits
+        moves = np.linalg.norm(np.diff(self.X, axis=0), axis=-1)
+        reference = np.maximum(moves.max(axis=1, initial=0.0), grid.resolution) / REFERENCE_SPEED
+        slow = self.witness / np.maximum(reference, 1e-12)
         if self.T and slow.max() > MAX_SLOWDOWN:
             raise UnsafeTrajectoryError(
                 f"no timing meets v_max = {cfg.v_max:g} m/s, a_max = {cfg.a_max:g} m/s^2 and j_max = {cfg.j_max:g} m/s^3 "
-                f"within {MAX_SLOWDOWN:g} times the nominal step durations (step {int(np.argmax(slow))} would need "
-                f"{self.witness.max():.3g} s)")
+                f"within {MAX_SLOWDOWN:g} times the step durations at {REFERENCE_SPEED:g} m/s (step "
+                f"{int(np.argmax(slow))} would need {self.witness.max():.3g} s)")
         # rows switched on by lazy constraint generation (grow over the run)
         self.active = np.zeros(len(self.seps), dtype=bool)
         self.limit_rows = np.zeros((self.T, self.N, 3), dtype=bool)

@@ -46,7 +46,7 @@ def test_end_to_end_is_certified_and_checks_out_densely(name, backend, dense_che
     if r.scenario.goal is not None:
         assert r.metrics.reached_goal
         end = c.positions(np.array([c.makespan_s]))[0]
-        assert np.hypot(*(end.mean(axis=0) - r.scenario.goal_world)) <= r.config.scenario.goal_radius
+        assert np.hypot(*(end.mean(axis=0) - r.scenario.goal_world)) <= r.scenario.goal_radius
     radius = r.config.scenario.robot_radius
     dense = dense_check(c.trajectories, r.scenario.grid, 500.0)
     assert dense["separation"] >= 2 * radius and dense["clearance"] >= radius and not dense["off_map"]
