@@ -4,7 +4,9 @@ The problem is built by the project's own code (:meth:`RecedingHorizon.time_allo
 f(T) = J*(T) + w N sum(T) over the step durations T of the first window of two robots that
 pass one cell apart (``PASSING``, as in ``tests/continuous/test_formulation.py``), every
 evaluation a window QP (PIQP, lazy rows), the gradient from its multipliers (envelope
-theorem). The window is 4 steps long, with the default limits (v 2 m/s, a 4 m/s², j 4 m/s³):
+theorem). The window is 4 steps long, from durations at a 1.25 m/s cruise (the earlier
+default, far from the limits: the refinement has much to gain), with the default limits
+(v 2 m/s, a 4 m/s², j 4 m/s³):
 short durations make the QP infeasible, so f is NaN on part of the box, and the backends'
 first steps go there.
 
@@ -34,7 +36,7 @@ OPTIONS = nlp.Options(tol=NLP_OPTIONS.tol, max_iter=60)
 
 def window_problem():
     """A fresh problem (and its cache of evaluated points) of the first window, from the QP's durations."""
-    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, horizon=4), 0.25)
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, horizon=4, speed=1.25), 0.25)
     a, c, b = rh.windows()[0]
     start = np.zeros((rh.N, 4, 2))
     start[:, 0] = rh.X[0]
