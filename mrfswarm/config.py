@@ -22,6 +22,7 @@ from mrfswarm.file_input import read_text
 from mrfswarm.maps import LOADERS
 from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE
 from solvers.mrf import Options as MRFOptions
+from solvers.nlp import BACKENDS as NLP_BACKENDS
 from solvers.qp import Options as QPOptions
 
 SEAM_MODES = ("rest", "continuous")
@@ -175,8 +176,9 @@ class SmoothingConfig:
     (the paper's: every executed part from rest to rest). ``v_max``/``a_max``/``j_max``
     (m/s, m/s^2, m/s^3) are limits every trajectory meets, proven on control points; the
     jerk limit bounds how far a tracking controller lags (see :mod:`mrfswarm.simulation`).
-    ``time_refinement`` re-optimizes each window's step durations (Ipopt) for snap +
-    ``time_weight`` x flight time (snap units per second, per robot). ``check_rate_hz`` > 0
+    ``time_refinement`` re-optimizes each window's step durations for snap +
+    ``time_weight`` x flight time (snap units per second, per robot), with ``nlp``, a name
+    of ``solvers.nlp.BACKENDS`` (``--nlp NAME`` is a shorthand for ``--set smoothing.nlp=NAME``). ``check_rate_hz`` > 0
     adds an independent sampled check of the whole flight at that rate. ``qp_options`` (the
     table ``[smoothing.qp_options]``) sets fields of :class:`solvers.qp.Options`
     (``eps_abs``, ``eps_rel``, ``max_iter``, ...) over the stage's own for every QP solve.
@@ -194,6 +196,8 @@ class SmoothingConfig:
     execution: float = 0.5
     seam: str = "continuous"
     time_refinement: bool = False
+    # the time refinement's NLP backend, written only here
+    nlp: str = "ipopt"
     time_weight: float = 10.0
     v_max: float = 2.0
     a_max: float = 4.0
@@ -344,6 +348,18 @@ def _solver_options(key: str, table: Any) -> dict[str, Any]:
     return {k: _coerce(f"{key}.{k}", v, hints[k]) for k, v in table.items()}
 
 
+def check_nlp(name: str) -> None:
+    """``smoothing.nlp`` must name a backend of ``solvers.nlp.BACKENDS`` (installed or not).
+
+    Raises
+    ------
+    ConfigError
+        Naming the value and the allowed ones.
+    """
+    if name not in NLP_BACKENDS:
+        raise ConfigError(f"smoothing.nlp = {name!r}: must be one of {', '.join(NLP_BACKENDS.names())}")
+
+
 def _validate(cfg: Config) -> None:
     """Range checks that do not need the map (those live with the map and the planner)."""
 
@@ -389,6 +405,7 @@ def _validate(cfg: Config) -> None:
     need(0 < sm.execution <= 1, "smoothing.execution", sm.execution, "must be in (0, 1]")
     need(sm.seam in SEAM_MODES, "smoothing.seam", sm.seam, f"must be one of {', '.join(SEAM_MODES)}")
     need(sm.time_weight > 0, "smoothing.time_weight", sm.time_weight, "must be > 0")
+    check_nlp(sm.nlp)
     need(sm.check_rate_hz == 0 or sm.check_rate_hz >= 100, "smoothing.check_rate_hz", sm.check_rate_hz,
          "must be 0 (off) or >= 100")
     need(sm.v_max > 0, "smoothing.v_max", sm.v_max, "must be > 0")

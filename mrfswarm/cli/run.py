@@ -19,6 +19,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--qp", default=None, metavar="NAME",
                    help="QP backend of the continuous stage: shorthand for --set smoothing.backend=NAME "
                         "(names: `mrfswarm solvers`)")
+    p.add_argument("--nlp", default=None, metavar="NAME",
+                   help="NLP backend of the time refinement: shorthand for --set smoothing.nlp=NAME "
+                        "(names: `mrfswarm solvers`)")
     p.add_argument("--seed", type=_args.seed, default=None,
                    help="seed (integer >= 0) of the start sampling and the MRF method")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -56,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"default output folder {e}; give --out") from None
     check_output_dir(out, args.overwrite)  # before planning, not after
     try:
-        result = plan(cfg, mrf=args.mrf, qp=args.qp, seed=args.seed, workers=args.workers)
+        result = plan(cfg, mrf=args.mrf, qp=args.qp, nlp=args.nlp, seed=args.seed, workers=args.workers)
     except PlanError as e:  # keep what was computed before the failure
         write_outputs(e.result, out, overwrite=args.overwrite)
         raise PlanError(f"{e} (what was computed is in {out})", e.result) from e

@@ -30,10 +30,12 @@ limits: exact, on control points); the regions' clearance from obstacles is chec
 Dense sampling (``smoothing.check_rate_hz``) is an optional independent check.
 
 Time refinement (``smoothing.time_refinement``): after a window is accepted, its step
-durations become the variables of an NLP solved by Ipopt from the QP's: the window
-problem's optimal snap at those durations plus ``time_weight`` x duration, with the exact
-gradient from the QP's multipliers (envelope theorem) and the symbolic pieces' derivative
-in their durations. The refined solution is accepted if it certifies and lowers that cost.
+durations become the variables of an NLP (:class:`TimeAllocation`) solved from the QP's
+by the backend ``smoothing.nlp`` of :data:`solvers.nlp.BACKENDS` (Ipopt by default): the
+window problem's optimal snap at those durations plus ``time_weight`` x duration, with
+the exact gradient from the QP's multipliers (envelope theorem) and the symbolic pieces'
+derivative in their durations. The refined solution is accepted if it certifies and
+lowers that cost.
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import solvers.nlp
 import solvers.qp
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous.certificate import Certificate, certify, certify_pieces
@@ -78,8 +81,9 @@ from mrfswarm.trajectory.bernstein import control_point_matrix
 from mrfswarm.trajectory.piece_stack import map_coefficients
 from mrfswarm.trajectory.retiming import max_derivative_norm_all
 from solvers.errors import SolverError
+from solvers.nlp import NLPProblem
+from solvers.nlp import Options as NLPOptions
 from solvers.qp import Options as QPOptions
-from solvers.qp.ipopt_ import minimize_bounded
 
 log = logging.getLogger(__name__)
 
@@ -102,9 +106,11 @@ def motion_acceleration(v_max: float, a_max: float, j_max: float) -> float:
     :math:`\sqrt{v_{max} j_{max}}/2`; the profiles use :data:`ACCELERATION` of the smaller of that and a_max.
     """
     return ACCELERATION * min(a_max, 0.5 * math.sqrt(v_max * j_max))
-#: Ipopt's settings for time refinement: each iteration solves the window's QP a few times; on
-#: corridor.toml 12 iterations keep nearly all of 25's gain (makespan 21.4 s against 21.3) at a fifth of the QPs.
-NLP_OPTIONS = QPOptions(eps_abs=1e-4, eps_rel=1e-4, max_iter=12)
+
+
+#: The time refinement's NLP settings: each iteration solves the window's QP a few times; on
+#: corridor.toml 12 Ipopt iterations keep nearly all of 25's gain (makespan 21.4 s against 21.3) at a fifth of the QPs.
+NLP_OPTIONS = NLPOptions(tol=1e-4, max_iter=12)
 #: Options of the window QPs unless the caller gives others (the config's [smoothing.qp_options] go over
 #: these). No equilibration: the formulation scales its variables already (time normalized per window),
 #: and Ruiz scaling made piqp declare feasible windows infeasible (14 of 220 sampled QPs of a
@@ -227,6 +233,32 @@ class _Solution:
     cps: list[np.ndarray] | None = None  # [P, V, A, J] control points, as _control_points gives them
 
 
+@dataclass
+class TimeAllocation:
+    """The time refinement's NLP of one window (:meth:`RecedingHorizon.time_allocation`).
+
+    Attributes
+    ----------
+    problem
+        f(T) = J*(T) + weight sum(T) over the window's step durations T, with bounds.
+    base
+        The lazy rows (corridors, limits) active when it was built.
+    weight
+        ``time_weight`` x robots.
+    solved
+        Every evaluated point (``T.tobytes()``) and the window's solution there (None:
+        the QP had none).
+    rows
+        The lazy rows each evaluated point needed.
+    """
+
+    problem: NLPProblem
+    base: tuple[np.ndarray, np.ndarray]
+    weight: float
+    solved: dict[bytes, _Solution | None] = field(default_factory=dict)
+    rows: dict[bytes, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+
+
 class RecedingHorizon:
     """Smooths discrete paths window by window on one common time grid.
 
@@ -252,7 +284,8 @@ class RecedingHorizon:
     Raises
     ------
     SolverNotFound
-        An unknown or missing QP backend.
+        An unknown or missing QP backend, or with ``cfg.time_refinement`` NLP backend
+        (``cfg.nlp``).
     UnsafeTrajectoryError
         A region closer than the robot radius to an obstacle (the discrete plan breaks its
         motion rule).
@@ -265,6 +298,8 @@ class RecedingHorizon:
         self.grid, self.cfg = grid, cfg
         self.backend = backend or cfg.backend
         solvers.qp.BACKENDS.get(self.backend)  # an unknown or missing backend fails now
+        if cfg.time_refinement:
+            solvers.nlp.BACKENDS.get(cfg.nlp)  # and so does the refinement's NLP backend
         self.qp_options = qp_options or QP_OPTIONS
         self.T, self.N = len(self.paths) - 1, self.paths.shape[1]
         self.E = max(1, round(cfg.execution * cfg.horizon))
@@ -482,30 +517,36 @@ class RecedingHorizon:
         rec.solve_s = time.perf_counter() - tic
         return chosen, rec
 
-    def _refine(self, sol: _Solution, a: int, start: np.ndarray, rec: WindowRecord) -> _Solution:
-        """The window's step durations as the variables of an NLP (Ipopt), from the QP's.
+    def time_allocation(self, sol: _Solution, a: int, start: np.ndarray, rec: WindowRecord) -> TimeAllocation:
+        """The window's step durations as the variables of an NLP, from the QP's (``sol``).
 
         The objective is the window problem's optimum at given durations plus
         ``time_weight`` x flight time (per robot): f(T) = J*(T) + w N sum(T). Evaluating it
         solves the window QP (lazy rows and all); its gradient is exact, by the envelope
         theorem, from the QP's multipliers and the symbolic pieces' derivative in T
         (:meth:`~mrfswarm.continuous.formulation.WindowFormulation.duration_gradient`).
-        Durations where the QP has no solution are not a number, so Ipopt shortens its
-        step. Every iterate is a solution of the window problem, so the result keeps the
-        next window's feasibility argument; it is kept if it certifies and lowers f.
+        Durations where the QP has no solution are not a number: Ipopt shortens its step
+        there, and :func:`solvers.nlp.minimize` makes the other backends do the same
+        (:mod:`solvers.nlp.evaluation`). Bounds: each step between a fifth of
+        its nominal duration (at least 1 ms) and twice its witness or nominal one, and
+        around ``sol``'s durations.
+
+        Every evaluation starts from the lazy rows active when this is called and leaves
+        ``self.active``/``self.limit_rows`` at the rows it needed; the caller puts back
+        the rows of the point it keeps (:attr:`TimeAllocation.rows`, :attr:`TimeAllocation.base`).
         """
         M = len(sol.durations)
         b = a + M
         w = self.cfg.time_weight * self.N
-        solved: dict[bytes, _Solution | None] = {}
-        # the lazy rows each evaluation needed: every evaluation starts from the accepted QP's
-        # rows, so a far trial point (where every limit binds) does not burden the rest
         base = (self.active.copy(), self.limit_rows.copy())
+        solved: dict[bytes, _Solution | None] = {}
         rows: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
         def at(T: np.ndarray) -> _Solution | None:
             key = np.asarray(T, dtype=float).tobytes()
             if key not in solved:
+                # every evaluation starts from the accepted QP's rows, so a far trial point
+                # (where every limit binds) does not burden the rest
                 self.active, self.limit_rows = base[0].copy(), base[1].copy()
                 solved[key] = self._solve(a, b, start, np.asarray(T, dtype=float), rec, gradient=True)[0]
                 rows[key] = (self.active, self.limit_rows)
@@ -521,20 +562,31 @@ class RecedingHorizon:
 
         lower = np.minimum(np.maximum(0.2 * self.nominal[a:b], 1e-3), sol.durations)
         upper = np.maximum(2 * np.maximum(self.witness[a:b], self.nominal[a:b]), sol.durations)
-        res = minimize_bounded(fun, grad, sol.durations, lower, upper, NLP_OPTIONS)
-        before = sol.cost + w * sol.durations.sum()
-        found = {k: s for k, s in solved.items() if s is not None}
-        tried = sorted((s.cost + w * s.durations.sum(), k) for k, s in found.items())
-        for value, key in tried:  # the best point Ipopt saw first
+        return TimeAllocation(NLPProblem(fun, grad, sol.durations, lower, upper), base, w, solved, rows)
+
+    def _refine(self, sol: _Solution, a: int, start: np.ndarray, rec: WindowRecord) -> _Solution:
+        """The window's step durations refined by the NLP backend ``cfg.nlp`` (:meth:`time_allocation`).
+
+        Every iterate is a solution of the window problem, so the result keeps the next
+        window's feasibility argument; the best point the backend evaluated is kept if it
+        certifies and lowers f (the next best otherwise, and so on down to ``sol``).
+        """
+        alloc = self.time_allocation(sol, a, start, rec)
+        res = solvers.nlp.minimize(alloc.problem, self.cfg.nlp, NLP_OPTIONS)
+        before = sol.cost + alloc.weight * sol.durations.sum()
+        found = {k: s for k, s in alloc.solved.items() if s is not None}
+        tried = sorted((s.cost + alloc.weight * s.durations.sum(), k) for k, s in found.items())
+        for value, key in tried:  # the best point the backend saw first
             if value >= before:
                 break
             best = found[key]
             if self._certify(best, a).ok:
                 rec.refined = True
-                self.active, self.limit_rows = rows[key]
+                self.active, self.limit_rows = alloc.rows[key]
                 return best
-        self.active, self.limit_rows = base
-        log.info("window %d..%d: time refinement kept the QP's durations (%s)", a, b, res.raw_status)
+        self.active, self.limit_rows = alloc.base
+        log.info("window %d..%d: time refinement (%s) kept the QP's durations (%s)", a, a + len(sol.durations),
+                 res.backend, res.raw_status)
         return sol
 
     # ------------------------------------------------------------------ run
