@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrfswarm.continuous.time_grid import motion_durations, segment_times
 from mrfswarm.discrete.goal_distance import goal_distance
 from mrfswarm.flight_quality import count_stops, free_path_lengths, makespan_lower_bound
 from mrfswarm.trajectory import PiecewisePolynomial
@@ -46,23 +45,3 @@ def test_a_stop_inside_the_flight_counts_and_the_ends_do_not():
     stops = count_stops([go_stop_go, cruise])
     assert stops.per_robot.tolist() == [1, 0]
     assert stops.mean == 0.5 and (stops.mean_speed > 0).all()
-
-
-def test_motion_durations_cruise_straight_and_slow_for_reversals():
-    straight = np.array([[[i, 0]] for i in range(12)])  # (T + 1, 1, 2): 11 one-cell moves along x
-    d = motion_durations(straight, 1.0, 2.0, 1.0)
-    assert np.allclose(d[4:7], 0.5)  # cruising at v_max in the middle
-    assert d[0] > 0.5 and d[-1] > 0.5  # speeding up from rest, slowing down to rest
-    back = np.array([[[i, 0]] for i in range(6)] + [[[i, 0]] for i in range(4, -1, -1)])
-    db = motion_durations(back, 1.0, 2.0, 1.0)
-    assert db[4] > d[4] and db[5] > d[5]  # the reversal at step 5 slows the steps around it
-    # the swarm's durations change no faster than a speed profile can: no short step between long ones
-    assert np.all(np.abs(np.diff(1.0 / db)) <= 1.0 * np.maximum(db[:-1], db[1:]) + 1e-9)
-
-
-def test_segment_times_are_the_trapezoid():
-    # from rest to rest over 4 m at a = 1, v_max = 10: a triangle, 2 * sqrt(4 / 1)
-    assert segment_times(np.array([4.0]), np.array([0.0]), np.array([0.0]), 10.0, 1.0)[0] == 4.0
-    # cruise at v_max: 1 m at 2 m/s
-    assert segment_times(np.array([1.0]), np.array([2.0]), np.array([2.0]), 2.0, 1.0)[0] == 0.5
-    assert segment_times(np.array([0.0]), np.array([0.0]), np.array([0.0]), 2.0, 1.0)[0] == 0.0

@@ -13,6 +13,7 @@ least this long always has a feasible point.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -48,7 +49,8 @@ def nominal_durations(paths: np.ndarray, resolution: float, speed: float, accele
     return np.diff(time_at(s))
 
 
-def segment_times(length: np.ndarray, v0: np.ndarray, v1: np.ndarray, v_max: float, a: float) -> np.ndarray:
+def segment_times(length: np.ndarray, v0: np.ndarray, v1: np.ndarray, v_max: float | np.ndarray,
+                  a: float) -> np.ndarray:
     r"""Shortest time to cover ``length`` from speed ``v0`` to ``v1`` with |acceleration| <= ``a``, speed <= ``v_max``.
 
     The trapezoid: up to the peak :math:`v_p = \min(v_{max}, \sqrt{aL + (v_0^2 + v_1^2)/2})`,
@@ -65,8 +67,64 @@ def segment_times(length: np.ndarray, v0: np.ndarray, v1: np.ndarray, v_max: flo
     return np.where(L > 0, t, 0.0)
 
 
+@dataclass(frozen=True)
+class SwarmProfile:
+    """The speed profile of the swarm's progress over the steps (see :func:`motion_profile`).
+
+    Attributes
+    ----------
+    ell
+        (T,) the swarm's progress per step: its longest move, at least one cell (metres).
+    cap
+        (T,) the speed cap of each step: ``ell`` over the time its slowest mover needs.
+    need
+        (T,) the time each step's slowest mover needs on its own profile.
+    knots
+        (T + 1,) the profile's speed at every step, at rest at both ends.
+    acceleration
+        The profile's acceleration.
+    """
+
+    ell: np.ndarray
+    cap: np.ndarray
+    need: np.ndarray
+    knots: np.ndarray
+    acceleration: float
+
+    @property
+    def durations(self) -> np.ndarray:
+        """(T,) the whole flight's step durations."""
+        return self.window(0, len(self.ell), rest_at_end=True)
+
+    def window(self, a: int, b: int, rest_at_end: bool = True) -> np.ndarray:
+        """(b - a,) durations of steps a..b-1 for a window that starts at the profile's speed at step a and,
+        with ``rest_at_end``, brakes to rest at step b (a window of the receding horizon ends at rest)."""
+        u = self.knots[a:b + 1].copy()
+        if rest_at_end:
+            u[-1] = 0.0
+        _passes(u, self.ell[a:b], self.acceleration)
+        return np.maximum(self.need[a:b], segment_times(self.ell[a:b], u[:-1], u[1:], self.cap[a:b],
+                                                        self.acceleration))
+
+
+def _passes(u: np.ndarray, ell: np.ndarray, a: float) -> None:
+    """Knot speeds ``u`` (in place) reachable from each other over the steps ``ell`` at acceleration ``a``."""
+    for k in range(len(ell)):
+        u[k + 1] = min(u[k + 1], np.sqrt(u[k] ** 2 + 2 * a * ell[k]))
+    for k in range(len(ell) - 1, -1, -1):
+        u[k] = min(u[k], np.sqrt(u[k + 1] ** 2 + 2 * a * ell[k]))
+
+
 def motion_durations(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
                      rest_at_waits: bool = False) -> np.ndarray:
+    """(T,) step durations of the whole flight from :func:`motion_profile`."""
+    if len(paths) < 2:
+        return np.zeros(0)
+    return motion_profile(paths, resolution, v_max, acceleration, rest_at_waits).durations
+
+
+def motion_profile(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
+                   rest_at_waits: bool = False) -> SwarmProfile:
     r"""(T,) step durations derived from every robot's own motion and the limits.
 
     Each robot flies its discrete polyline with a speed profile of its own: at most
@@ -82,8 +140,6 @@ def motion_durations(paths: np.ndarray, resolution: float, v_max: float, acceler
     slows only the steps around it.
     """
     P = np.asarray(paths, dtype=float) * resolution
-    if len(P) < 2:
-        return np.zeros(0)
     m = np.diff(P, axis=0)  # (T, N, 2)
     L = np.linalg.norm(m, axis=-1)  # (T, N)
     T = len(L)
@@ -112,11 +168,8 @@ def motion_durations(paths: np.ndarray, resolution: float, v_max: float, acceler
     ell = np.maximum(L.max(axis=1), resolution)
     s = np.minimum(v_max, ell / np.maximum(t, 1e-12))
     u = np.minimum(np.concatenate([[0.0], s]), np.concatenate([s, [0.0]]))
-    for k in range(T):
-        u[k + 1] = min(u[k + 1], np.sqrt(u[k] ** 2 + 2 * a * ell[k]))
-    for k in range(T - 1, -1, -1):
-        u[k] = min(u[k], np.sqrt(u[k + 1] ** 2 + 2 * a * ell[k]))
-    return np.maximum(t, segment_times(ell, u[:-1], u[1:], s, a))
+    _passes(u, ell, a)
+    return SwarmProfile(ell=ell, cap=s, need=t, knots=u, acceleration=a)
 
 
 @lru_cache(maxsize=16)
