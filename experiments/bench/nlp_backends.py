@@ -21,7 +21,7 @@ Ipopt's) and the time ratio. Prints a table and writes every row to
 ``experiments/bench/results/nlp_backends.csv`` (``--out`` to change). The machine's load
 is printed: timings on a shared machine vary by tens of percent.
 
-    PYTHONPATH=. python experiments/bench/nlp_backends.py                    # corridor, 4 windows, ~3 minutes
+    PYTHONPATH=. python experiments/bench/nlp_backends.py                    # corridor, 4 windows, ~7 minutes (2 loaded cores)
     PYTHONPATH=. python experiments/bench/nlp_backends.py --config experiments/free5.toml --windows 2
 """
 
