@@ -166,10 +166,11 @@ def run_one(config: Path, method: str, max_steps: int | None = None, seed: int =
     records: list[StepRecord] = []
     plan = plan_discrete(problem, method=method, max_steps=max_steps or cfg.mrf.max_steps, tol=cfg.mrf.tol,
                          patience=cfg.mrf.patience, options=mrf_options(cfg, seed),
-                         on_step=_recorder(problem, records), progress=cfg.mrf.progress)
+                         on_step=_recorder(problem, records), progress=cfg.mrf.progress,
+                         arrival=cfg.mrf.arrival)
     if plan.stop_reason == "stalled":
         del records[plan.n_steps:]  # the planner drops the steps after the energy's minimum; so do we
-    m = discrete_metrics(plan.paths, scn.grid.occupied, scn.grid.resolution, scn.goal, cfg.scenario.goal_radius)
+    m = discrete_metrics(plan.paths, scn.grid.occupied, scn.grid.resolution, scn.goal, scn.goal_radius)
     gaps = np.array([r.gap for r in records])
     missed = np.array([r.missed for r in records])
     opt = np.array([r.opt_gap for r in records if np.isfinite(r.optimum)])

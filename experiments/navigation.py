@@ -118,7 +118,8 @@ def run_case(args: tuple) -> tuple[dict, np.ndarray | None]:
     scn = build_scenario(cfg, seed=start_seed)
     t1 = time.perf_counter()
     plan = plan_discrete(scn.discrete_problem(), method=method, max_steps=cfg.mrf.max_steps, tol=cfg.mrf.tol,
-                         patience=cfg.mrf.patience, options=mrf_options(cfg, start_seed), progress=cfg.mrf.progress)
+                         patience=cfg.mrf.patience, options=mrf_options(cfg, start_seed), progress=cfg.mrf.progress,
+                         arrival=cfg.mrf.arrival)
     t2 = time.perf_counter()
     sep = SEPARATION_FACTOR * scn.morse.d_min
     robots = robot_outcomes(plan.paths[-1], scn.grid.free, scn.static, cfg.mrf.order, scn.grid.resolution, sep,

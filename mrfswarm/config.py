@@ -22,6 +22,7 @@ from mrfswarm.file_input import read_text
 from mrfswarm.maps import LOADERS
 from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE
 from solvers.mrf import Options as MRFOptions
+from solvers.nlp import BACKENDS as NLP_BACKENDS
 from solvers.qp import Options as QPOptions
 
 SEAM_MODES = ("rest", "continuous")
@@ -58,16 +59,17 @@ class ScenarioConfig:
     :func:`mrfswarm.discrete.start.start_cells`; ``robot_radius`` (metres, below half a cell) is
     each robot's size: trajectories keep it from obstacles and twice it (the safety
     distance) from each other; ``goal_radius`` defines "reached the goal":
-    the swarm's centroid within this many metres of the goal. A robot is *at the goal*
+    the swarm's centroid within this many metres of the goal (unset: 3 cells, 3 m at the
+    paper's 1 m cells; :func:`mrfswarm.scenario.goal_radius_m`). A robot is *at the goal*
     within ``goal_radius`` plus the free-path radius that holds 4 free cells per robot
     (:mod:`mrfswarm.discrete.robot_outcomes`). Without a goal there is no
     goal potential (the paper's free-space formation experiments, rho_S = 0 there).
     """
 
     map: dict = field(default_factory=lambda: {"kind": "free", "size": [20, 20]})
-    start: dict = field(default_factory=lambda: {"center": [5.0, 5.0], "n_robots": 5, "sigma": 2.0, "seed": 0})
+    start: dict = field(default_factory=lambda: {"center": [5.0, 5.0], "n_robots": 5, "seed": 0})
     goal: tuple[float, float] | None = None
-    goal_radius: float = 3.0
+    goal_radius: float | None = None
     altitude: float = 1.0
     robot_radius: float = 0.25
 
@@ -78,6 +80,8 @@ class InteractionConfig:
 
     rho'_I(d) = -a exp(-d / k_a) + b exp(-d / k_r); rho_I = rho'_I + zeta. ``zeta``
     ``None`` means 1.01 |rho'_I(d_min)|, the smallest round value the paper allows.
+    ``k_a`` and ``k_r`` are in cells, as the paper's table is at its 1 m cells (d_min =
+    8.42 cells; :mod:`mrfswarm.discrete.potentials`).
     """
 
     a: float = 0.7
@@ -90,7 +94,7 @@ class InteractionConfig:
 
 @dataclass(frozen=True)
 class GoalPotentialConfig:
-    """rho_G(p) = a exp(d(p) / k).
+    """rho_G(p) = a exp(d(p) / k), ``k`` in cells (20 m at the paper's 1 m cells).
 
     ``distance`` is how d is measured: ``"geodesic"`` (default), the length of the
     shortest free path to the goal, with the obstacle potential climbed on the way
@@ -132,6 +136,13 @@ class MrfConfig:
     it): ``"downhill"`` (default), the one whose static field it lowers most;
     ``"nearest"``, the lower index (the paper's scenario configs), which can lock a crowd
     up in a corridor (:mod:`mrfswarm.discrete.label_sets`).
+    ``follow`` (default true) lets a robot take the cell another robot leaves in the
+    same step, when their moves keep them one cell apart (a queue moves as a whole);
+    false is the paper's rule (cells where robots stand are no candidates), set by the
+    paper's scenario configs.
+    ``arrival`` (default true) ends the plan at the first step with every robot in the
+    goal region (stop reason ``"arrived"``); false lets the swarm settle into its
+    formation until the energy converges, as the paper does (its scenario configs).
     ``progress`` says what resets the patience: ``"static"`` (default), a new minimum of
     the swarm energy or of the robots' static field sum; ``"energy"``, of the swarm
     energy only (the paper's scenario configs), which jumps whenever the k-NN graph's
@@ -145,6 +156,8 @@ class MrfConfig:
     patience: int = 20
     trim_backward: bool = False
     contested: str = "downhill"
+    follow: bool = True
+    arrival: bool = True
     progress: str = "static"
     options: dict[str, Any] = field(default_factory=dict)
 
@@ -153,15 +166,19 @@ class MrfConfig:
 class SmoothingConfig:
     """The continuous stage (min-snap smoothing on safe regions in a receding horizon).
 
-    ``speed`` (m/s) sets the nominal step durations of the common time grid;
+    The step durations of the common time grid come from the robots' motion and the
+    limits (each robot near ``v_max`` on a straight run, slower into turns and waits;
+    :func:`mrfswarm.continuous.time_grid.motion_durations`); ``speed`` (m/s), when given,
+    sets them instead from each step's longest move at that cruise speed (the earlier default, 1.25);
     ``region_growth`` (cells) how far each robot's obstacle-free box may grow around its
     discrete move; ``horizon`` steps are planned per window and ``execution`` of them
     flown; ``seam`` is ``continuous`` (continuous up to jerk across windows) or ``rest``
     (the paper's: every executed part from rest to rest). ``v_max``/``a_max``/``j_max``
     (m/s, m/s^2, m/s^3) are limits every trajectory meets, proven on control points; the
     jerk limit bounds how far a tracking controller lags (see :mod:`mrfswarm.simulation`).
-    ``time_refinement`` re-optimizes each window's step durations (Ipopt) for snap +
-    ``time_weight`` x flight time (snap units per second, per robot). ``check_rate_hz`` > 0
+    ``time_refinement`` re-optimizes each window's step durations for snap +
+    ``time_weight`` x flight time (snap units per second, per robot), with ``nlp``, a name
+    of ``solvers.nlp.BACKENDS`` (``--nlp NAME`` is a shorthand for ``--set smoothing.nlp=NAME``). ``check_rate_hz`` > 0
     adds an independent sampled check of the whole flight at that rate. ``qp_options`` (the
     table ``[smoothing.qp_options]``) sets fields of :class:`solvers.qp.Options`
     (``eps_abs``, ``eps_rel``, ``max_iter``, ...) over the stage's own for every QP solve.
@@ -176,12 +193,14 @@ class SmoothingConfig:
     backend: str = "piqp"
     degree: int = DEFAULT_DEGREE
     derivative: int = DEFAULT_DERIVATIVE
-    speed: float = 1.25
+    speed: float | None = None
     region_growth: float = 1.0
     horizon: int = 8
     execution: float = 0.5
     seam: str = "continuous"
     time_refinement: bool = False
+    # the time refinement's NLP backend, written only here
+    nlp: str = "ipopt"
     time_weight: float = 10.0
     v_max: float = 2.0
     a_max: float = 4.0
@@ -333,6 +352,18 @@ def _solver_options(key: str, table: Any) -> dict[str, Any]:
     return {k: _coerce(f"{key}.{k}", v, hints[k]) for k, v in table.items()}
 
 
+def check_nlp(name: str) -> None:
+    """``smoothing.nlp`` must name a backend of ``solvers.nlp.BACKENDS`` (installed or not).
+
+    Raises
+    ------
+    ConfigError
+        Naming the value and the allowed ones.
+    """
+    if name not in NLP_BACKENDS:
+        raise ConfigError(f"smoothing.nlp = {name!r}: must be one of {', '.join(NLP_BACKENDS.names())}")
+
+
 def _validate(cfg: Config) -> None:
     """Range checks that do not need the map (those live with the map and the planner)."""
 
@@ -343,7 +374,7 @@ def _validate(cfg: Config) -> None:
     s = cfg.scenario
     kind = s.map.get("kind")
     need(kind in LOADERS, "scenario.map.kind", kind, f"must be one of {', '.join(LOADERS)}")
-    need(s.goal_radius > 0, "scenario.goal_radius", s.goal_radius, "must be > 0")
+    need(s.goal_radius is None or s.goal_radius > 0, "scenario.goal_radius", s.goal_radius, "must be > 0 (metres)")
     need(s.altitude > 0, "scenario.altitude", s.altitude, "must be > 0")
     need(s.robot_radius > 0, "scenario.robot_radius", s.robot_radius, "must be > 0 (metres)")
     i = cfg.interaction
@@ -372,12 +403,13 @@ def _validate(cfg: Config) -> None:
     need(sm.degree >= 2 * sm.derivative - 1, "smoothing.degree", sm.degree,
          f"must be >= 2 * smoothing.derivative - 1 = {2 * sm.derivative - 1}")
     need(1 <= sm.derivative <= 6, "smoothing.derivative", sm.derivative, "must be in 1..6")
-    need(sm.speed > 0, "smoothing.speed", sm.speed, "must be > 0")
+    need(sm.speed is None or sm.speed > 0, "smoothing.speed", sm.speed, "must be > 0 (or left out: from the limits)")
     need(sm.region_growth >= 0, "smoothing.region_growth", sm.region_growth, "must be >= 0")
     need(sm.horizon >= 1, "smoothing.horizon", sm.horizon, "must be >= 1")
     need(0 < sm.execution <= 1, "smoothing.execution", sm.execution, "must be in (0, 1]")
     need(sm.seam in SEAM_MODES, "smoothing.seam", sm.seam, f"must be one of {', '.join(SEAM_MODES)}")
     need(sm.time_weight > 0, "smoothing.time_weight", sm.time_weight, "must be > 0")
+    check_nlp(sm.nlp)
     need(sm.check_rate_hz == 0 or sm.check_rate_hz >= 100, "smoothing.check_rate_hz", sm.check_rate_hz,
          "must be 0 (off) or >= 100")
     need(sm.max_pieces >= 0, "smoothing.max_pieces", sm.max_pieces, "must be >= 0 (0: one piece per step)")

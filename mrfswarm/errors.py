@@ -29,6 +29,11 @@ class UnsafeTrajectoryError(MrfswarmError, RuntimeError):
     """A trajectory failed the continuous safety check and could not be repaired."""
 
 
+class ExportError(MrfswarmError, ValueError):
+    """A plan that cannot be written in a client's format (a Crazyflie's memory), or an output folder
+    that must not be written into; the message says which value and why."""
+
+
 class DeprecatedKeyWarning(FutureWarning):
     """A config key under the name it had in an earlier version: it still loads, as its new name.
 
@@ -53,6 +58,7 @@ class PlanError(MrfswarmError):
 __all__ = [
     "ConfigError",
     "DeprecatedKeyWarning",
+    "ExportError",
     "InfeasibleError",
     "InvalidProblem",
     "MrfswarmError",

@@ -1,13 +1,21 @@
-"""Writing a run's outputs: ``result.json``, ``discrete_paths.csv``, figures.
+"""Writing a run's outputs: ``result.json``, ``discrete_paths.csv``, trajectories, figures, the Crazyflie files.
 
-Every file is written to a temporary name and renamed, so a run that fails half-way
-never leaves a truncated file; what was computed before the failure is still written.
+A run's folder is never mixed with another run's nor left half-written
+(:func:`write_outputs`): the outputs are written into a fresh hidden folder beside it,
+``result.json`` last (with ``"complete": true``), and that folder is renamed into place at
+the end. So an interrupted run leaves the folder as it was (a killed one may leave the
+hidden ``.NAME.partial-*`` folder beside it), and a folder with a ``result.json`` is a
+whole run. A folder that already holds files is refused, unless ``overwrite`` and it is a
+run's folder (it holds a ``result.json``): then it is replaced as a whole, the old one
+moved aside and deleted only once the new one is in place. Every single file is also
+written to a temporary name and renamed (:func:`atomic_write`).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Callable
 from functools import partial
@@ -16,7 +24,11 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm import plots
+from mrfswarm.errors import ExportError
 from mrfswarm.pipeline import Result
+
+RUN_MARKER = "result.json"
+"""The file that makes a folder a run's folder (written last)."""
 
 
 def atomic_write(path: Path, write: Callable[[Path], object]) -> Path:
@@ -56,12 +68,68 @@ def write_discrete_csv(path: Path, paths_world: np.ndarray) -> Path:
     return atomic_write(path, write)
 
 
-def write_outputs(result: Result, out: Path, animate: bool = False) -> list[Path]:
-    """Everything a run computed: discrete outputs, trajectories, continuous figures, GIF."""
-    written = write_discrete_outputs(result, out)
-    if result.continuous is not None:
-        written += write_continuous_outputs(result, Path(out), animate)
-    return written
+def check_output_dir(out: Path, overwrite: bool = False) -> None:
+    """Refuse an output folder that holds files, unless ``overwrite`` and it is a run's folder.
+
+    Raises
+    ------
+    ExportError
+        ``out`` is not empty and ``overwrite`` is false; or ``out`` holds files but no
+        ``result.json`` (not a run's folder: ``overwrite`` never deletes that).
+    """
+    out = Path(out)
+    if not out.is_dir():
+        return
+    names = sorted(p.name + "/" * p.is_dir() for p in out.iterdir())
+    if not names:
+        return
+    listed = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
+    if not (out / RUN_MARKER).is_file():
+        raise ExportError(f"output folder {str(out)!r} holds files that are not an mrfswarm run's ({listed}: no "
+                          f"{RUN_MARKER}); choose another --out")
+    if not overwrite:
+        raise ExportError(f"output folder {str(out)!r} already holds a run ({listed}); give --overwrite to replace "
+                          f"it, or another --out")
+
+
+def write_outputs(result: Result, out: Path, animate: bool = False, overwrite: bool = False) -> list[Path]:
+    """Everything a run computed, into ``out`` as a whole (module docstring): discrete outputs,
+    trajectories, continuous figures, GIF, the Crazyflie files, and ``result.json`` last.
+
+    Raises
+    ------
+    ExportError
+        ``out`` holds files (see :func:`check_output_dir`).
+    """
+    out = Path(out)
+    check_output_dir(out, overwrite)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.partial-"))
+    try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(stage, 0o777 & ~umask)  # as a folder made by mkdir would be
+        written = write_discrete_outputs(result, stage)
+        if result.continuous is not None:
+            written += write_continuous_outputs(result, stage, animate)
+        written.append(write_json(stage / RUN_MARKER, {**result.summary(), "complete": True}))
+        check_output_dir(out, overwrite)  # nobody wrote into it meanwhile
+        _swap(stage, out)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    return [out / p.relative_to(stage) for p in written]
+
+
+def _swap(stage: Path, out: Path) -> None:
+    """Put ``stage`` in the place of ``out`` (renames; the old ``out`` is deleted once the new one is there)."""
+    if not out.exists():
+        os.rename(stage, out)
+        return
+    old = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.old-"))
+    os.rename(out, old / out.name)
+    os.rename(stage, out)
+    shutil.rmtree(old, ignore_errors=True)
 
 
 def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -> list[Path]:
@@ -74,6 +142,7 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
     for i, tr in enumerate(c.trajectories):
         written.append(atomic_write(out / "trajectories" / f"robot_{i}.csv",
                                     partial(write_uav_csv, tr, altitude=cfg.scenario.altitude)))
+    written += write_crazyflie_outputs(result, out)
     figs = out / "figures"
     grid = result.scenario.grid
     goal = result.scenario.goal_world
@@ -114,13 +183,29 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
     return written
 
 
+def write_crazyflie_outputs(result: Result, out: Path) -> list[Path]:
+    """crazyswarm2/ (crazyflies.yaml, fly.py), crazyflie/ (cflib_upload.py and, when the flight fits the
+    compressed format, compressed.json: the rounded pieces whose decoding ``result.json`` certifies)."""
+    from mrfswarm.export.crazyswarm2 import starts_of, write_crazyswarm2
+
+    c = result.smoothed()
+    written = write_crazyswarm2(starts_of(c.trajectories), out)
+    _, comp = result._crazyflie_export()
+    if comp is not None:
+        written.append(write_json(out / "crazyflie" / "compressed.json", {
+            "origin_m": [float(v) for v in comp.origin], "z_mm": comp.z_mm,
+            "position_error_bound_m": comp.position_error_bound,
+            "knots_ms": [k.tolist() for k in comp.knots_ms], "points_mm": [p.tolist() for p in comp.points_mm]}))
+    return written
+
+
 def write_discrete_outputs(result: Result, out: Path) -> list[Path]:
-    """result.json, discrete_paths.csv and the discrete figures into ``out``."""
+    """discrete_paths.csv and the discrete figures into ``out`` (``result.json`` is :func:`write_outputs`'s, last)."""
     out = Path(out)
     figs = out / "figures"
     figs.mkdir(parents=True, exist_ok=True)
     world = result.discrete_paths_world()
-    written = [write_json(out / "result.json", result.summary()), write_discrete_csv(out / "discrete_paths.csv", world)]
+    written = [write_discrete_csv(out / "discrete_paths.csv", world)]
     grid = result.scenario.grid
     goal = result.scenario.goal_world
     n = world.shape[1]

@@ -13,8 +13,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+import solvers.nlp
 import solvers.qp
-from mrfswarm.config import Config, load_config
+from mrfswarm.config import Config, check_nlp, load_config
 from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, plan_discrete
 from mrfswarm.discrete.pruning import prune_paths
 from mrfswarm.discrete.robot_outcomes import RobotOutcome, robot_outcomes
@@ -70,6 +71,7 @@ class Result:
     flight: SwarmFlight | None = None
     timings_s: dict[str, float] = field(default_factory=dict)
     failure: str | None = None
+    _crazyflie: tuple | None = field(default=None, init=False, repr=False, compare=False)
 
     def smoothed(self) -> ContinuousPlan:
         """The continuous plan of a run that has one.
@@ -103,6 +105,12 @@ class Result:
     def qp(self) -> str | None:
         return self.config.smoothing.backend if self.config.smoothing.enabled else None
 
+    @property
+    def nlp(self) -> str | None:
+        """The time refinement's NLP backend, None when no refinement ran."""
+        sm = self.config.smoothing
+        return sm.nlp if sm.enabled and sm.time_refinement else None
+
     def robots(self) -> list[RobotOutcome]:
         """Where each robot ended and, if short of the goal region, why (:mod:`mrfswarm.discrete.robot_outcomes`)."""
         scn = self.scenario
@@ -110,6 +118,20 @@ class Result:
         return robot_outcomes(self.discrete.paths[-1], scn.grid.free, scn.static, self.config.mrf.order,
                               scn.grid.resolution, SEPARATION_FACTOR * scn.morse.d_min, self.discrete.stop_reason,
                               None if d is None else d.path, scn.goal_region_radius)
+
+    def crazyflie_memory(self) -> dict | None:
+        """The ``crazyflie`` section of ``result.json`` (:func:`mrfswarm.export.crazyflie_memory.memory_report`),
+        computed once: each robot's pieces and bytes in a Crazyflie's memory, raw and compressed, and the
+        compressed flight's certificate. None without a continuous plan."""
+        return self._crazyflie_export()[0]
+
+    def _crazyflie_export(self) -> tuple:
+        """(the ``crazyflie`` section, the :class:`~mrfswarm.export.cflib_.Compressed` flight or None), cached."""
+        if self._crazyflie is None:
+            from mrfswarm.export.crazyflie_memory import memory_report
+
+            self._crazyflie = memory_report(self)
+        return self._crazyflie
 
     def discrete_paths_world(self) -> np.ndarray:
         """(T + 1, N, 2) discrete paths in metres."""
@@ -157,6 +179,7 @@ class Result:
             "makespan_s": None if c is None else c.makespan_s,
             "mrf": self.mrf,
             "qp": self.qp,
+            "nlp": self.nlp,
             "mrf_order": self.config.mrf.order,
             "k": self.config.interaction.k,
             "pruned_waypoints": [int(len(p)) for p in self.pruned],
@@ -213,6 +236,7 @@ class Result:
             "guaranteed_separation_m": None if f.tracking_bound is None
             else 2 * self.config.scenario.robot_radius - 2 * f.tracking_bound,
         }
+        out["crazyflie"] = self.crazyflie_memory()
         out["config"] = self.config.to_dict()
         return out
 
@@ -221,25 +245,32 @@ def _num(v: float | None) -> float | None:
     return None if v is None or not np.isfinite(v) else float(v)
 
 
-def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: str | None = None) -> Config:
-    """A config object from a config or a path, with ``--mrf``/``--qp`` applied and checked.
+def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: str | None = None,
+                   nlp: str | None = None) -> Config:
+    """A config object from a config or a path, with ``--mrf``/``--qp``/``--nlp`` applied and checked.
 
-    ``mrf`` and ``qp`` are shorthands: ``mrf=NAME`` sets ``mrf.method`` and ``qp=NAME``
-    sets ``smoothing.backend``, over what the config gives.
+    ``mrf``, ``qp`` and ``nlp`` are shorthands: ``mrf=NAME`` sets ``mrf.method``,
+    ``qp=NAME`` sets ``smoothing.backend`` and ``nlp=NAME`` ``smoothing.nlp``, over what
+    the config gives.
 
     Raises
     ------
     SolverNotFound
-        An unknown or missing MRF method or QP backend.
+        An unknown or missing MRF method or QP backend, or an NLP backend that the time
+        refinement would use and that is not installed.
     ConfigError
         A QP backend that cannot solve the continuous stage's problems (its capabilities
-        lack inequality rows: regions, corridors and limits are inequalities).
+        lack inequality rows: regions, corridors and limits are inequalities), or an
+        ``nlp`` that names no NLP backend.
     """
     cfg = config if isinstance(config, Config) else load_config(config)
     if mrf is not None:
         cfg = cfg.replace(mrf=dataclasses.replace(cfg.mrf, method=mrf))
     if qp is not None:
         cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, backend=qp))
+    if nlp is not None:
+        check_nlp(nlp)  # the config's own check of the key
+        cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, nlp=nlp))
     mrf_solvers.METHODS.get(cfg.mrf.method)  # fail now, not after the map is loaded
     if cfg.smoothing.enabled:
         record = solvers.qp.BACKENDS.get(cfg.smoothing.backend)  # an unknown or missing QP backend fails now too
@@ -248,6 +279,8 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
             raise ConfigError(f"smoothing.backend = {record.name!r} solves equality-constrained problems only; the "
                               f"continuous stage's regions, corridors and limits are inequalities (installed "
                               f"backends that take them: {able})")
+        if cfg.smoothing.time_refinement:
+            solvers.nlp.BACKENDS.get(cfg.smoothing.nlp)  # a registered NLP backend that is not installed
         if cfg.simulation.enabled:
             from mrfswarm.simulation import check_available
 
@@ -268,20 +301,21 @@ def qp_options(cfg: Config) -> solvers.qp.Options:
     return dataclasses.replace(QP_OPTIONS, **cfg.smoothing.qp_options)
 
 
-def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None = None, seed: int | None = None,
-         progress: bool | None = None, workers: int | None = None) -> Result:
+def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None = None, nlp: str | None = None,
+         seed: int | None = None, progress: bool | None = None, workers: int | None = None) -> Result:
     """Plan a scenario: the discrete stage, waypoint pruning, metrics.
 
     Parameters
     ----------
     config
         A :class:`Config` or a path to a TOML config.
-    mrf, qp
+    mrf, qp, nlp
         Shorthands for the config keys ``mrf.method`` (the MRF method, a name of
-        ``solvers.mrf.METHODS``) and ``smoothing.backend`` (the QP backend, a name of
-        ``solvers.qp.BACKENDS``): given, they replace the config's value, as ``--mrf
-        NAME`` and ``--qp NAME`` stand for ``--set mrf.method=NAME`` and ``--set
-        smoothing.backend=NAME``.
+        ``solvers.mrf.METHODS``), ``smoothing.backend`` (the QP backend, a name of
+        ``solvers.qp.BACKENDS``) and ``smoothing.nlp`` (the time refinement's NLP
+        backend, a name of ``solvers.nlp.BACKENDS``): given, they replace the config's
+        value, as ``--mrf NAME``, ``--qp NAME`` and ``--nlp NAME`` stand for ``--set
+        mrf.method=NAME``, ``--set smoothing.backend=NAME`` and ``--set smoothing.nlp=NAME``.
     seed
         Overrides the start sampling seed and the MRF method's (``mrf.options.seed``), an
         integer >= 0.
@@ -296,7 +330,8 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     ConfigError
         A bad config or seed (the message names it).
     SolverNotFound
-        An unknown or missing MRF method or QP backend.
+        An unknown or missing MRF method or QP backend, or a missing NLP backend with
+        ``smoothing.time_refinement``.
     ScenarioError
         A scenario that cannot be planned (before the discrete stage).
     PlanError
@@ -305,7 +340,7 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     """
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0):
         raise ConfigError(f"seed = {seed!r}: must be an integer >= 0")
-    cfg = resolve_config(config, mrf=mrf, qp=qp)
+    cfg = resolve_config(config, mrf=mrf, qp=qp, nlp=nlp)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     scn = build_scenario(cfg, seed)
@@ -318,10 +353,11 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         t0 = time.perf_counter()
         plan_d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.method, max_steps=cfg.mrf.max_steps,
                                tol=cfg.mrf.tol, patience=cfg.mrf.patience, options=options,
-                               on_step=lambda t, out: bar.update(1), progress=cfg.mrf.progress)
+                               on_step=lambda t, out: bar.update(1), progress=cfg.mrf.progress,
+                               arrival=cfg.mrf.arrival)
         timings["discrete"] = time.perf_counter() - t0
     metrics = discrete_metrics(plan_d.paths, scn.grid.occupied, scn.grid.resolution, scn.goal,
-                               cfg.scenario.goal_radius)
+                               scn.goal_radius)
     result = Result(config=cfg, scenario=scn, discrete=plan_d, metrics=metrics, pruned=[], timings_s=timings)
     try:
         if plan_d.n_steps == 0 and metrics.reached_goal is False:

@@ -16,6 +16,20 @@ from mrfswarm.discrete.start import start_cells
 from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.maps import OccupancyGrid, load_map
 
+#: ``scenario.goal_radius`` when the config leaves it unset, in cells: 3 m at the paper's 1 m cells.
+DEFAULT_GOAL_RADIUS_CELLS = 3.0
+
+
+def goal_radius_m(cfg: Config, resolution: float) -> float:
+    """``scenario.goal_radius`` (metres), or :data:`DEFAULT_GOAL_RADIUS_CELLS` cells of ``resolution`` m when unset.
+
+    A swarm's size at its goal is set by the potentials, which are in cells
+    (:mod:`mrfswarm.discrete.potentials`), so the default radius is too: 3 m would be
+    most of a 6 x 4 m arena drawn in 0.25 m cells.
+    """
+    r = cfg.scenario.goal_radius
+    return DEFAULT_GOAL_RADIUS_CELLS * resolution if r is None else r
+
 
 @dataclass(frozen=True)
 class Scenario:
@@ -32,9 +46,11 @@ class Scenario:
     static
         rho_S over the grid, (W, H).
     morse
-        The interaction potential.
+        The interaction potential, in metres (the config's lengths are in cells).
     config
         The config it was built from.
+    goal_radius
+        ``scenario.goal_radius`` in metres (:func:`goal_radius_m`: 3 cells when unset).
     distances
         Distances from every cell to the goal over free paths (None without a goal).
     goal_region_radius
@@ -48,6 +64,7 @@ class Scenario:
     static: np.ndarray
     morse: Morse
     config: Config
+    goal_radius: float
     distances: GoalDistance | None = None
     goal_region_radius: float | None = None
 
@@ -73,6 +90,7 @@ class Scenario:
             order=c.mrf.order,
             trim_backward=c.mrf.trim_backward,
             contested=c.mrf.contested,
+            follow=c.mrf.follow,
             goal_distance=self.distances.field if self.distances is not None and c.goal_potential.distance == "geodesic"
             else None,
             goal_path=None if self.distances is None else self.distances.path,
@@ -89,8 +107,8 @@ def build_scenario(cfg: Config, seed: int | None = None) -> Scenario:
         Bad parameters, a robot or the goal off the map or in an obstacle, two robots in
         one cell, k out of range.
     """
-    morse = Morse.from_config(cfg.interaction)
     grid = load_map(cfg.scenario.map, cfg.base_dir)
+    morse = Morse.from_config(cfg.interaction, grid.resolution)  # k_a, k_r in cells (potentials module)
     if cfg.smoothing.enabled and not cfg.scenario.robot_radius < 0.5 * grid.resolution:
         # the discrete stage keeps robots one cell apart and half a cell off walls: a robot as
         # wide as a cell leaves the continuous stage no room
@@ -115,9 +133,10 @@ def build_scenario(cfg: Config, seed: int | None = None) -> Scenario:
             _check_reachable(grid, start, goal, distances)
     static = static_field(grid.prob, goal, grid.resolution, cfg.goal_potential, cfg.obstacle_potential,
                           cfg.mrf.order, distances)
-    region = None if distances is None else goal_region_radius(distances.path, len(start), cfg.scenario.goal_radius)
-    return Scenario(grid=grid, start=start, goal=goal, static=static, morse=morse, config=cfg, distances=distances,
-                    goal_region_radius=region)
+    goal_radius = goal_radius_m(cfg, grid.resolution)
+    region = None if distances is None else goal_region_radius(distances.path, len(start), goal_radius)
+    return Scenario(grid=grid, start=start, goal=goal, static=static, morse=morse, config=cfg, goal_radius=goal_radius,
+                    distances=distances, goal_region_radius=region)
 
 
 def _check_reachable(grid: OccupancyGrid, start: np.ndarray, goal: np.ndarray, distances: GoalDistance) -> None:

@@ -275,7 +275,7 @@ def _run_point(task: _Task) -> dict:
         if task.figures:
             from mrfswarm.outputs import write_outputs
 
-            write_outputs(result, Path(task.point_dir))
+            write_outputs(result, Path(task.point_dir), overwrite=True)  # the sweep's own point folder
     return {"summary": summary, "error": error, "wall_s": wall, "config": task.config.to_dict()}
 
 

@@ -84,8 +84,9 @@ def test_an_unknown_method_is_one_line_naming_it(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("flag, key, name", [("--mrf", "mrf.method", "exact"),
-                                             ("--qp", "smoothing.backend", "osqp")])
-def test_mrf_and_qp_flags_are_shorthands_for_set(flag, key, name):
+                                             ("--qp", "smoothing.backend", "osqp"),
+                                             ("--nlp", "smoothing.nlp", "slsqp")])
+def test_mrf_qp_and_nlp_flags_are_shorthands_for_set(flag, key, name):
     by_flag = resolve_config(load_config(EXPERIMENTS / "free5.toml"), **{flag.strip("-"): name})
     by_set = resolve_config(load_config(EXPERIMENTS / "free5.toml", [f"{key}={name}"]))
     assert by_flag == by_set and by_flag != load_config(EXPERIMENTS / "free5.toml")
@@ -181,3 +182,18 @@ def test_bad_solver_options_are_one_line_naming_the_key(tmp_path, capsys, overri
     rc = main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(tmp_path / "o"), "--set", override])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and err[0].startswith(f"mrfswarm: error: {message}"), err
+
+
+def test_the_nlp_key_is_checked_against_the_registry(tmp_path):
+    """``smoothing.nlp`` names a backend of ``solvers.nlp.BACKENDS``: one line naming the value and
+    every registered name, from a file, from ``plan(nlp=)``, and the default is registered."""
+    import solvers.nlp
+
+    allowed = ", ".join(solvers.nlp.BACKENDS.names())
+    with pytest.raises(ConfigError, match=rf"^smoothing\.nlp = 'newton': must be one of {allowed}$"):
+        load_config(write(tmp_path, '[smoothing]\nnlp = "newton"\n'))
+    with pytest.raises(ConfigError, match=r"^smoothing\.nlp = 'newton': must be one of ipopt"):
+        plan(EXPERIMENTS / "free5.toml", nlp="newton")
+    assert load_config().smoothing.nlp == solvers.nlp.DEFAULT_BACKEND == "ipopt"
+    for name in solvers.nlp.BACKENDS.names():
+        assert load_config(write(tmp_path, f'[smoothing]\nnlp = "{name}"\n')).smoothing.nlp == name

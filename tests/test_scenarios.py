@@ -16,7 +16,7 @@ DISCRETE = ["smoothing.enabled=false"]
 def test_swarm_reaches_the_goal_region(name):
     r = plan(mrfswarm.load_config(EXPERIMENTS / f"{name}.toml", DISCRETE))
     assert r.discrete.converged and r.metrics.reached_goal
-    assert r.metrics.final_goal_distance <= r.config.scenario.goal_radius
+    assert r.metrics.final_goal_distance <= r.scenario.goal_radius
     assert r.metrics.min_separation >= 1.0 - 1e-9
     assert r.metrics.min_obstacle_clearance >= 0.5 - 1e-9
     assert discrete_violations(r.discrete.paths, r.scenario.grid.free) == []

@@ -19,6 +19,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--qp", default=None, metavar="NAME",
                    help="QP backend of the continuous stage: shorthand for --set smoothing.backend=NAME "
                         "(names: `mrfswarm solvers`)")
+    p.add_argument("--nlp", default=None, metavar="NAME",
+                   help="NLP backend of the time refinement: shorthand for --set smoothing.nlp=NAME "
+                        "(names: `mrfswarm solvers`)")
     p.add_argument("--seed", type=_args.seed, default=None,
                    help="seed (integer >= 0) of the start sampling and the MRF method")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -27,6 +30,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="processes for the continuous stage's chunks of robots and the simulation "
                         "(default: the machine's cores; plans do not depend on it)")
     p.add_argument("--animate", action="store_true", help="also write an animation (GIF) of the swarm")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the run already in --out as a whole (a folder without result.json is never replaced)")
     p.set_defaults(func=run)
 
 
@@ -42,7 +47,7 @@ def _positive_int(text: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     from mrfswarm.errors import PlanError
-    from mrfswarm.outputs import write_outputs
+    from mrfswarm.outputs import check_output_dir, write_outputs
     from mrfswarm.pipeline import plan
 
     cfg = load_config(args.config, args.overrides)
@@ -52,12 +57,13 @@ def run(args: argparse.Namespace) -> int:
             out = _args.output_dir(str(Path("out") / args.config.stem))
         except argparse.ArgumentTypeError as e:
             raise ConfigError(f"default output folder {e}; give --out") from None
+    check_output_dir(out, args.overwrite)  # before planning, not after
     try:
-        result = plan(cfg, mrf=args.mrf, qp=args.qp, seed=args.seed, workers=args.workers)
+        result = plan(cfg, mrf=args.mrf, qp=args.qp, nlp=args.nlp, seed=args.seed, workers=args.workers)
     except PlanError as e:  # keep what was computed before the failure
-        write_outputs(e.result, out)
+        write_outputs(e.result, out, overwrite=args.overwrite)
         raise PlanError(f"{e} (what was computed is in {out})", e.result) from e
-    write_outputs(result, out, animate=args.animate)
+    write_outputs(result, out, animate=args.animate, overwrite=args.overwrite)
     s = result.summary()
     goal = "" if s["reached_goal"] is None else (
         f", reached goal: {s['reached_goal']}, robots at goal: {s['robots_at_goal']}/{s['n_robots']}")

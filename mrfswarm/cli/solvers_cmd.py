@@ -1,4 +1,4 @@
-"""``mrfswarm solvers``: every QP and MRF backend, installed or not, with the install hint."""
+"""``mrfswarm solvers``: every QP, NLP and MRF backend, installed or not, with the install hint."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from solvers.registry import Registry
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("solvers", help="list every QP and MRF backend and how to install it")
+    p = sub.add_parser("solvers", help="list every QP, NLP and MRF backend and how to install it")
     p.set_defaults(func=run)
 
 
@@ -18,7 +18,8 @@ def table() -> str:
     """The listing, one row per backend of each registry: state, summary and capabilities."""
     lines = []
     registries: tuple[tuple[str, Registry[Any]], ...] = (
-        ("QP backends (--qp)", solvers.qp.BACKENDS), ("MRF methods (--mrf)", solvers.mrf.METHODS))
+        ("QP backends (--qp)", solvers.qp.BACKENDS), ("NLP backends (--nlp)", solvers.nlp.BACKENDS),
+        ("MRF methods (--mrf)", solvers.mrf.METHODS))
     for title, registry in registries:
         lines.append(title)
         width = max(len(b.name) for b in registry)

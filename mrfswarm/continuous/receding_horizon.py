@@ -37,10 +37,12 @@ limits: exact, on control points); the regions' clearance from obstacles is chec
 Dense sampling (``smoothing.check_rate_hz``) is an optional independent check.
 
 Time refinement (``smoothing.time_refinement``): after a window is accepted, its step
-durations become the variables of an NLP solved by Ipopt from the QP's: the window
-problem's optimal snap at those durations plus ``time_weight`` x duration, with the exact
-gradient from the QP's multipliers (envelope theorem) and the symbolic pieces' derivative
-in their durations. The refined solution is accepted if it certifies and lowers that cost.
+durations become the variables of an NLP (:class:`TimeAllocation`) solved from the QP's
+by the backend ``smoothing.nlp`` of :data:`solvers.nlp.BACKENDS` (Ipopt by default): the
+window problem's optimal snap at those durations plus ``time_weight`` x duration, with
+the exact gradient from the QP's multipliers (envelope theorem) and the symbolic pieces'
+derivative in their durations. The refined solution is accepted if it certifies and
+lowers that cost.
 """
 
 from __future__ import annotations
@@ -55,6 +57,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import solvers.nlp
 import solvers.qp
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous.certificate import Certificate, certify, certify_pieces
@@ -84,7 +87,7 @@ from mrfswarm.continuous.regions import (
     separations,
 )
 from mrfswarm.continuous.sampled_check import SampledCheck, check_positions, uniform_times
-from mrfswarm.continuous.time_grid import nominal_durations, witness_durations
+from mrfswarm.continuous.time_grid import SwarmProfile, motion_profile, nominal_durations, witness_durations
 from mrfswarm.errors import UnsafeTrajectoryError
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.maps.obstacles import ObstacleIndex
@@ -93,8 +96,9 @@ from mrfswarm.trajectory.bernstein import control_point_matrix
 from mrfswarm.trajectory.piece_stack import map_coefficients
 from mrfswarm.trajectory.retiming import max_derivative_norm_all
 from solvers.errors import SolverError
+from solvers.nlp import NLPProblem
+from solvers.nlp import Options as NLPOptions
 from solvers.qp import Options as QPOptions
-from solvers.qp.ipopt_ import minimize_bounded
 
 log = logging.getLogger(__name__)
 
@@ -104,11 +108,33 @@ MARGIN = 1e-6
 #: per block (merge_pieces.project_blocks) moves control points by the solver's tolerance on the merge
 #: rows, amplified by the block (up to 2.4e-6 m measured on a slow 8-step window), which MARGIN did not cover.
 MERGED_MARGIN = 1e-5
-#: The nominal time grid speeds up and slows down at this fraction of a_max.
+#: With a cruise ``speed`` given, the nominal time grid speeds up and slows down at this fraction of a_max.
 NOMINAL_ACCELERATION = 0.25
-#: Ipopt's settings for time refinement: each iteration solves the window's QP a few times; on
-#: corridor.toml 12 iterations keep nearly all of 25's gain (makespan 21.4 s against 21.3) at a fifth of the QPs.
-NLP_OPTIONS = QPOptions(eps_abs=1e-4, eps_rel=1e-4, max_iter=12)
+#: Without one (the default), each robot's speed profile cruises at this fraction of v_max (the rest is the
+#: room the smooth trajectory needs around the profile's corners: min-snap overshoots a trapezoid's speed) and
+#: accelerates at this fraction of what the limits allow over a speed change (see motion_acceleration). A
+#: window tries the bold profile first, then the cautious one, then slows down. Measured on the maps of
+#: experiments/bench/flight_quality.py: the bold one alone is accepted in most windows of open maps (open field
+#: of 50: makespan 1.57 x the bound against 2.00), the cautious one alone in every window of every map.
+CRUISE = 0.95
+ACCELERATION = 2.0
+CAUTIOUS_CRUISE = 0.9
+CAUTIOUS_ACCELERATION = 1.0
+
+
+def motion_acceleration(v_max: float, a_max: float, j_max: float, fraction: float = ACCELERATION) -> float:
+    r"""The acceleration of the default speed profiles: a_max, or less where jerk limits it.
+
+    A jerk-limited change of speed by v_max takes at least :math:`2\sqrt{v_{max}/j_{max}}`
+    (an S-curve with no constant-acceleration phase), an average acceleration of
+    :math:`\sqrt{v_{max} j_{max}}/2`; the profiles use :data:`ACCELERATION` of the smaller of that and a_max.
+    """
+    return fraction * min(a_max, 0.5 * math.sqrt(v_max * j_max))
+
+
+#: The time refinement's NLP settings: each iteration solves the window's QP a few times; on
+#: corridor.toml 12 Ipopt iterations keep nearly all of 25's gain (makespan 21.4 s against 21.3) at a fifth of the QPs.
+NLP_OPTIONS = NLPOptions(tol=1e-4, max_iter=12)
 #: Options of the window QPs unless the caller gives others (the config's [smoothing.qp_options] go over
 #: these). No equilibration: the formulation scales its variables already (time normalized per window),
 #: and Ruiz scaling made piqp declare feasible windows infeasible (14 of 220 sampled QPs of a
@@ -122,8 +148,10 @@ CHUNK_ROBOTS = 64
 PARALLEL_ROBOTS = CHUNK_ROBOTS + 1
 #: Rounds of lazy constraint generation before every row is switched on.
 MAX_ROUNDS = 12
-#: Limits that need steps this many times slower than nominal are refused as unreachable.
+#: Limits that need steps this many times longer than at REFERENCE_SPEED are refused as unreachable.
 MAX_SLOWDOWN = 1e3
+#: m/s; see MAX_SLOWDOWN.
+REFERENCE_SPEED = 1.0
 #: Factor by which new steps are slowed per attempt after the nominal ones fail.
 SLOWDOWN = 1.5
 
@@ -253,6 +281,32 @@ class _Solution:
     cps: list[np.ndarray] | None = None  # [P, V, A, J] control points, as _control_points gives them
 
 
+@dataclass
+class TimeAllocation:
+    """The time refinement's NLP of one window (:meth:`RecedingHorizon.time_allocation`).
+
+    Attributes
+    ----------
+    problem
+        f(T) = J*(T) + weight sum(T) over the window's step durations T, with bounds.
+    base
+        The lazy rows (corridors, limits) active when it was built.
+    weight
+        ``time_weight`` x robots.
+    solved
+        Every evaluated point (``T.tobytes()``) and the window's solution there (None:
+        the QP had none).
+    rows
+        The lazy rows each evaluated point needed.
+    """
+
+    problem: NLPProblem
+    base: tuple[np.ndarray, np.ndarray]
+    weight: float
+    solved: dict[bytes, _Solution | None] = field(default_factory=dict)
+    rows: dict[bytes, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+
+
 class RecedingHorizon:
     """Smooths discrete paths window by window on one common time grid.
 
@@ -278,7 +332,8 @@ class RecedingHorizon:
     Raises
     ------
     SolverNotFound
-        An unknown or missing QP backend.
+        An unknown or missing QP backend, or with ``cfg.time_refinement`` NLP backend
+        (``cfg.nlp``).
     UnsafeTrajectoryError
         A region closer than the robot radius to an obstacle (the discrete plan breaks its
         motion rule).
@@ -291,6 +346,8 @@ class RecedingHorizon:
         self.grid, self.cfg = grid, cfg
         self.backend = backend or cfg.backend
         solvers.qp.BACKENDS.get(self.backend)  # an unknown or missing backend fails now
+        if cfg.time_refinement:
+            solvers.nlp.BACKENDS.get(cfg.nlp)  # and so does the refinement's NLP backend
         self.qp_options = qp_options or QP_OPTIONS
         self.T, self.N = len(self.paths) - 1, self.paths.shape[1]
         self.E = max(1, round(cfg.execution * cfg.horizon))
@@ -306,15 +363,27 @@ class RecedingHorizon:
             raise UnsafeTrajectoryError(f"robot {i}'s safe region in step {j} comes {clearance[j, i]:.3f} m from "
                                         f"an obstacle (radius {self.radius:g} m): the discrete move is unsafe")
         self.seps = separations(self.X, self.regions, self.distance)
-        self.nominal = nominal_durations(self.paths, grid.resolution, cfg.speed, NOMINAL_ACCELERATION * cfg.a_max)
+        self.profiles: list[SwarmProfile] = []  # bold, then cautious
+        if cfg.speed is None and self.T:
+            self.profiles = [motion_profile(self.paths, grid.resolution, cruise * cfg.v_max,
+                                            motion_acceleration(cfg.v_max, cfg.a_max, cfg.j_max, acc))
+                             for cruise, acc in ((CRUISE, ACCELERATION), (CAUTIOUS_CRUISE, CAUTIOUS_ACCELERATION))]
+            self.nominal = self.profiles[0].durations
+        elif cfg.speed is None:
+            self.nominal = np.zeros(0)
+        else:
+            self.nominal = nominal_durations(self.paths, grid.resolution, cfg.speed, NOMINAL_ACCELERATION * cfg.a_max)
         self.witness = np.maximum(self.nominal, witness_durations(
             self.paths, grid.resolution, self.limits, cfg.degree, cfg.derivative, MARGIN))
-        slow = self.witness / np.maximum(self.nominal, 1e-12)
+        # the reference: each step's longest move (at least a cell) at REFERENCE_SPEED, whatever the limits
+        moves = np.linalg.norm(np.diff(self.X, axis=0), axis=-1)
+        reference = np.maximum(moves.max(axis=1, initial=0.0), grid.resolution) / REFERENCE_SPEED
+        slow = self.witness / np.maximum(reference, 1e-12)
         if self.T and slow.max() > MAX_SLOWDOWN:
             raise UnsafeTrajectoryError(
                 f"no timing meets v_max = {cfg.v_max:g} m/s, a_max = {cfg.a_max:g} m/s^2 and j_max = {cfg.j_max:g} m/s^3 "
-                f"within {MAX_SLOWDOWN:g} times the nominal step durations (step {int(np.argmax(slow))} would need "
-                f"{self.witness.max():.3g} s)")
+                f"within {MAX_SLOWDOWN:g} times the step durations at {REFERENCE_SPEED:g} m/s (step "
+                f"{int(np.argmax(slow))} would need {self.witness.max():.3g} s)")
         # rows switched on by lazy constraint generation (grow over the run)
         self.active = np.zeros(len(self.seps), dtype=bool)
         self.limit_rows = np.zeros((self.T, self.N, 3), dtype=bool)
@@ -473,6 +542,10 @@ class RecedingHorizon:
         tic = time.perf_counter()
         nominal, slow = self.nominal[a:b], self.witness[a:b]
         attempts = [("nominal", nominal)]
+        if self.profiles:  # the window ends at rest at step b: its last steps brake to it
+            bold, cautious = (np.maximum(p.durations[a:b], p.window(a, b)) for p in self.profiles)
+            nominal = np.maximum(cautious, nominal)  # the slower attempts start from the cautious profile
+            attempts = [("nominal", bold), ("cautious", nominal)]
         overlap, base = 0, nominal
         if prev is not None:
             pa, pb, psol = prev
@@ -518,31 +591,37 @@ class RecedingHorizon:
         rec.solve_s = time.perf_counter() - tic
         return chosen, rec
 
-    def _refine(self, sol: _Solution, a: int, start: np.ndarray, rec: WindowRecord,
-                merged: np.ndarray | None = None) -> _Solution:
-        """The window's step durations as the variables of an NLP (Ipopt), from the QP's.
+    def time_allocation(self, sol: _Solution, a: int, start: np.ndarray, rec: WindowRecord,
+                        merged: np.ndarray | None = None) -> TimeAllocation:
+        """The window's step durations as the variables of an NLP, from the QP's (``sol``).
 
         The objective is the window problem's optimum at given durations plus
         ``time_weight`` x flight time (per robot): f(T) = J*(T) + w N sum(T). Evaluating it
         solves the window QP (lazy rows and all); its gradient is exact, by the envelope
         theorem, from the QP's multipliers and the symbolic pieces' derivative in T
         (:meth:`~mrfswarm.continuous.formulation.WindowFormulation.duration_gradient`).
-        Durations where the QP has no solution are not a number, so Ipopt shortens its
-        step. Every iterate is a solution of the window problem, so the result keeps the
-        next window's feasibility argument; it is kept if it certifies and lowers f.
+        Durations where the QP has no solution are not a number: Ipopt shortens its step
+        there, and :func:`solvers.nlp.minimize` makes the other backends do the same
+        (:mod:`solvers.nlp.evaluation`). Bounds: each step between a fifth of
+        its nominal duration (at least 1 ms) and twice its witness or nominal one, and
+        around ``sol``'s durations.
+
+        Every evaluation starts from the lazy rows active when this is called and leaves
+        ``self.active``/``self.limit_rows`` at the rows it needed; the caller puts back
+        the rows of the point it keeps (:attr:`TimeAllocation.rows`, :attr:`TimeAllocation.base`).
         """
         M = len(sol.durations)
         b = a + M
         w = self.cfg.time_weight * self.N
-        solved: dict[bytes, _Solution | None] = {}
-        # the lazy rows each evaluation needed: every evaluation starts from the accepted QP's
-        # rows, so a far trial point (where every limit binds) does not burden the rest
         base = (self.active.copy(), self.limit_rows.copy())
+        solved: dict[bytes, _Solution | None] = {}
         rows: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
         def at(T: np.ndarray) -> _Solution | None:
             key = np.asarray(T, dtype=float).tobytes()
             if key not in solved:
+                # every evaluation starts from the accepted QP's rows, so a far trial point
+                # (where every limit binds) does not burden the rest
                 self.active, self.limit_rows = base[0].copy(), base[1].copy()
                 solved[key] = self._solve(a, b, start, np.asarray(T, dtype=float), rec, gradient=True,
                                           merged=merged)[0]
@@ -559,20 +638,32 @@ class RecedingHorizon:
 
         lower = np.minimum(np.maximum(0.2 * self.nominal[a:b], 1e-3), sol.durations)
         upper = np.maximum(2 * np.maximum(self.witness[a:b], self.nominal[a:b]), sol.durations)
-        res = minimize_bounded(fun, grad, sol.durations, lower, upper, NLP_OPTIONS)
-        before = sol.cost + w * sol.durations.sum()
-        found = {k: s for k, s in solved.items() if s is not None}
-        tried = sorted((s.cost + w * s.durations.sum(), k) for k, s in found.items())
-        for value, key in tried:  # the best point Ipopt saw first
+        return TimeAllocation(NLPProblem(fun, grad, sol.durations, lower, upper), base, w, solved, rows)
+
+    def _refine(self, sol: _Solution, a: int, start: np.ndarray, rec: WindowRecord,
+                merged: np.ndarray | None = None) -> _Solution:
+        """The window's step durations refined by the NLP backend ``cfg.nlp`` (:meth:`time_allocation`).
+
+        Every iterate is a solution of the window problem, so the result keeps the next
+        window's feasibility argument; the best point the backend evaluated is kept if it
+        certifies and lowers f (the next best otherwise, and so on down to ``sol``).
+        """
+        alloc = self.time_allocation(sol, a, start, rec, merged)
+        res = solvers.nlp.minimize(alloc.problem, self.cfg.nlp, NLP_OPTIONS)
+        before = sol.cost + alloc.weight * sol.durations.sum()
+        found = {k: s for k, s in alloc.solved.items() if s is not None}
+        tried = sorted((s.cost + alloc.weight * s.durations.sum(), k) for k, s in found.items())
+        for value, key in tried:  # the best point the backend saw first
             if value >= before:
                 break
             best = found[key]
             if self._certify(best, a).ok:
                 rec.refined = True
-                self.active, self.limit_rows = rows[key]
+                self.active, self.limit_rows = alloc.rows[key]
                 return best
-        self.active, self.limit_rows = base
-        log.info("window %d..%d: time refinement kept the QP's durations (%s)", a, b, res.raw_status)
+        self.active, self.limit_rows = alloc.base
+        log.info("window %d..%d: time refinement (%s) kept the QP's durations (%s)", a, a + len(sol.durations),
+                 res.backend, res.raw_status)
         return sol
 
     # ------------------------------------------------------------------ run

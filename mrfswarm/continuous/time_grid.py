@@ -1,8 +1,10 @@
 """The common time grid: nominal step durations and the durations at which a rest-to-rest flight is feasible.
 
 Step j of the discrete plan is flown by every robot during :math:`[t_j, t_{j+1}]`. Its
-nominal duration is the step's longest move (at least one cell) over the cruise
-``speed``. The *witness* duration is long enough for every robot to fly its own discrete
+nominal duration comes from the robots' own motion and the limits (:func:`motion_durations`:
+each robot's speed profile along its moves, at most v_max, slowing for turns and waits;
+the step lasts what its slowest mover needs), or, with a cruise ``speed`` given, from
+the step's longest move (at least one cell) over that speed (:func:`nominal_durations`). The *witness* duration is long enough for every robot to fly its own discrete
 move rest to rest (the degree-(2q-1) smooth step, all knot derivatives zero) with every
 velocity, acceleration and jerk control point inside the limit octagons: that flight
 satisfies every constraint of the window problem, so a window whose new steps last at
@@ -11,6 +13,7 @@ least this long always has a feasible point.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -44,6 +47,129 @@ def nominal_durations(paths: np.ndarray, resolution: float, speed: float, accele
         return up + cruise + down
 
     return np.diff(time_at(s))
+
+
+def segment_times(length: np.ndarray, v0: np.ndarray, v1: np.ndarray, v_max: float | np.ndarray,
+                  a: float) -> np.ndarray:
+    r"""Shortest time to cover ``length`` from speed ``v0`` to ``v1`` with |acceleration| <= ``a``, speed <= ``v_max``.
+
+    The trapezoid: up to the peak :math:`v_p = \min(v_{max}, \sqrt{aL + (v_0^2 + v_1^2)/2})`,
+    cruise, down. ``v0``, ``v1`` must be reachable from each other within ``length``
+    (the passes of :func:`motion_durations` make them so).
+    """
+    L = np.asarray(length, dtype=float)
+    vp = np.minimum(v_max, np.sqrt(a * L + 0.5 * (v0 * v0 + v1 * v1)))
+    vp = np.maximum(vp, np.maximum(v0, v1))
+    d_up, d_down = (vp * vp - v0 * v0) / (2 * a), (vp * vp - v1 * v1) / (2 * a)
+    cruise = np.maximum(L - d_up - d_down, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = (vp - v0) / a + (vp - v1) / a + np.where(vp > 0, cruise / np.where(vp > 0, vp, 1.0), 0.0)
+    return np.where(L > 0, t, 0.0)
+
+
+@dataclass(frozen=True)
+class SwarmProfile:
+    """The speed profile of the swarm's progress over the steps (see :func:`motion_profile`).
+
+    Attributes
+    ----------
+    ell
+        (T,) the swarm's progress per step: its longest move, at least one cell (metres).
+    cap
+        (T,) the speed cap of each step: ``ell`` over the time its slowest mover needs.
+    need
+        (T,) the time each step's slowest mover needs on its own profile.
+    knots
+        (T + 1,) the profile's speed at every step, at rest at both ends.
+    acceleration
+        The profile's acceleration.
+    """
+
+    ell: np.ndarray
+    cap: np.ndarray
+    need: np.ndarray
+    knots: np.ndarray
+    acceleration: float
+
+    @property
+    def durations(self) -> np.ndarray:
+        """(T,) the whole flight's step durations."""
+        return self.window(0, len(self.ell), rest_at_end=True)
+
+    def window(self, a: int, b: int, rest_at_end: bool = True) -> np.ndarray:
+        """(b - a,) durations of steps a..b-1 for a window that starts at the profile's speed at step a and,
+        with ``rest_at_end``, brakes to rest at step b (a window of the receding horizon ends at rest)."""
+        u = self.knots[a:b + 1].copy()
+        if rest_at_end:
+            u[-1] = 0.0
+        _passes(u, self.ell[a:b], self.acceleration)
+        return np.maximum(self.need[a:b], segment_times(self.ell[a:b], u[:-1], u[1:], self.cap[a:b],
+                                                        self.acceleration))
+
+
+def _passes(u: np.ndarray, ell: np.ndarray, a: float) -> None:
+    """Knot speeds ``u`` (in place) reachable from each other over the steps ``ell`` at acceleration ``a``."""
+    for k in range(len(ell)):
+        u[k + 1] = min(u[k + 1], np.sqrt(u[k] ** 2 + 2 * a * ell[k]))
+    for k in range(len(ell) - 1, -1, -1):
+        u[k] = min(u[k], np.sqrt(u[k + 1] ** 2 + 2 * a * ell[k]))
+
+
+def motion_durations(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
+                     rest_at_waits: bool = False) -> np.ndarray:
+    """(T,) step durations of the whole flight from :func:`motion_profile`."""
+    if len(paths) < 2:
+        return np.zeros(0)
+    return motion_profile(paths, resolution, v_max, acceleration, rest_at_waits).durations
+
+
+def motion_profile(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
+                   rest_at_waits: bool = False) -> SwarmProfile:
+    r"""(T,) step durations derived from every robot's own motion and the limits.
+
+    Each robot flies its discrete polyline with a speed profile of its own: at most
+    ``v_max``, speeding up and slowing down at ``acceleration``, at rest where it waits
+    (a step without a move) and at both ends, and through a turn of angle
+    :math:`	heta` between two moves no faster than
+    :math:`\sqrt{a L / (2 \sin(	heta/2))}` (the speed whose change of direction,
+    :math:`2 v \sin(	heta/2)`, takes the time of half a move each side at ``acceleration``).
+    Forward and backward passes make the knot speeds reachable (the classic
+    velocity-profile recursion); a move then takes its trapezoid's time
+    (:func:`segment_times`). All robots share the time grid, so a step lasts the longest
+    time any robot's move needs: a straight run flies at ``v_max``, a turn or a wait
+    slows only the steps around it.
+    """
+    P = np.asarray(paths, dtype=float) * resolution
+    m = np.diff(P, axis=0)  # (T, N, 2)
+    L = np.linalg.norm(m, axis=-1)  # (T, N)
+    T = len(L)
+    a = float(acceleration)
+    # knot speed limits (T + 1, N): rest at the ends and next to a wait
+    cap = np.full((T + 1, len(L[0])), float(v_max))
+    cap[0] = cap[-1] = 0.0
+    moving = L > 0
+    if rest_at_waits:
+        cap[1:-1][~(moving[:-1] & moving[1:])] = 0.0
+    cos = (m[:-1] * m[1:]).sum(-1) / np.maximum(L[:-1] * L[1:], 1e-12)
+    half = np.sqrt(np.clip((1 - cos) / 2, 0.0, 1.0))  # sin(theta / 2)
+    with np.errstate(divide="ignore"):
+        turn = np.sqrt(a * np.minimum(L[:-1], L[1:]) / np.maximum(2 * half, 1e-12))
+    cap[1:-1] = np.minimum(cap[1:-1], turn)
+    v = cap.copy()
+    for k in range(T):  # forward: reachable from the previous knot
+        v[k + 1] = np.minimum(v[k + 1], np.sqrt(v[k] ** 2 + 2 * a * L[k]))
+    for k in range(T - 1, -1, -1):  # backward: the next knot reachable from it
+        v[k] = np.minimum(v[k], np.sqrt(v[k + 1] ** 2 + 2 * a * L[k]))
+    t = segment_times(L, v[:-1], v[1:], v_max, a).max(axis=1)  # (T,) what each step's slowest mover needs
+    # The steps share one grid: a robot on a straight run flies each step's move in the step's duration, so
+    # the durations themselves must change no faster than a speed profile can (a long step between short
+    # ones would brake and re-accelerate every robot in it). One more profile, of the swarm's progress ell_j
+    # per step at the step speed ell_j / t_j, smooths them.
+    ell = np.maximum(L.max(axis=1), resolution)
+    s = np.minimum(v_max, ell / np.maximum(t, 1e-12))
+    u = np.minimum(np.concatenate([[0.0], s]), np.concatenate([s, [0.0]]))
+    _passes(u, ell, a)
+    return SwarmProfile(ell=ell, cap=s, need=t, knots=u, acceleration=a)
 
 
 @lru_cache(maxsize=16)

@@ -80,7 +80,7 @@ def _read_only(a: np.ndarray) -> np.ndarray:
 
 def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.ndarray | None = None,
                trim_backward: bool = False, static: np.ndarray | None = None,
-               contested: str = "nearest", goal_distance: np.ndarray | None = None) -> LabelSets:
+               contested: str = "nearest", goal_distance: np.ndarray | None = None, follow: bool = False) -> LabelSets:
     """Build X_i^t for every robot.
 
     Parameters
@@ -105,6 +105,15 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     goal_distance
         (W, H) the goal field's distance to the goal (:mod:`mrfswarm.discrete.goal_distance`),
         for ``trim_backward``; None: trim by direction.
+    follow
+        Keep cells where another robot stands now as candidates (rule (a) off for them):
+        such a cell is its occupant's "stay" and, besides, goes to one other robot (by the
+        ``contested`` rule), which may enter it only when the occupant leaves in the same
+        step in a direction that keeps them one cell apart: the step's hard conflicts
+        (:mod:`mrfswarm.discrete.step_mrf`) forbid every other combination. A queue then
+        moves in one step as a whole instead of one robot per step. Staying still is
+        always feasible (everybody staying breaks no conflict), so every optimizer's
+        starting point and :func:`solvers.mrf.problem.repair` are unchanged.
     """
     if contested not in CONTESTED_RULES:
         raise ValueError(f"contested = {contested!r}: must be one of {', '.join(CONTESTED_RULES)}")
@@ -123,7 +132,8 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     cx = np.clip(cand[..., 0], 0, W - 1)
     cy = np.clip(cand[..., 1], 0, H - 1)
     other = robot_at[cx, cy]
-    ok &= (other == -1) | (other == np.arange(N)[:, None])
+    if not follow:
+        ok &= (other == -1) | (other == np.arange(N)[:, None])
     # (c) the half that points away from the goal
     if trim_backward and goal_cell is not None:
         if goal_distance is None:
@@ -142,10 +152,19 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
         order_idx = np.lexsort((r, rise, dist2, cell_id))
     else:
         order_idx = np.lexsort((r, dist2, cell_id))
-    first = np.ones(len(order_idx), dtype=bool)
-    first[1:] = cell_id[order_idx][1:] != cell_id[order_idx][:-1]
-    keep = np.zeros(len(r), dtype=bool)
-    keep[order_idx[first]] = True
+    if follow:  # the occupant keeps its cell (its stay); the others compete for it as for any cell
+        stay = s == 0
+        order_idx = np.concatenate([order_idx[stay[order_idx]], order_idx[~stay[order_idx]]])
+        rest = order_idx[len(order_idx) - int((~stay).sum()):]
+        first_rest = np.ones(len(rest), dtype=bool)
+        first_rest[1:] = cell_id[rest][1:] != cell_id[rest][:-1]
+        keep = stay.copy()
+        keep[rest[first_rest]] = True
+    else:
+        first = np.ones(len(order_idx), dtype=bool)
+        first[1:] = cell_id[order_idx][1:] != cell_id[order_idx][:-1]
+        keep = np.zeros(len(r), dtype=bool)
+        keep[order_idx[first]] = True
     ok[:] = False
     ok[r[keep], s[keep]] = True
     # compact: valid labels first, in stencil order (stay first)

@@ -69,7 +69,7 @@ class DiscreteProblem:
         Metres per cell (potential distances are in metres).
     k, order
         Neighbours in the interaction graph; label-set order n.
-    trim_backward, contested
+    trim_backward, contested, follow
         Label-set rules (:func:`mrfswarm.discrete.label_sets.label_sets`).
     goal_distance
         (W, H) the distance the goal field uses when it is not the straight line (the
@@ -94,6 +94,7 @@ class DiscreteProblem:
     order: int = 2
     trim_backward: bool = False
     contested: str = "downhill"
+    follow: bool = False
     goal_distance: np.ndarray | None = None
     goal_path: np.ndarray | None = None
     goal_region_radius: float = 0.0
@@ -222,7 +223,7 @@ def step_model(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueW
 def problem_label_sets(problem: DiscreteProblem, positions: np.ndarray) -> LabelSets:
     """X^t for the robots at ``positions`` under the problem's label-set rules."""
     return label_sets(problem.free, positions, problem.order, problem.goal, problem.trim_backward, problem.static,
-                      problem.contested, problem.goal_distance)
+                      problem.contested, problem.goal_distance, problem.follow)
 
 
 def _static_sum(problem: DiscreteProblem, positions: np.ndarray) -> float:
@@ -300,7 +301,7 @@ def _short_of_goal(problem: DiscreteProblem, cells: np.ndarray) -> bool:
 def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int = 300, tol: float = 1e-6,
                   patience: int = 20, options: mrf_solvers.Options | None = None,
                   on_step: Callable[[int, StepOutcome], None] | None = None,
-                  progress: str = "static") -> DiscretePlan:
+                  progress: str = "static", arrival: bool = False) -> DiscretePlan:
     """Iterate MRF steps from ``problem.start`` until the swarm energy converges.
 
     Parameters
@@ -325,6 +326,12 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         new energy minimum; the static sum has no such jumps.
     on_step
         Called after every step (progress bars, snapshots).
+    arrival
+        End the plan at the first step that has every robot with a free path to the goal
+        inside the goal region (``"arrived"``, counted as converged). Without it the swarm
+        settles into its formation until the energy stops decreasing or circulates
+        (``patience``): on a 64 x 64 clutter map with 40 robots, 47 more steps of a few
+        robots shuffling around the goal, flown as a slow tail.
 
     Raises
     ------
@@ -375,6 +382,9 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         energy.append(swarm_energy(problem, pos, weights))
         if out.energy_before - out.energy_after < tol * max(1.0, abs(out.energy_before)):
             converged, reason = True, "converged"
+            break
+        if arrival and problem.goal_path is not None and not _short_of_goal(problem, pos):
+            converged, reason = True, "arrived"
             break
         watch.record(t, energy[-1], _static_sum(problem, pos))
         if watch.since >= patience:

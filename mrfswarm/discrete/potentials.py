@@ -12,7 +12,16 @@
   sigma_hat cells.
 - Static field rho_S = rho_G + rho_O: one array over the grid, computed once per scenario.
 
-Distances are in metres (cell distances times the grid resolution).
+Units. The potentials' length parameters are in CELLS: the Morse lengths k_a and k_r
+(``interaction.k_a``, ``interaction.k_r``), the goal length k_G (``goal_potential.k``) and
+the blur sigma_hat (``obstacle_potential.sigma``). The paper's table gives them for its
+1 m cells; read in cells, they keep the swarm's shape and the fields' slopes, measured in
+cells, the same on any grid: a map drawn with 0.25 m cells has d_min = 8.42 cells = 2.1 m,
+not 8.42 m (more than a 6 x 4 m arena, where the swarm could never form). So the discrete
+plan of a map, in cells, does not depend on its resolution (bit for bit when the
+resolution is a power of two). The functions below measure distances in metres (cell
+distances times the resolution) and take the lengths in metres too: :meth:`Morse.from_config`
+and :func:`goal_field` convert the config's cells with the grid's resolution, in one place each.
 """
 
 from __future__ import annotations
@@ -80,8 +89,13 @@ class Morse:
             raise ConfigError(f"interaction.zeta = {self.zeta!r}: must be > |rho'_I(d_min)| = {depth:.6g}")
 
     @classmethod
-    def from_config(cls, c: InteractionConfig) -> Morse:
-        return cls(a=c.a, b=c.b, k_a=c.k_a, k_r=c.k_r, zeta=c.zeta)
+    def from_config(cls, c: InteractionConfig, resolution: float = 1.0) -> Morse:
+        """The potential of the config, in metres: ``k_a`` and ``k_r`` are given in cells of ``resolution`` m.
+
+        The paper's conditions and zeta do not depend on the scale (d_min scales with it,
+        rho'_I(d_min) does not), so the config is valid at every resolution or at none.
+        """
+        return cls(a=c.a, b=c.b, k_a=c.k_a * resolution, k_r=c.k_r * resolution, zeta=c.zeta)
 
     @property
     def d_min(self) -> float:
@@ -109,7 +123,8 @@ def goal_field(shape: tuple[int, int], goal_cell: np.ndarray | None, resolution:
     """rho_G over every cell, shape (W, H); zeros when there is no goal.
 
     rho_G(p) = a_G exp(d(p) / k_G), d in metres: ``distance`` (W, H) if given (``inf``
-    gives ``inf``), else the straight-line distance |p - p_g|.
+    gives ``inf``), else the straight-line distance |p - p_g|; k_G = ``cfg.k`` cells of
+    ``resolution`` metres.
 
     Raises
     ------
@@ -122,12 +137,12 @@ def goal_field(shape: tuple[int, int], goal_cell: np.ndarray | None, resolution:
         ix, iy = np.meshgrid(np.arange(shape[0]), np.arange(shape[1]), indexing="ij")
         distance = np.hypot(ix - goal_cell[0], iy - goal_cell[1]) * resolution
     finite = distance[np.isfinite(distance)]
-    far = float(finite.max(initial=0.0))
+    far = float(finite.max(initial=0.0)) / resolution  # cells
     if far / cfg.k > MAX_EXPONENT:
         raise ScenarioError(
-            f"goal_potential.k = {cfg.k:g} is too small for this map: cells lie {far:.0f} m from the goal "
+            f"goal_potential.k = {cfg.k:g} cells is too small for this map: cells lie {far:.0f} cells from the goal "
             f"(goal_potential.distance = {cfg.distance!r}) and exp(d / k) overflows; use k >= {far / MAX_EXPONENT:.3g}")
-    return cfg.a * np.exp(distance / cfg.k)
+    return cfg.a * np.exp(distance / (cfg.k * resolution))
 
 
 def obstacle_field(prob: np.ndarray, cfg: ObstaclePotentialConfig) -> np.ndarray:
@@ -143,14 +158,14 @@ def goal_distances(prob: np.ndarray, goal_cell: np.ndarray, resolution: float, g
     """The free-path distances to the goal, and the distance rho_G uses (``goal_cfg.distance``).
 
     ``"geodesic"``: the free-path distance with the obstacle potential climbed counted at
-    k_G / a_G metres per unit (:func:`mrfswarm.discrete.goal_distance.goal_distance`), which
+    k_G / a_G metres per unit (k_G in metres: ``goal_cfg.k`` cells of ``resolution`` m) (:func:`mrfswarm.discrete.goal_distance.goal_distance`), which
     leaves rho_S no local minimum but the goal; ``"euclidean"``: the straight-line
     distance of the paper (``path`` is still the free-path length, for reporting).
     """
     free = prob < 0.5
     if goal_cfg.distance == "geodesic":
         return goal_distance(free, goal_cell, resolution, order, obstacle_field(prob, obstacle_cfg),
-                             climb_weight=goal_cfg.k / goal_cfg.a)
+                             climb_weight=goal_cfg.k * resolution / goal_cfg.a)
     d = goal_distance(free, goal_cell, resolution, order)
     ix, iy = np.meshgrid(np.arange(prob.shape[0]), np.arange(prob.shape[1]), indexing="ij")
     straight = np.hypot(ix - goal_cell[0], iy - goal_cell[1]) * resolution

@@ -3,9 +3,11 @@
 A swarm of N robots cannot all sit on the goal cell. The goal region is the set of free
 cells whose free-path distance to the goal is at most ``goal_radius + r_N``, where r_N is
 the free-path distance within which the map holds :data:`GOAL_CELLS_PER_ROBOT` N free
-cells: in open space a disc of radius 2 sqrt(N / pi) m (a swarm at rest around its goal
-with the paper's parameters fills it at ~1 robot per 4-6 m^2: measured 1.4 m for 5
-robots, 7.1 m for 50, 8.5 m for 100), stretched along corridors where walls narrow it.
+cells: in open space a disc of radius 2 sqrt(N / pi) cells (a swarm at rest around its goal
+with the paper's parameters fills it at ~1 robot per 4-6 cells: measured 1.4 cells for 5
+robots, 7.1 for 50, 8.5 for 100), stretched along corridors where walls narrow it. Both
+terms count cells, as the potentials do (``goal_radius`` unset is 3 cells), so the region
+scales with the map's resolution: at 0.25 m cells, 8 robots get 0.75 m + 0.8 m.
 
 Each robot gets a ``stop_reason`` when it ends outside the goal region:
 
@@ -24,10 +26,10 @@ Each robot gets a ``stop_reason`` when it ends outside the goal region:
     The run ran out of steps while the robot could still descend.
 
 A robot is *separated* when its nearest neighbour is farther than 1.5 d_min (d_min the
-distance of the Morse potential's minimum, 8.42 m with the paper's parameters): half
+distance of the Morse potential's minimum, 8.42 cells with the paper's parameters): half
 again the spacing the interaction favours. The interaction cannot pull such a robot
-back by itself (with the paper's parameters its attraction never exceeds 0.012 per metre
-per neighbour, against at least a_G / k_G = 0.15 per metre for the goal field); with a
+back by itself (with the paper's parameters its attraction never exceeds 0.012 per cell
+per neighbour, against at least a_G / k_G = 0.15 per cell for the goal field); with a
 goal, the goal field brings it to the goal region where the swarm gathers, and the
 result reports every robot that still ends separated.
 """

@@ -20,6 +20,9 @@ log = logging.getLogger(__name__)
 _EXPLICIT_KEYS = {"positions"}
 _SAMPLED_KEYS = {"center", "n_robots", "sigma", "seed"}
 _MAX_DRAWS_PER_ROBOT = 2000
+#: ``scenario.start.sigma`` when unset, in cells (2 m at the paper's 1 m cells): the swarm's
+#: spread, like its shape under the potentials, counts cells.
+DEFAULT_SIGMA_CELLS = 2.0
 
 
 def _fmt(p) -> str:
@@ -64,7 +67,7 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None) -> np.
 
     ``{positions = [[x, y], ...]}`` places robots explicitly (metres, snapped to the cell
     they fall in); ``{center = [x, y], n_robots = N, sigma = S, seed = K}`` samples them from
-    N(center, S^2 I) (metres), snapped to distinct free cells, redrawing what falls off the map, in
+    N(center, S^2 I) (metres; S unset: :data:`DEFAULT_SIGMA_CELLS` cells), snapped to distinct free cells, redrawing what falls off the map, in
     an obstacle or on a taken cell. ``seed`` overrides the table's seed (``--seed``).
     """
     keys = set(spec)
@@ -97,7 +100,7 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None) -> np.
     n = spec["n_robots"]
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ConfigError(f"scenario.start.n_robots = {n!r}: must be a positive integer")
-    sigma = _number(spec, "sigma", positive=True) if "sigma" in spec else 2.0
+    sigma = _number(spec, "sigma", positive=True) if "sigma" in spec else DEFAULT_SIGMA_CELLS * grid.resolution
     if seed is None:
         seed = spec.get("seed", 0)
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:

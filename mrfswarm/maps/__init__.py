@@ -13,8 +13,10 @@ grid from the config table ``scenario.map``; one loader per ``kind``:
 ``ros``       ``{kind="ros", path="map.yaml"}`` (ROS map_server YAML + PGM/PNG)
 ============  =================================================================
 
-``free``, ``boxes`` and ``ascii`` also take ``resolution`` (default 1.0) and ``origin``
-(default [0, 0]). Writers: :func:`save_movingai`, :func:`save_ros`.
+``free``, ``boxes``, ``ascii`` and ``movingai`` also take ``resolution`` (metres per cell,
+default 1.0) and ``origin`` (the centre of cell (0, 0), default [0, 0]); a ROS map's come
+from its YAML, which the config's may state but not change. Writers:
+:func:`save_movingai`, :func:`save_ros`.
 """
 
 from __future__ import annotations

@@ -10,8 +10,10 @@ https://movingai.com/benchmarks/formats.html)::
     <H lines of W characters>
 
 Terrain: '.' and 'G' passable, 'S' swamp (passable), 'W' water, '@' and 'O' out of
-bounds, 'T' trees. Column x and row y as in the file, row 0 the first map line, no flip;
-cells are 1 m at origin (0, 0) (the format has no scale).
+bounds, 'T' trees. Column x and row y as in the file, row 0 the first map line, no flip.
+The format has no scale: cells are 1 m with cell (0, 0) centred at (0, 0) unless the config
+gives ``resolution`` (metres per cell) and ``origin`` (the centre of cell (0, 0)), as for
+``free``, ``boxes`` and ``ascii`` maps.
 
 Decision for aerial robots: WATER ('W') IS FREE. On the benchmarks it only stops ground
 agents; a swarm flying at a fixed altitude crosses it like swamp. Trees ('T') stay
@@ -27,7 +29,7 @@ from mrfswarm.errors import ScenarioError
 from mrfswarm.file_input import read_bytes
 from mrfswarm.maps import characters
 from mrfswarm.maps.grid import MAX_CELLS, OccupancyGrid
-from mrfswarm.maps.spec import PREFIX, check_keys, file_path
+from mrfswarm.maps.spec import PREFIX, check_keys, file_path, placement
 
 log = logging.getLogger(__name__)
 
@@ -37,9 +39,14 @@ _TABLE = characters.lookup_table(FREE, OCCUPIED)
 
 
 def load_movingai(spec: dict, base_dir: Path) -> OccupancyGrid:
-    """``{kind="movingai", path=...}``: a MovingAI ``.map`` file, path relative to ``base_dir``."""
-    check_keys(spec, ("kind", "path"), PREFIX, required=("path",))
-    return read_movingai(file_path(spec, base_dir))
+    """``{kind="movingai", path=..., resolution=R, origin=[x, y]}``: a MovingAI ``.map`` file.
+
+    ``path`` is relative to ``base_dir``; ``resolution`` (default 1.0 m) and ``origin``
+    (default [0, 0]) place the cells, which the file does not.
+    """
+    check_keys(spec, ("kind", "path", "resolution", "origin"), PREFIX, required=("path",))
+    res, ox, oy = placement(spec)
+    return read_movingai(file_path(spec, base_dir), resolution=res, origin=(ox, oy))
 
 
 def _header_int(lines: list[str], n: int, name: str, path: Path) -> int:
@@ -55,8 +62,9 @@ def _header_int(lines: list[str], n: int, name: str, path: Path) -> int:
     return v
 
 
-def read_movingai(path: Path | str) -> OccupancyGrid:
-    """Read a MovingAI ``.map`` file into a 1 m grid at origin (0, 0).
+def read_movingai(path: Path | str, resolution: float = 1.0,
+                  origin: tuple[float, float] = (0.0, 0.0)) -> OccupancyGrid:
+    """Read a MovingAI ``.map`` file into a grid of ``resolution`` m cells, cell (0, 0) centred at ``origin``.
 
     The header's ``height`` and ``width`` lines may come in either order; the ``type``
     value (``octile`` in every published map) is not used. Blank lines at the end of the
@@ -106,15 +114,16 @@ def read_movingai(path: Path | str) -> OccupancyGrid:
         raise ScenarioError(f"{path}: line {5 + prob.row}, column {prob.column}: unknown terrain character "
                             f"{prob.char!r}; allowed: {', '.join(map(repr, FREE))} free, "
                             f"{', '.join(map(repr, OCCUPIED))} occupied")
-    return OccupancyGrid(prob)
+    return OccupancyGrid(prob, resolution=resolution, origin=origin)
 
 
 def save_movingai(grid: OccupancyGrid, path: Path | str) -> None:
     """Write ``grid`` as a MovingAI map: '.' free, '@' occupied, row y = map line y.
 
     The format keeps only occupancy (``prob >= 0.5``): probabilities, resolution and
-    origin are dropped (a warning is logged when they are not the format's 1 m cells at
-    origin (0, 0)). Loading the file gives ``OccupancyGrid.from_occupied(grid.occupied)``.
+    origin are dropped (a warning is logged when they are not the format's default 1 m
+    cells at origin (0, 0); give them back as the config's ``resolution`` and ``origin``).
+    Loading the file gives ``OccupancyGrid.from_occupied(grid.occupied)``.
 
     Raises
     ------
@@ -123,8 +132,8 @@ def save_movingai(grid: OccupancyGrid, path: Path | str) -> None:
     """
     path = Path(path)
     if grid.resolution != 1.0 or grid.origin != (0.0, 0.0):
-        log.warning("MovingAI maps have 1 m cells at origin (0, 0): resolution %g and origin %s are not saved "
-                    "in %s", grid.resolution, grid.origin, path)
+        log.warning("MovingAI maps hold no scale: resolution %g and origin %s are not saved in %s (give them as "
+                    "scenario.map.resolution and scenario.map.origin)", grid.resolution, grid.origin, path)
     rows = characters.encode(grid.occupied, ".", "@")
     text = f"type octile\nheight {grid.height}\nwidth {grid.width}\nmap\n" + "\n".join(rows) + "\n"
     try:

@@ -14,6 +14,12 @@ Conversion to an :class:`OccupancyGrid`:
 - ROS's origin is a cell CORNER; ours is the centre of cell (0, 0):
   ``origin = (x + resolution/2, y + resolution/2)``.
 - A nonzero yaw (a rotated map) is refused.
+- The YAML's resolution and origin are the map's frame; the config's
+  ``scenario.map.resolution`` and ``scenario.map.origin`` (our origin: the centre of cell
+  (0, 0)) may state them but not change them: a value that disagrees is a
+  :class:`ConfigError` naming the key, both values and the YAML. Rescaling a map
+  recorded at one resolution would put its walls where they are not, and moving it
+  would take it out of the frame the robots localize in.
 - With grey value v (mean of the colour channels, 0..255), p = (255 - v)/255, or
   v/255 when ``negate``. Trinary: p > occupied_thresh -> 1.0, p < free_thresh -> 0.0,
   otherwise unknown -> 0.5. Scale: the same, but between the thresholds
@@ -35,10 +41,10 @@ from typing import Any
 
 import numpy as np
 
-from mrfswarm.errors import ScenarioError
+from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.maps.grid import OccupancyGrid
 from mrfswarm.maps.raster import read_raster, write_pgm
-from mrfswarm.maps.spec import PREFIX, check_keys, file_path
+from mrfswarm.maps.spec import PREFIX, check_keys, file_path, placement
 
 log = logging.getLogger(__name__)
 
@@ -55,9 +61,30 @@ _FREE_GREY, _UNKNOWN_GREY, _OCCUPIED_GREY = 254, 205, 0
 
 
 def load_ros(spec: dict, base_dir: Path) -> OccupancyGrid:
-    """``{kind="ros", path=...}``: a ROS map_server YAML file, path relative to ``base_dir``."""
-    check_keys(spec, ("kind", "path"), PREFIX, required=("path",))
-    return read_ros(file_path(spec, base_dir))
+    """``{kind="ros", path=...}``: a ROS map_server YAML file, path relative to ``base_dir``.
+
+    Optional ``resolution`` and ``origin`` (centre of cell (0, 0)) must agree with the
+    YAML's (module docstring).
+    """
+    check_keys(spec, ("kind", "path", "resolution", "origin"), PREFIX, required=("path",))
+    res, ox, oy = placement(spec)  # checks the values' types before the file is read
+    path = file_path(spec, base_dir)
+    grid = read_ros(path)
+    if "resolution" in spec and not _same(res, grid.resolution):
+        raise ConfigError(f"{PREFIX}.resolution = {spec['resolution']!r} disagrees with the ROS map {str(path)!r} "
+                          f"(resolution {grid.resolution:g} m); a ROS map's scale comes from its YAML: remove the key "
+                          f"or fix the YAML")
+    if "origin" in spec and not (_same(ox, grid.origin[0]) and _same(oy, grid.origin[1])):
+        r = grid.resolution
+        raise ConfigError(f"{PREFIX}.origin = {spec['origin']!r} disagrees with the ROS map {str(path)!r}: its cell "
+                          f"(0, 0) is centred at [{grid.origin[0]:g}, {grid.origin[1]:g}] (the YAML's origin "
+                          f"[{grid.origin[0] - r / 2:g}, {grid.origin[1] - r / 2:g}] is that cell's corner); "
+                          f"remove the key or give that centre")
+    return grid
+
+
+def _same(a: float, b: float) -> bool:
+    return math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-9)
 
 
 def _number(doc: dict, key: str, path: Path) -> float:

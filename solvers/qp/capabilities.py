@@ -27,7 +27,8 @@ class QPCapabilities:
         for one robot's window and slow above a few hundred variables.
     nlp
         The same engine also solves general nonlinear programs (see
-        :func:`solvers.qp.ipopt_.solve_nlp`).
+        :func:`solvers.qp.ipopt_.solve_nlp`, and the NLP backend of the same name in
+        :data:`solvers.nlp.BACKENDS`).
     """
 
     inequalities: bool

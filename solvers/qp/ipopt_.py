@@ -4,11 +4,10 @@ Wächter, Biegler, "On the implementation of an interior-point filter line-searc
 algorithm for large-scale nonlinear programming", Mathematical Programming 106 (2006);
 called through CasADi (Andersson et al., Mathematical Programming Computation 11, 2019).
 
-Two entry points share one translation of :class:`Options` and of Ipopt's statuses:
+Two entry points share one translation of :class:`Options` (Ipopt's statuses are mapped
+by :func:`solvers.nlp.ipopt_.status_of`, shared with the NLP backend called ``ipopt``,
+which minimizes functions given by Python callables: the time refinement's):
 
-- :func:`minimize_bounded` minimizes a function given by Python callables (value and
-  gradient) under bounds, Hessian by limited-memory quasi-Newton: for objectives that
-  are the optimal value of an inner problem (time allocation over QPs);
 - :class:`IpoptNLP` / :func:`solve_nlp` solve a general NLP given as CasADi expressions,
 
   .. math::
@@ -42,12 +41,12 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from solvers.errors import InvalidProblem
+from solvers.nlp.ipopt_ import status_of
 from solvers.qp.base import PreparedQP
 from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
@@ -74,25 +73,6 @@ def _settings(o: Options, quadratic: bool) -> dict:
     if quadratic:
         ipopt.update(hessian_constant="yes", jac_c_constant="yes", jac_d_constant="yes")
     return {"ipopt": ipopt, "print_time": bool(o.verbose), "error_on_fail": False}
-
-
-# Ipopt's ApplicationReturnStatus, as CasADi reports it -> Status
-_STATUS = {
-    "Solve_Succeeded": Status.OPTIMAL,
-    "Solved_To_Acceptable_Level": Status.OPTIMAL_INACCURATE,
-    "Infeasible_Problem_Detected": Status.INFEASIBLE,
-    "Diverging_Iterates": Status.UNBOUNDED,
-    "Maximum_Iterations_Exceeded": Status.MAX_ITER,
-    "Maximum_WallTime_Exceeded": Status.TIME_LIMIT,
-    "Maximum_CpuTime_Exceeded": Status.TIME_LIMIT,
-    # Search_Direction_Becomes_Too_Small, Restoration_Failed, Error_In_Step_Computation,
-    # Not_Enough_Degrees_Of_Freedom, Invalid_Number_Detected, ... : failures (ERROR)
-}
-
-
-def _status(stats: dict) -> tuple[Status, str]:
-    raw = str(stats.get("return_status", "unknown"))
-    return _STATUS.get(raw, Status.ERROR), raw
 
 
 @dataclass(frozen=True)
@@ -189,7 +169,7 @@ class IpoptNLP:
         r = self._solver(**args)
         dt = time.perf_counter() - t0
         stats = self._solver.stats()
-        status, raw = _status(stats)
+        status, raw = status_of(stats)
         return NLPResult(
             x=np.asarray(r["x"]).reshape(-1),
             f=float(r["f"]),
@@ -250,98 +230,6 @@ def solve_nlp(
     (True, [0.0, 1.0])
     """
     return IpoptNLP(x, f, g, p, options).solve(x0, p_value, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
-
-
-def minimize_bounded(fun: Callable[[np.ndarray], float], grad: Callable[[np.ndarray], np.ndarray], x0: np.ndarray,
-                     lower: np.ndarray, upper: np.ndarray, options: Options | None = None) -> NLPResult:
-    """Minimize a smooth function given by Python callables under bounds, with Ipopt.
-
-    For objectives that are themselves the result of a computation (e.g. the optimal value
-    of an inner problem): Ipopt sees ``fun`` and its gradient ``grad`` through CasADi
-    callbacks and approximates the Hessian (limited-memory quasi-Newton). ``fun`` may
-    return NaN where it cannot be evaluated; Ipopt then shortens its step.
-
-    Parameters
-    ----------
-    fun, grad
-        f(x) -> float and its gradient (n,).
-    x0
-        Initial point (n,), within the bounds.
-    lower, upper
-        (n,) bounds.
-    options
-        Tolerances, iteration cap, time limit, verbosity.
-
-    Returns
-    -------
-    NLPResult
-        Its ``g``, ``lam_g`` are empty (no constraints besides the bounds).
-    """
-    import casadi as ca
-
-    x0 = np.asarray(x0, dtype=float).reshape(-1)
-    n = x0.size
-
-    class _Gradient(ca.Callback):
-        def __init__(self, name: str) -> None:
-            ca.Callback.__init__(self)
-            self.construct(name, {})
-
-        def get_n_in(self) -> int:
-            return 2
-
-        def get_n_out(self) -> int:
-            return 1
-
-        def get_sparsity_in(self, i: int):
-            return ca.Sparsity.dense(n, 1) if i == 0 else ca.Sparsity.dense(1, 1)
-
-        def get_sparsity_out(self, i: int):
-            return ca.Sparsity.dense(1, n)
-
-        def eval(self, arg):
-            return [np.asarray(grad(np.asarray(arg[0], dtype=float).reshape(-1)), dtype=float).reshape(1, n)]
-
-    class _Objective(ca.Callback):
-        def __init__(self, name: str) -> None:
-            ca.Callback.__init__(self)
-            self.construct(name, {})
-
-        def get_n_in(self) -> int:
-            return 1
-
-        def get_n_out(self) -> int:
-            return 1
-
-        def get_sparsity_in(self, i: int):
-            return ca.Sparsity.dense(n, 1)
-
-        def get_sparsity_out(self, i: int):
-            return ca.Sparsity.dense(1, 1)
-
-        def eval(self, arg):
-            return [float(fun(np.asarray(arg[0], dtype=float).reshape(-1)))]
-
-        def has_jacobian(self) -> bool:
-            return True
-
-        def get_jacobian(self, name, inames, onames, opts):
-            self._jac = _Gradient(name)  # kept alive as long as the objective
-            return self._jac
-
-    f = _Objective("objective")
-    x = ca.MX.sym("x", n)
-    settings = _settings(options or Options(), quadratic=False)
-    settings["ipopt"]["hessian_approximation"] = "limited-memory"
-    settings["show_eval_warnings"] = False  # a NaN is an answer here ("cannot evaluate"), not a fault
-    solver = ca.nlpsol("mrfswarm_bounded", "ipopt", {"x": x, "f": f(x)}, settings)
-    t0 = time.perf_counter()
-    r = solver(x0=x0, lbx=np.asarray(lower, dtype=float), ubx=np.asarray(upper, dtype=float))
-    stats = solver.stats()
-    status, raw = _status(stats)
-    return NLPResult(x=np.asarray(r["x"]).reshape(-1), f=float(r["f"]), g=np.zeros(0),
-                     lam_x=np.asarray(r["lam_x"]).reshape(-1), lam_g=np.zeros(0), status=status, raw_status=raw,
-                     iterations=int(stats.get("iter_count", 0)), solve_time_s=time.perf_counter() - t0, stats=stats)
 
 
 class IpoptQP(PreparedQP):

@@ -1,28 +1,17 @@
-"""The one result type and the one options object of every QP backend."""
+"""The one result type and the one options object of every QP backend.
+
+:class:`Status` is the vocabulary of every kind of continuous solver (:mod:`solvers.status`).
+"""
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from solvers.status import Status
 
-class Status(enum.Enum):
-    """What a backend reported, mapped onto one vocabulary."""
-
-    OPTIMAL = "optimal"
-    OPTIMAL_INACCURATE = "optimal_inaccurate"
-    INFEASIBLE = "infeasible"
-    UNBOUNDED = "unbounded"
-    MAX_ITER = "max_iter"
-    TIME_LIMIT = "time_limit"
-    ERROR = "error"
-
-    @property
-    def ok(self) -> bool:
-        """True for a usable (optimal) solution."""
-        return self in (Status.OPTIMAL, Status.OPTIMAL_INACCURATE)
+__all__ = ["Options", "Solution", "Status"]
 
 
 @dataclass(frozen=True)

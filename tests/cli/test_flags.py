@@ -23,6 +23,10 @@ BAD = {
     "run --qp equality-only": (["run", CORRIDOR, "--qp", "closed_form", "--out", "OUT"],
                                r"smoothing.backend = 'closed_form' solves equality-constrained problems only; .* "
                                r"\(installed backends that take them: osqp, piqp"),
+    "run --nlp unknown": (["run", FREE5, "--nlp", "nope", "--out", "OUT"],
+                          "smoothing.nlp = 'nope': must be one of ipopt, sqpmethod, slsqp, trust_constr, lbfgsb"),
+    "run --set smoothing.nlp unknown": (["run", FREE5, "--set", "smoothing.nlp=nope", "--out", "OUT"],
+                                        "smoothing.nlp = 'nope': must be one of ipopt, sqpmethod"),
     "run --set no value": (["run", FREE5, "--set", "mrf.order", "--out", "OUT"], "expected KEY=VALUE"),
     "run --set bad distance": (["run", FREE5, "--set", "goal_potential.distance=manhattan", "--out", "OUT"],
                                "goal_potential.distance = 'manhattan': must be one of geodesic, euclidean"),
@@ -118,3 +122,30 @@ def test_an_equality_only_backend_fails_when_the_config_is_resolved(monkeypatch)
     # without the continuous stage the backend is not used, so it is not refused
     cfg = load_config(CORRIDOR, ["smoothing.enabled=false"])
     assert pipeline.resolve_config(cfg, qp="closed_form").smoothing.backend == "closed_form"
+
+
+def test_a_registered_nlp_backend_that_is_not_installed_fails_when_the_config_is_resolved(monkeypatch):
+    """With the time refinement on, a missing NLP backend is refused before any map is loaded, naming
+    its extra; without it the backend is not used, so it is not refused."""
+    import solvers.nlp
+    from mrfswarm import config, pipeline
+    from mrfswarm.config import load_config
+    from solvers.errors import SolverNotFound
+    from solvers.nlp import NLPCapabilities
+    from solvers.registry import Backend, Registry
+
+    ghost = Backend(name="ghost", entry=lambda *a: None, requires=("no_such_module_xyz",), extra="ghost",
+                    capabilities=NLPCapabilities(bounds=True, linear_constraints=False, needs_gradient=True,
+                                                 quasi_newton=True, nan_step_back=False, time_limit_native=False))
+    registry = Registry("NLP", [*solvers.nlp.BACKENDS, ghost])
+    monkeypatch.setattr(solvers.nlp, "BACKENDS", registry)
+    monkeypatch.setattr(config, "NLP_BACKENDS", registry)
+
+    def no_scenario(*args, **kwargs):
+        raise AssertionError("the scenario was built before the NLP backend was checked")
+
+    monkeypatch.setattr(pipeline, "build_scenario", no_scenario)
+    with pytest.raises(SolverNotFound, match=r"NLP backend 'ghost' is not installed.*\[ghost\]"):
+        pipeline.plan(load_config(FREE5, ["smoothing.time_refinement=true"]), nlp="ghost")
+    cfg = load_config(FREE5, ["smoothing.nlp=ghost"])
+    assert pipeline.resolve_config(cfg).smoothing.nlp == "ghost"

@@ -116,3 +116,25 @@ def test_discrete_paths_csv_matches_result(tmp_path):
     d = np.hypot(*(last[:, None] - last[None]).transpose(2, 0, 1))
     np.fill_diagonal(d, np.inf)
     assert d.min() >= 1.0
+
+
+def test_the_nlp_flag_reaches_the_time_refinement(tmp_path, monkeypatch):
+    """``--nlp lbfgsb`` with the refinement on: every NLP the continuous stage solves goes to L-BFGS-B,
+    the refinement is kept in some window, the plan is certified and says which backend refined it."""
+    import solvers.nlp
+
+    calls: list[str] = []
+    minimize = solvers.nlp.minimize
+
+    def spy(problem, backend=solvers.nlp.DEFAULT_BACKEND, options=None):
+        calls.append(backend)
+        return minimize(problem, backend, options)
+
+    monkeypatch.setattr(solvers.nlp, "minimize", spy)
+    out = tmp_path / "out"
+    rc = main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(out), "--set", "simulation.enabled=false",
+               "--set", "smoothing.time_refinement=true", "--nlp", "lbfgsb"])
+    res = json.loads((out / "result.json").read_text())
+    assert rc == 0 and calls and set(calls) == {"lbfgsb"}
+    assert res["nlp"] == "lbfgsb" and res["config"]["smoothing"]["nlp"] == "lbfgsb"
+    assert res["certificate"]["ok"] and res["refined_windows"] >= 1

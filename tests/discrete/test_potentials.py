@@ -60,10 +60,11 @@ def test_parameter_conditions_are_enforced(kw, key):
 
 
 def test_goal_field_values():
+    """k_G counts cells: at 0.5 m cells, 5 cells (2.5 m) from the goal rho_G = a exp(5 / 20)."""
     g = goal_field((30, 20), np.array([10, 5]), 0.5, GoalPotentialConfig(a=3.0, k=20.0))
     assert g.shape == (30, 20)
     assert g[10, 5] == pytest.approx(3.0)
-    assert g[13, 9] == pytest.approx(3.0 * math.exp(5 * 0.5 / 20.0))
+    assert g[13, 9] == pytest.approx(3.0 * math.exp(5 / 20.0))
     assert np.unravel_index(np.argmin(g), g.shape) == (10, 5)
     assert np.all(goal_field((4, 4), None, 1.0, GoalPotentialConfig()) == 0)
 

@@ -266,6 +266,17 @@ def test_movingai_fixture():
     assert g.is_free(np.array([[4, 1], [0, 2], [1, 2]])).all()  # G, S, W (water is free for flyers)
 
 
+def test_movingai_with_resolution_and_origin():
+    """The file has no scale: the config's resolution and origin place its cells (centre of cell (0, 0) at origin)."""
+    g = load_map({"kind": "movingai", "path": "small.map", "resolution": 0.25, "origin": [1, -2]}, MAP_FILES)
+    assert g.shape == (5, 4) and g.resolution == 0.25 and g.origin == (1.0, -2.0)
+    assert cells(g.occupied) == {(1, 0), (2, 1), (4, 2)}  # the same cells as at 1 m
+    assert g.cell_to_world(np.array([2, 1])).tolist() == [1.5, -1.75]  # the 'T': centre origin + 0.25 * (2, 1)
+    assert g.world_to_cell(np.array([1.5 + 0.124, -1.75 - 0.125])).tolist() == [2, 1]
+    assert not g.is_free(g.world_to_cell(np.array([1.5, -1.75])))
+    assert g.extent == (0.875, 2.125, -2.125, -1.125)
+
+
 def test_movingai_tolerates_crlf_swapped_dims_and_trailing_blank_lines(tmp_path):
     p = write(tmp_path / "a.map", "type octile\r\nwidth 3\r\nheight 2\r\nmap\r\n@..\r\n..T\r\n\r\n\r\n")
     g = read_movingai(p)
@@ -306,6 +317,21 @@ def test_ros_p2_fixture():
     assert g.world_to_cell(np.array([-1.0, 2.0])).tolist() == [0, 0]
     assert g.world_to_cell(np.array([-1.001, 2.0])).tolist() == [-1, 0]
     assert g.extent == (-1.0, 1.0, 2.0, 3.5)
+
+
+def test_ros_config_may_state_the_yaml_frame_but_not_change_it():
+    """resolution/origin in the config must agree with the YAML (origin: the centre of cell (0, 0))."""
+    ok = load_map({"kind": "ros", "path": "small_p2.yaml", "resolution": 0.5, "origin": [-0.75, 2.25]}, MAP_FILES)
+    assert ok == load_map({"kind": "ros", "path": "small_p2.yaml"}, MAP_FILES)
+    with pytest.raises(ConfigError, match=r"scenario\.map\.resolution = 0\.25 disagrees with the ROS map .*small_p2"
+                                          r"\.yaml.*resolution 0\.5 m") as e:
+        load_map({"kind": "ros", "path": "small_p2.yaml", "resolution": 0.25}, MAP_FILES)
+    one_line(e)
+    # the YAML's origin is a corner; giving it as our origin (a centre) is the mistake this catches
+    with pytest.raises(ConfigError, match=r"scenario\.map\.origin = \[-1, 2\] disagrees .*centred at \[-0\.75, "
+                                          r"2\.25\].*origin \[-1, 2\] is that cell's corner") as e:
+        load_map({"kind": "ros", "path": "small_p2.yaml", "origin": [-1, 2]}, MAP_FILES)
+    one_line(e)
 
 
 def test_ros_p5_fixture_block_origin_list():
@@ -416,7 +442,11 @@ def one_line(excinfo) -> str:
     ({"size": [3, 3]}, r"scenario\.map\.kind is missing"),
     ({"kind": "voxels"}, r"kind = 'voxels'.*free, boxes, ascii, movingai, ros"),
     ({"kind": "free", "size": [3, 3], "colour": "red"}, r"unknown key scenario\.map\.colour; allowed: kind, size"),
-    ({"kind": "movingai", "path": "a.map", "resolution": 2}, r"unknown key scenario\.map\.resolution"),
+    ({"kind": "movingai", "path": "a.map", "scale": 2}, r"unknown key scenario\.map\.scale; allowed: kind, path, "
+     r"resolution, origin"),
+    ({"kind": "movingai", "path": "a.map", "resolution": 0}, r"scenario\.map\.resolution = 0: must be > 0"),
+    ({"kind": "movingai", "path": "a.map", "origin": [1]}, r"scenario\.map\.origin = \[1\]"),
+    ({"kind": "ros", "path": "a.yaml", "resolution": -0.05}, r"scenario\.map\.resolution = -0\.05: must be > 0"),
     ({"kind": "free"}, r"scenario\.map\.size is missing"),
     ({"kind": "free", "size": [0, 3]}, r"size\[0\] = 0: must be >= 1"),
     ({"kind": "free", "size": [3.0, 3]}, r"size\[0\] = 3\.0: must be an integer"),

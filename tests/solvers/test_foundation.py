@@ -53,7 +53,8 @@ def test_repair_returns_feasible_labelling():
 def test_solvers_command_lists_every_registered_backend(capsys):
     assert main(["solvers"]) == 0
     out = capsys.readouterr().out
-    for b in list(solvers.qp.BACKENDS) + list(solvers.mrf.METHODS):
+    assert "NLP backends (--nlp)" in out
+    for b in list(solvers.qp.BACKENDS) + list(solvers.nlp.BACKENDS) + list(solvers.mrf.METHODS):
         assert b.name in out
         assert f"[{', '.join(b.capabilities.flags()) or 'none'}]" in out  # what the record says it can do
 

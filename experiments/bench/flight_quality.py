@@ -1,0 +1,234 @@
+"""Flight quality with default settings, on maps of our own, against an earlier revision in the same run.
+
+Per case and variant (``default``, ``refined`` = ``smoothing.time_refinement = true``),
+flight simulation off, what a user feels:
+
+- ``bound``: makespan over its dynamic lower bound (the longest shortest free path,
+  8-connected without corner cutting, from a robot's start cell to its final cell, at
+  v_max; :mod:`mrfswarm.flight_quality`);
+- ``stops``: stops per robot (slower than 0.05 m/s strictly inside its flight), mean and max;
+- ``speed``: mean speed over robots (m/s);
+- ``at goal``: robots in the goal region at the end;
+- ``steps``: MRF steps; ``plan s``: the whole run's wall time.
+
+The same measurement code (this file and the working tree's ``mrfswarm.flight_quality``,
+imported by path) scores the baseline's trajectories, run from ``git archive`` of
+``--baseline`` in a child process, so the columns compare plans, not metrics.
+
+Cases (deterministic maps built here; 1 m cells unless said):
+
+- ``corridor``: the paper's corridor, 5 robots (``experiments/corridor.toml``, its paper rules);
+- ``doorway``: a 30 x 20 room split by a wall with a 3-cell doorway, 5 robots;
+- ``forest``: ``experiments/maps/forest_01``, 10 robots, k = 7;
+- ``rooms``: ``experiments/maps/rooms_01``, 5 robots;
+- ``trap``: ``experiments/maps/trap_01`` (U-shaped), 5 robots;
+- ``open50``: 50 robots across an open 60 x 60 field, k = 7;
+- ``clutter40``: 40 robots on 64 x 64 with 10 % random single-cell obstacles, k = 7;
+- ``aisles30``: 30 robots through a warehouse of shelves with 2-cell aisles, k = 7;
+- ``arena8``: 8 robots in a 6 x 3.5 m arena of 0.25 m cells (robot radius 0.1 m, v_max 1 m/s);
+- ``big200`` (``--cases`` only): 200 robots on 128 x 128 with 15 % obstacles;
+- ``cross1000`` (``--cases`` only): 1000 robots crossing 240 m of open field.
+
+    python experiments/bench/flight_quality.py [--cases ...] [--variants default,refined]
+        [--baseline REV] [--baseline-variants default] [--out experiments/bench/results/flight_quality.csv]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+from baseline_code import ROOT, extract, run_child, use
+
+EXP = ROOT / "experiments"
+RESULTS = Path(__file__).parent / "results"
+DEFAULT_CASES = "corridor,doorway,forest,rooms,trap,open50,clutter40,aisles30,arena8"
+#: mrf keys newer than the default baseline.
+NEW_KEYS = ("follow", "arrival")
+VARIANTS = {"default": [], "refined": ["smoothing.time_refinement=true"]}
+
+
+def _rows(occ) -> list[str]:
+    """(W, H) bool to ``ascii`` rows: row y of the file holds cells (x, y), as the loader reads it."""
+    W, H = occ.shape
+    return ["".join("@" if occ[x, y] else "." for x in range(W)) for y in range(H)]
+
+
+def _clear(occ, centre, radius: float) -> None:
+    W, H = occ.shape
+    import numpy as np
+
+    xs, ys = np.meshgrid(np.arange(W), np.arange(H), indexing="ij")
+    occ[(xs - centre[0]) ** 2 + (ys - centre[1]) ** 2 <= radius**2] = False
+
+
+def _connected_to(occ, goal):
+    from scipy import ndimage
+
+    lab, _ = ndimage.label(~occ)
+    keep = lab == lab[goal]
+    out = occ.copy()
+    out[~keep] = True
+    return out
+
+
+def _random_field(W: int, H: int, density: float, seed: int, start, goal, clear: float):
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    occ = rng.random((W, H)) < density
+    occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = False
+    _clear(occ, start, clear)
+    _clear(occ, goal, clear)
+    return _connected_to(occ, tuple(goal))
+
+
+def case_config(case: str) -> tuple[dict, Path]:
+    """The config table of a case and the folder its paths are relative to."""
+    import tomllib
+
+    import numpy as np
+
+    if case == "corridor":
+        return tomllib.loads((EXP / "corridor.toml").read_text()), EXP
+    if case in ("forest", "rooms", "trap"):
+        name = {"forest": "forest_01", "rooms": "rooms_01", "trap": "trap_01"}[case]
+        data = tomllib.loads((EXP / "maps" / f"{name}.toml").read_text())
+        if case == "forest":
+            data["scenario"]["start"]["n_robots"] = 10
+            data["scenario"]["start"]["sigma"] = 1.5
+            data["interaction"]["k"] = 7
+        return data, EXP / "maps"
+    if case == "doorway":
+        occ = np.zeros((30, 20), dtype=bool)
+        occ[15, :] = True
+        occ[15, 9:12] = False
+        scn = {"map": {"kind": "ascii", "rows": _rows(occ)},
+               "start": {"center": [6, 10], "n_robots": 5, "sigma": 1.0, "seed": 0}, "goal": [25, 10]}
+        return {"scenario": scn, "interaction": {"k": 3}}, EXP
+    if case == "open50":
+        scn = {"map": {"kind": "free", "size": [60, 60]},
+               "start": {"center": [10, 10], "n_robots": 50, "sigma": 3.0, "seed": 0}, "goal": [50, 50]}
+        return {"scenario": scn, "interaction": {"k": 7}}, EXP
+    if case == "clutter40":
+        occ = _random_field(64, 64, 0.10, 1, (8, 8), (55, 55), 5)
+        scn = {"map": {"kind": "ascii", "rows": _rows(occ)},
+               "start": {"center": [8, 8], "n_robots": 40, "sigma": 2.5, "seed": 0}, "goal": [55, 55]}
+        return {"scenario": scn, "interaction": {"k": 7}}, EXP
+    if case == "aisles30":
+        occ = np.zeros((48, 40), dtype=bool)
+        for x0 in range(12, 36, 4):  # shelves 2 cells wide, aisles 2 cells wide
+            occ[x0:x0 + 2, 6:34] = True
+        scn = {"map": {"kind": "ascii", "rows": _rows(occ)},
+               "start": {"center": [5, 20], "n_robots": 30, "sigma": 2.0, "seed": 0}, "goal": [42, 20]}
+        return {"scenario": scn, "interaction": {"k": 7}}, EXP
+    if case == "arena8":
+        occ = np.zeros((24, 14), dtype=bool)  # 6 x 3.5 m at 0.25 m
+        occ[11:13, 0:5] = True  # two pillars in the middle
+        occ[11:13, 9:14] = True
+        scn = {"map": {"kind": "ascii", "rows": _rows(occ), "resolution": 0.25},
+               "start": {"positions": [[0.5, y] for y in (0.75, 1.5, 2.25, 3.0)] + [[1.0, y] for y in (0.75, 1.5, 2.25, 3.0)]},
+               "goal": [5.25, 1.75], "robot_radius": 0.1, "goal_radius": 0.75}
+        return {"scenario": scn, "interaction": {"k": 3}, "smoothing": {"v_max": 1.0}}, EXP
+    if case == "big200":
+        occ = _random_field(128, 128, 0.15, 2, (12, 12), (115, 115), 9)
+        scn = {"map": {"kind": "ascii", "rows": _rows(occ)},
+               "start": {"center": [12, 12], "n_robots": 200, "sigma": 5.0, "seed": 0}, "goal": [115, 115]}
+        return {"scenario": scn, "interaction": {"k": 7}}, EXP
+    if case == "cross1000":
+        scn = {"map": {"kind": "free", "size": [300, 120]},
+               "start": {"center": [30, 60], "n_robots": 1000, "sigma": 12.0, "seed": 0}, "goal": [270, 60]}
+        return {"scenario": scn, "interaction": {"k": 7}}, EXP
+    raise SystemExit(f"unknown case {case!r}")
+
+
+def child(case: str, variant: str, code: str | None, overrides: list[str]) -> None:
+    """Plan one case with one variant and print its row as JSON (run in a child process)."""
+    use(code)
+    import importlib.util
+
+    import numpy as np
+
+    from mrfswarm.config import apply_overrides, from_dict
+    from mrfswarm.pipeline import plan
+
+    # the working tree's metrics, whichever code plans
+    spec = importlib.util.spec_from_file_location("fq", ROOT / "mrfswarm" / "flight_quality.py")
+    fq = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fq)
+    data, base = case_config(case)
+    if code:  # keys the baseline does not know (the paper's configs set them to its behaviour, its only one)
+        for key in NEW_KEYS:
+            data.get("mrf", {}).pop(key, None)
+    data = apply_overrides(data, ["simulation.enabled=false", *VARIANTS[variant], *overrides])
+    cfg = from_dict(data, base)
+    t0 = time.perf_counter()
+    r = plan(cfg, progress=False)
+    total = time.perf_counter() - t0
+    scn, c = r.scenario, r.continuous
+    paths = r.discrete.paths
+    d = scn.distances
+    bound = fq.makespan_lower_bound(scn.grid.free, paths[0], paths[-1], scn.grid.resolution, cfg.smoothing.v_max,
+                                    None if d is None else d.path)
+    stops = fq.count_stops(c.trajectories)
+    moving = np.any(np.diff(paths, axis=0) != 0, axis=2)  # (T, N)
+    robots = r.robots()
+    row = {"case": case, "variant": variant, "robots": scn.n_robots, "steps": r.discrete.n_steps,
+           "bound": round(c.makespan_s / bound, 2) if bound > 0 else None,
+           "makespan_s": round(c.makespan_s, 2), "bound_s": round(bound, 2),
+           "stops": round(stops.mean, 2), "stops_max": int(stops.per_robot.max(initial=0)),
+           "speed": round(float(stops.mean_speed.mean()), 2),
+           "at_goal": sum(bool(o.at_goal) for o in robots),
+           "moving_share": round(float(moving.mean()), 2),
+           "plan_s": round(total, 1),
+           "min_sep_m": round(float(c.min_separation), 3)}
+    print(json.dumps(row))
+
+
+COLUMNS = ["steps", "bound", "stops", "stops_max", "speed", "at_goal", "moving_share", "makespan_s", "bound_s",
+           "plan_s"]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--cases", default=DEFAULT_CASES)
+    ap.add_argument("--variants", default="default,refined")
+    ap.add_argument("--baseline", default="3268301", help="git revision of the previous default ('' for none)")
+    ap.add_argument("--baseline-variants", default="default")
+    ap.add_argument("--out", type=Path, default=RESULTS / "flight_quality.csv")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a config override for every run (repeatable)")
+    ap.add_argument("--child", nargs=2, metavar=("CASE", "VARIANT"), help=argparse.SUPPRESS)
+    ap.add_argument("--code", default=None, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        child(*args.child, args.code, args.set)
+        return
+    rows = []
+    print(f"{'case':<10} {'code':<9} {'variant':<8} " + " ".join(f"{c[:12]:>12}" for c in COLUMNS), flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        old = extract(args.baseline, Path(tmp)) if args.baseline else None
+        for case in args.cases.split(","):
+            runs = [(v, None, "now") for v in args.variants.split(",")]
+            if old is not None:
+                runs = [(v, old, args.baseline) for v in args.baseline_variants.split(",") if v] + runs
+            for v, code, label in runs:
+                row = {"code": label, **run_child(Path(__file__), ["--child", case, v, *(f"--set={o}" for o in args.set)], code)}
+                rows.append(row)
+                print(f"{case:<10} {label:<9} {v:<8} " + " ".join(f"{str(row[c]):>12}" for c in COLUMNS), flush=True)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    with open(args.out, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print(f"bound: makespan / lower bound; stops: per robot; moving_share: robot-steps that move; wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

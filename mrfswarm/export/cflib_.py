@@ -1,0 +1,479 @@
+"""A Crazyflie's trajectory memory, written with Bitcraze's ``cflib`` and read back.
+
+The Crazyflie's high-level commander flies piecewise polynomials stored in a 4096-byte
+trajectory memory, in one of two formats; both are packed here by ``cflib``'s own classes
+(``cflib.crazyflie.mem``), through :class:`~cflib.crazyflie.mem.TrajectoryMemory`'s
+``write_data`` with the radio replaced by a recorder, so the bytes are those ``cflib``
+sends.
+
+**Raw** (:class:`~cflib.crazyflie.mem.Poly4D`, what Crazyswarm2's ``upload_trajectory``
+writes): per piece, the 8 power-basis coefficients (local time) of x, y, z and yaw and the
+duration, all float32: 132 bytes a piece, so at most 31 pieces fit. The only change is the
+rounding of every coefficient to float32; the firmware evaluates each piece by Horner's
+rule in float32 (:func:`firmware_positions_raw` does the same).
+
+**Compressed** (:class:`~cflib.crazyflie.mem.CompressedStart` then one
+:class:`~cflib.crazyflie.mem.CompressedSegment` per piece, then a zero-duration segment
+that ends the trajectory): a start point, then per piece its duration in whole
+milliseconds and the Bezier control points 1..7 of x and y as int16 millimetres (control
+point 0 is the previous piece's end; z stays at the start's altitude and yaw at 0). A piece
+takes 31 bytes (header 3, x and y 2 x 7 x 2), the whole 11 + 31 M bytes: 131 pieces fit.
+int16 millimetres hold +/-32.767 m, so the points are written relative to a frame origin
+(:func:`compress`: 0 when the flight fits around it, else the flight's centre; the
+Crazyflie must then fly in a world frame whose origin is that point). Two roundings:
+
+- every control point to the nearest millimetre: at most 0.5 mm per axis, so, since a
+  Bezier piece is a convex combination of its control points (non-negative weights summing
+  to one), every position of a piece moves by at most 0.5 sqrt(2) mm in the plane, for all t;
+- every knot time (not every duration: the error does not accumulate) to the nearest
+  millisecond: a piece of duration T then takes T' = T + e with |e| <= 1 ms, its knots
+  within 0.5 ms of the planned ones; a point at time t is the planned point of a time
+  within 0.5 ms of t (the map from the new piece's time to the old is affine between
+  knots that moved by at most 0.5 ms), so it is at most v_max x 0.5 ms away.
+
+So the compressed flight is within ``0.5 sqrt(2) mm + v_max x 0.5 ms`` of the planned one
+at every instant (:attr:`Compressed.position_error_bound`), in exact arithmetic. All robots
+share the same rounded knots, so the pieces of a step still share their interval and the
+continuous stage's certificate applies to the decoded flight as it stands
+(:mod:`mrfswarm.export.crazyflie_memory` runs it). The firmware's own float32 arithmetic
+(:func:`firmware_positions_compressed`: it rebuilds each piece's polynomial from the
+control points and starts each piece at the float32 end of the previous one) adds some
+micrometres, measured in the tests, not proven.
+
+Decoding (:func:`decode_raw`, :func:`decode_compressed`) follows the firmware's documented
+semantics (``pptraj.c``, ``pptraj_compressed.c``), since ``cflib`` writes but never reads
+these formats.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mrfswarm.continuous.regions import Regions
+from mrfswarm.errors import ExportError
+from mrfswarm.trajectory.bernstein import control_points, monomial_to_bernstein
+from mrfswarm.trajectory.polynomial import PiecewisePolynomial, tau_to_time
+from mrfswarm.trajectory.uav_csv import to_rows
+
+MEMORY_BYTES = 4096
+"""The Crazyflie's trajectory memory."""
+RAW_PIECE_BYTES = 132
+COMPRESSED_START_BYTES = 8
+COMPRESSED_PIECE_BYTES = 31  # header byte, uint16 duration, 7 x and 7 y int16 control points
+COMPRESSED_END_BYTES = 3  # the zero-duration segment that ends a compressed trajectory
+INT16_MAX = 32767
+"""The largest int16: a coordinate of the compressed format is within +/-32.767 m of its origin."""
+MAX_DURATION_MS = 65535
+DEGREE = 7
+MODULES = ("cflib",)
+INSTALL = "pip install 'mrfswarm[crazyflie]'"
+_COUNTS = (0, 1, 3, 7)  # control points stored per axis for each storage type (constant, linear, cubic, degree 7)
+
+
+def cflib_mem() -> Any:
+    """``cflib.crazyflie.mem``, imported on use.
+
+    Raises
+    ------
+    ExportError
+        ``cflib`` is not installed (only :class:`ModuleNotFoundError` means that; any other
+        import failure propagates).
+    """
+    try:
+        from cflib.crazyflie import mem
+    except ModuleNotFoundError as e:
+        raise ExportError(f"the Crazyflie export needs cflib, which is not installed: {INSTALL}") from e
+    return mem
+
+
+def raw_pieces(trajectory: PiecewisePolynomial, altitude: float) -> list[Any]:
+    """One ``cflib`` :class:`~cflib.crazyflie.mem.Poly4D` per piece: the rows of the uav_trajectories CSV.
+
+    ``altitude`` is z of a planar trajectory. Degree above 7 or dimension above 4 is an
+    :class:`~solvers.errors.InvalidProblem` (:func:`~mrfswarm.trajectory.uav_csv.to_rows`).
+    """
+    mem = cflib_mem()
+    rows = to_rows(trajectory, altitude)
+    return [mem.Poly4D(float(r[0]), *(mem.Poly4D.Poly([float(v) for v in r[1 + 8 * k:9 + 8 * k]])
+                                      for k in range(4))) for r in rows]
+
+
+class _Recorder:
+    """Stands in for ``cflib``'s memory handler: keeps what :meth:`TrajectoryMemory.write_data` would send."""
+
+    def __init__(self) -> None:
+        self.data = b""
+
+    def write(self, memory: Any, addr: int, data: bytes | bytearray, flush_queue: bool = False) -> bool:
+        self.data = bytes(data)
+        return True
+
+
+def pack(elements: Sequence[Any]) -> bytes:
+    """The bytes ``cflib``'s :class:`~cflib.crazyflie.mem.TrajectoryMemory` writes for ``elements``."""
+    mem = cflib_mem()
+    recorder = _Recorder()
+    memory = mem.TrajectoryMemory(id=0, type=mem.MemoryElement.TYPE_TRAJ, size=MEMORY_BYTES, mem_handler=recorder)
+    memory.trajectory = list(elements)
+    n = memory.write_data(lambda *a: None)
+    assert n == len(recorder.data)
+    return recorder.data
+
+
+def pack_raw(trajectory: PiecewisePolynomial, altitude: float) -> bytes:
+    """The raw format's bytes of ``trajectory`` (:func:`raw_pieces` packed by ``cflib``)."""
+    return pack(raw_pieces(trajectory, altitude))
+
+
+def decode_raw(data: bytes, dim: int = 4) -> PiecewisePolynomial:
+    """The pieces of raw-format ``data`` as stored (float32 values, held in float64): x, y, z, yaw.
+
+    Keeps the first ``dim`` axes. Raises :class:`ExportError` if ``data`` is not whole pieces.
+    """
+    if len(data) % RAW_PIECE_BYTES or not data:
+        raise ExportError(f"raw trajectory data must be whole {RAW_PIECE_BYTES}-byte pieces, got {len(data)} bytes")
+    rows = np.frombuffer(data, dtype="<f4").reshape(-1, 33).astype(float)
+    coefficients = rows[:, :32].reshape(-1, 4, DEGREE + 1)[:, :dim, :]
+    return PiecewisePolynomial(rows[:, 32], np.moveaxis(coefficients, 1, 2))
+
+
+def firmware_positions_raw(data: bytes, taus: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x, y, z of raw-format ``data`` as the firmware computes them: float32 Horner per piece.
+
+    Parameters
+    ----------
+    data
+        Raw-format bytes.
+    taus
+        (S,) fractions of each piece, in [0, 1].
+
+    Returns
+    -------
+    local_times : numpy.ndarray
+        (M, S) float32 local times ``tau T_j`` (rounded to float32, as the firmware holds time).
+    positions : numpy.ndarray
+        (M, S, 3) float32.
+    """
+    rows = np.frombuffer(data, dtype="<f4").reshape(-1, 33)
+    coefficients = rows[:, :24].reshape(-1, 3, DEGREE + 1)  # x, y, z
+    s = (rows[:, 32:33].astype(float) * np.asarray(taus, dtype=float)[None, :]).astype(np.float32)
+    x = np.zeros(s.shape + (3,), dtype=np.float32)
+    for k in range(DEGREE, -1, -1):  # pptraj.c polyval: x = x * t + p[k], in float
+        x = x * s[..., None] + coefficients[:, None, :, k]
+    return s, x
+
+
+# ---------------------------------------------------------------------------------------- compressed format
+
+
+@dataclass(frozen=True)
+class Compressed:
+    """Every robot's flight in the compressed format's units, before ``cflib`` packs it.
+
+    Attributes
+    ----------
+    origin
+        (3,) the frame origin (metres, world frame): stored coordinates are relative to it.
+    knots_ms
+        Per robot, (M + 1,) knot times in whole milliseconds (each planned knot rounded).
+    points_mm
+        Per robot, (M, 8, 2) int Bezier control points of x and y, millimetres from the
+        origin; point 0 of a piece is point 7 of the one before.
+    z_mm
+        The altitude (int millimetres from the origin).
+    position_error_bound
+        Proven bound (metres, exact arithmetic) on the distance between a compressed and
+        the planned position at the same time (module docstring).
+    """
+
+    origin: np.ndarray
+    knots_ms: list[np.ndarray]
+    points_mm: list[np.ndarray]
+    z_mm: int
+    position_error_bound: float
+
+    def n_bytes(self, robot: int) -> int:
+        """Bytes of robot ``robot``'s compressed trajectory (start, pieces, end)."""
+        return COMPRESSED_START_BYTES + COMPRESSED_PIECE_BYTES * len(self.points_mm[robot]) + COMPRESSED_END_BYTES
+
+
+def compress(trajectories: Sequence[PiecewisePolynomial], altitude: float, v_max: float,
+             regions: Regions | None = None) -> Compressed:
+    """Round every robot's planar flight to the compressed format (module docstring).
+
+    Parameters
+    ----------
+    trajectories
+        2-D trajectories of degree <= 7 (the planner's), one per robot.
+    altitude
+        z of the flight (metres).
+    v_max
+        An upper bound on every robot's speed (the plan's exact maximum): the timing part
+        of :attr:`Compressed.position_error_bound`.
+    regions
+        The plan's safe regions (one per robot and piece): each control point is then
+        rounded to whichever of the (up to 4) neighbouring millimetre points lies in the
+        regions it lay in (nearest first), falling back to the nearest; a point moves at
+        most 1 mm per axis instead of 0.5. Without them, to the nearest.
+
+    Raises
+    ------
+    ExportError
+        A flight that spans more than the format holds around one origin (names the span),
+        a piece shorter than 0.5 ms or longer than 65.535 s, a degree above 7.
+    """
+    trs = [tr.with_degree(DEGREE) if tr.degree < DEGREE else tr for tr in trajectories]
+    for i, tr in enumerate(trs):
+        if tr.degree > DEGREE or tr.dim != 2:
+            raise ExportError(f"robot {i}: the compressed format holds planar pieces of degree <= {DEGREE}, "
+                              f"got degree {tr.degree} in dimension {tr.dim}")
+    cps = [control_points(tr) for tr in trs]  # (M, 8, 2) each
+    flat = np.concatenate([p.reshape(-1, 2) for p in cps])
+    lo = np.append(flat.min(axis=0), altitude)
+    hi = np.append(flat.max(axis=0), altitude)
+    reach = INT16_MAX / 1000.0
+    origin = np.zeros(3)
+    if np.any(np.maximum(-lo, hi) > reach):  # shift the frame: whole metres if that fits, else the centre
+        origin = np.where(np.maximum(-lo, hi) > reach, np.round((lo + hi) / 2), 0.0)
+        if np.any(np.maximum(origin - lo, hi - origin) > reach):
+            origin = np.where(np.maximum(-lo, hi) > reach, np.round((lo + hi) / 2 * 1000) / 1000, 0.0)
+    if np.any(np.maximum(origin - lo, hi - origin) > reach + 4e-4):
+        span = hi - lo
+        raise ExportError(f"the flight spans {span[0]:.3f} m x {span[1]:.3f} m (z up to {hi[2]:.3f} m); the "
+                          f"compressed Crazyflie format holds +/-{reach} m around one origin ({2 * reach:.3f} m): "
+                          f"use the raw format or a smaller area")
+    if regions is not None and len({p.shape for p in cps}) == 1 and cps[0].shape[0] == regions.steps \
+            and len(cps) == regions.robots:
+        stacked = _round_inside(np.stack(cps), origin[:2], regions)
+        points = list(stacked)
+    else:
+        points = [np.rint((p - origin[:2]) * 1000).astype(np.int64) for p in cps]
+    moved = max(float(np.linalg.norm(n / 1000 + origin[:2] - p, axis=-1).max()) for n, p in zip(points, cps))
+    knots = []
+    for i, tr in enumerate(trs):
+        k = np.rint(tr.knots * 1000).astype(np.int64)
+        d = np.diff(k)
+        if d.min() < 1 or d.max() > MAX_DURATION_MS:
+            j = int(np.argmin(d)) if d.min() < 1 else int(np.argmax(d))
+            raise ExportError(f"robot {i}'s piece {j} lasts {tr.durations[j]:.6g} s; the compressed format holds "
+                              f"1 ms to {MAX_DURATION_MS / 1000} s a piece")
+        knots.append(k)
+    z_mm = int(np.rint((altitude - origin[2]) * 1000))
+    bound = moved + float(v_max) * 0.5e-3
+    return Compressed(origin, knots, points, z_mm, float(bound))
+
+
+def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions) -> np.ndarray:
+    """Control points (N, M, 8, 2) in int mm from ``origin``, each at a neighbouring mm point inside its regions.
+
+    Point k of piece j lies in region j; the end points are shared, so point 0 must also lie
+    in region j - 1 and point 7 in region j + 1. Of the 4 floor/ceil combinations, the
+    nearest inside all of them; the nearest of all if none is.
+    """
+    mm = (P - origin) * 1000
+    lo = np.floor(mm)
+    cand = np.stack([lo + np.array([a, b]) for a in (0, 1) for b in (0, 1)])  # (4, N, M, 8, 2)
+    world = cand / 1000 + origin
+    ax = regions.axes.transpose(1, 0, 2, 3)  # (N, M, 2 slabs, 2)
+    lower, upper = regions.lower.transpose(1, 0, 2), regions.upper.transpose(1, 0, 2)
+
+    def outside(points: np.ndarray, shift: int) -> np.ndarray:
+        """(4, N, M, 8) slab violation of ``points`` in the regions of piece j + shift (0 where there is none)."""
+        A, L, U = (np.roll(v, -shift, axis=1) for v in (ax, lower, upper))
+        s = np.einsum("nmka,cnmpa->cnmpk", A, points)
+        v = np.maximum(L[None, :, :, None] - s, s - U[None, :, :, None]).max(axis=-1)
+        M = points.shape[2]
+        if shift == 1:
+            v[:, :, M - 1] = -np.inf
+        elif shift == -1:
+            v[:, :, 0] = -np.inf
+        return v
+
+    viol = outside(world, 0)
+    viol[..., 7] = np.maximum(viol[..., 7], outside(world, 1)[..., 7])
+    viol[..., 0] = np.maximum(viol[..., 0], outside(world, -1)[..., 0])
+    dist = np.linalg.norm(cand - mm, axis=-1)
+    score = np.where(viol <= 0, dist, dist + 1e6)  # inside first, then nearest
+    best = np.argmin(score, axis=0)
+    out = np.take_along_axis(cand, best[None, ..., None], axis=0)[0]
+    out[:, 1:, 0] = out[:, :-1, 7]  # one value for each shared end point (chosen as piece j's point 7)
+    return out.astype(np.int64)
+
+
+def _metres(n: int) -> float:
+    """A float that ``cflib``'s encoders (``int(value * 1000)``, truncating) turn into exactly ``n``."""
+    return (n + (0.5 if n > 0 else -0.5 if n < 0 else 0.0)) / 1000.0
+
+
+def compressed_elements(c: Compressed, robot: int) -> list[Any]:
+    """Robot ``robot``'s ``cflib`` elements: a CompressedStart, a CompressedSegment per piece, the end segment."""
+    mem = cflib_mem()
+    p, k = c.points_mm[robot], c.knots_ms[robot]
+    out = [mem.CompressedStart(_metres(int(p[0, 0, 0])), _metres(int(p[0, 0, 1])), _metres(c.z_mm), 0.0)]
+    for j, d in enumerate(np.diff(k)):
+        out.append(mem.CompressedSegment(_metres(int(d)), [_metres(int(v)) for v in p[j, 1:, 0]],
+                                         [_metres(int(v)) for v in p[j, 1:, 1]], [], []))
+    out.append(mem.CompressedSegment(0.0, [], [], [], []))
+    return out
+
+
+def pack_compressed(c: Compressed, robot: int) -> bytes:
+    """Robot ``robot``'s compressed bytes, packed by ``cflib``; checked to decode to exactly the rounded values."""
+    data = pack(compressed_elements(c, robot))
+    start, segments = parse_compressed(data)
+    ok = (start[:3] == [*c.points_mm[robot][0, 0], c.z_mm] and len(segments) == len(c.points_mm[robot])
+          and all(ms == d and np.array_equal(np.array(pts[:2]).T, c.points_mm[robot][j, 1:])
+                  for j, ((ms, pts), d) in enumerate(zip(segments, np.diff(c.knots_ms[robot])))))
+    if not ok:  # cflib's encoders changed: never upload what was not meant
+        raise ExportError(f"robot {robot}: cflib's compressed packing does not hold the rounded control points")
+    return data
+
+
+def parse_compressed(data: bytes) -> tuple[list[int], list[tuple[int, list[list[int]]]]]:
+    """Compressed-format bytes as stored: the start (x, y, z mm, yaw in 1/10 degree) and, per
+    segment before the ending one, ``(duration_ms, [x points, y points, z points, yaw points])``.
+
+    Raises :class:`ExportError` on truncated data or a missing end segment.
+    """
+    if len(data) < COMPRESSED_START_BYTES:
+        raise ExportError(f"compressed trajectory data too short: {len(data)} bytes")
+    start = list(struct.unpack_from("<4h", data, 0))
+    at = COMPRESSED_START_BYTES
+    segments: list[tuple[int, list[list[int]]]] = []
+    while True:
+        if at + 3 > len(data):
+            raise ExportError("compressed trajectory data ends without its zero-duration end segment")
+        types, ms = struct.unpack_from("<BH", data, at)
+        at += 3
+        if ms == 0:
+            return start, segments
+        counts = [_COUNTS[(types >> (2 * a)) & 3] for a in range(4)]
+        if at + 2 * sum(counts) > len(data):
+            raise ExportError("compressed trajectory data ends inside a segment, without its zero-duration end segment")
+        values = list(struct.unpack_from(f"<{sum(counts)}h", data, at))
+        at += 2 * sum(counts)
+        axes, i = [], 0
+        for n in counts:
+            axes.append(values[i:i + n])
+            i += n
+        segments.append((ms, axes))
+
+
+def decode_compressed(data: bytes, origin: np.ndarray, dim: int = 3) -> PiecewisePolynomial:
+    """The trajectory compressed-format ``data`` stands for, in exact arithmetic, in the world frame.
+
+    Each piece is the Bezier curve of the previous end and its stored points (a constant
+    axis keeps the previous end, a linear one goes straight to its point, a cubic or
+    degree-7 one has those control points), over its stored duration; ``origin`` (3,) is
+    added back. Keeps the first ``dim`` of x, y, z.
+    """
+    start, segments = parse_compressed(data)
+    if not segments:
+        raise ExportError("compressed trajectory data holds no piece")
+    end = np.array(start[:3], dtype=float) / 1000.0
+    B_inv = np.linalg.inv(monomial_to_bernstein(DEGREE))
+    durations, coefficients = [], []
+    for ms, axes in segments:
+        P = np.empty((DEGREE + 1, 3))
+        for a in range(3):
+            pts = np.array([end[a], *(np.array(axes[a], dtype=float) / 1000.0)])
+            P[:, a] = _elevate(pts)
+        T = ms / 1000.0
+        durations.append(T)
+        coefficients.append(tau_to_time((B_inv @ P)[None], np.array([T]))[0])
+        end = P[-1]
+    c = np.array(coefficients)
+    c[:, 0, :] += np.asarray(origin, dtype=float)
+    return PiecewisePolynomial(np.array(durations), c[:, :, :dim])
+
+
+def _elevate(points: np.ndarray) -> np.ndarray:
+    """Bezier control points of degree len-1 (0, 1, 3 or 7) as the 8 of the same curve in degree 7."""
+    n = len(points) - 1
+    if n == DEGREE:
+        return points
+    if n == 0:
+        return np.full(DEGREE + 1, points[0])
+    out = points
+    for m in range(n, DEGREE):  # degree elevation: Q_i = i/(m+1) P_{i-1} + (1 - i/(m+1)) P_i
+        i = np.arange(m + 2)
+        a = i / (m + 1)
+        padded = np.concatenate([[0.0], out, [0.0]])
+        out = a * padded[:-1] + (1 - a) * padded[1:]
+    return out
+
+
+def firmware_positions_compressed(data: Sequence[bytes], taus: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x, y, z of compressed-format trajectories as the firmware computes them, in float32.
+
+    As ``pptraj_compressed.c`` and ``pptraj.c`` do: each piece's polynomial is rebuilt
+    from its control points (``polybezier``, then ``polystretchtime``), its first control
+    point being the float32 value of the previous piece at its end (``poly4d_eval``), and
+    evaluated by Horner's rule, all in float32; positions relative to the frame origin.
+    Robots are taken together, so their data must have the same segment layout.
+
+    Parameters
+    ----------
+    data
+        N robots' compressed bytes.
+    taus
+        (S,) fractions of each piece, in [0, 1].
+
+    Returns
+    -------
+    durations : numpy.ndarray
+        (N, M) float32 piece durations.
+    positions : numpy.ndarray
+        (N, M, S, 3) float32, at the local times ``float32(tau * duration)``.
+    """
+    f = np.float32
+    parsed = [parse_compressed(d) for d in data]
+    N, M = len(parsed), len(parsed[0][1])
+    if any(len(s) != M for _, s in parsed):
+        raise ExportError("robots' compressed trajectories differ in piece count; evaluate them one by one")
+    facs = [1, 1, 2, 6, 24, 120, 720, 5040]
+    taus = np.asarray(taus, dtype=float)
+    prev = np.array([[v / f(1000.0) for v in (f(s[0]), f(s[1]), f(s[2]))] for s, _ in parsed], dtype=f)  # (N, 3)
+    durations = np.empty((N, M), dtype=f)
+    out = np.empty((N, M, len(taus), 3), dtype=f)
+    for j in range(M):
+        T = np.array([f(seg[j][0] / 1000.0) for _, seg in parsed], dtype=f)  # ms / 1000.0 in double, stored as float
+        durations[:, j] = T
+        p = np.zeros((N, 3, DEGREE + 1), dtype=f)
+        for a in range(3):
+            stored = np.array([seg[j][1][a] for _, seg in parsed], dtype=f) / f(1000.0)  # (N, n - 1)
+            x = np.concatenate([prev[:, a:a + 1], stored.reshape(N, -1)], axis=1)
+            n = x.shape[1]
+            if n == 1:
+                p[:, a, 0] = x[:, 0]
+            elif n == 2:  # polylinear
+                p[:, a, 0] = x[:, 0]
+                p[:, a, 1] = (x[:, 1] - x[:, 0]) / T
+            else:  # polybezier, then polystretchtime
+                deg = n - 1
+                for jj in range(deg + 1):
+                    coeff = np.zeros(N, dtype=f)
+                    sign = -1 if jj % 2 else 1
+                    for i in range(jj + 1):
+                        coeff = coeff + f(sign) * x[:, i] / f(facs[i]) / f(facs[jj - i])
+                        sign = -sign
+                    p[:, a, jj] = coeff * f(facs[deg]) / f(facs[deg - jj])
+                recip = f(1.0) / T
+                scale = recip.copy()
+                for i in range(1, DEGREE + 1):
+                    p[:, a, i] = p[:, a, i] * scale
+                    scale = scale * recip
+        s = (T[:, None].astype(float) * taus[None, :]).astype(f)  # (N, S)
+        x_ = np.zeros((N, len(taus), 3), dtype=f)
+        e = np.zeros((N, 3), dtype=f)
+        for k in range(DEGREE, -1, -1):
+            x_ = x_ * s[:, :, None] + p[:, None, :, k]
+            e = e * T[:, None] + p[:, :, k]
+        out[:, j] = x_
+        prev = e  # the next piece starts where this one ends, in float32
+    return durations, out

@@ -1,0 +1,74 @@
+"""Crazyswarm2's ``crazyflies.yaml`` for a plan, and the flight scripts beside it.
+
+Crazyswarm2 (``crazyflie`` ROS 2 package) reads ``crazyflies.yaml`` with
+``yaml.safe_load``: ``robots`` (name -> ``enabled``, ``uri``, ``initial_position``,
+``type``), ``robot_types`` (what each ``type`` names: motion capture, battery) and ``all``
+(firmware parameters for every robot: the high-level commander on). Robot ``i`` of the plan
+is ``cf<i+1>``, on ``radio://0/80/2M/E7E7E7E7<i+1 in hex>`` (four hex digits past 255
+robots; Crazyswarm2 itself identifies a robot by the URI's last byte, so keep a flight
+below 256 robots or edit the addresses), placed on the ground at its planned start.
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Sequence
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+URI = "radio://0/80/2M/E7E7E7E7{id:02X}"
+URI_WIDE = "radio://0/80/2M/E7E7E7{id:04X}"
+ROBOT_TYPE = "cf21"
+SCRIPTS = Path(__file__).parent / "scripts"
+
+
+def robot_name(i: int) -> str:
+    """Robot ``i`` of the plan is ``cf<i+1>``."""
+    return f"cf{i + 1}"
+
+
+def crazyflies_config(starts: np.ndarray, uri: str | None = None) -> dict:
+    """The content of ``crazyflies.yaml``: one enabled robot per start (x, y in metres; z = 0)."""
+    starts = np.asarray(starts, dtype=float)
+    uri = uri or (URI if len(starts) <= 255 else URI_WIDE)
+    robots = {robot_name(i): {"enabled": True, "uri": uri.format(id=i + 1),
+                              "initial_position": [float(s[0]), float(s[1]), 0.0], "type": ROBOT_TYPE}
+              for i, s in enumerate(starts)}
+    return {
+        "fileversion": 3,
+        "robots": robots,
+        "robot_types": {ROBOT_TYPE: {
+            "motion_capture": {"tracking": "librigidbodytracker", "marker": "default_single_marker",
+                               "dynamics": "default"},
+            "big_quad": False,
+            "battery": {"voltage_warning": 3.8, "voltage_critical": 3.7},
+        }},
+        "all": {
+            "firmware_logging": {"enabled": False},
+            "firmware_params": {"commander": {"enHighLevel": 1}, "stabilizer": {"estimator": 2, "controller": 2},
+                                "locSrv": {"extPosStdDev": 1e-3, "extQuatStdDev": 0.05}},
+            "reference_frame": "world",
+            "broadcasts": {"num_repeats": 15, "delay_between_repeats_ms": 1},
+        },
+    }
+
+
+def write_crazyswarm2(starts: np.ndarray, out: Path) -> list[Path]:
+    """``out/crazyswarm2/crazyflies.yaml``, ``out/crazyswarm2/fly.py`` and ``out/crazyflie/cflib_upload.py``."""
+    from mrfswarm.outputs import atomic_write
+
+    written = [atomic_write(out / "crazyswarm2" / "crazyflies.yaml", lambda p: p.write_text(
+        "# Crazyswarm2 robots of this mrfswarm run: cf<k> flies trajectories/robot_<k-1>.csv (see fly.py)\n"
+        + yaml.safe_dump(crazyflies_config(starts), sort_keys=False)))]
+    for folder, script in (("crazyswarm2", "fly.py"), ("crazyflie", "cflib_upload.py")):
+        source = SCRIPTS / script
+        written.append(atomic_write(out / folder / script, partial(shutil.copyfile, source)))
+    return written
+
+
+def starts_of(trajectories: Sequence) -> np.ndarray:
+    """(N, 2) every trajectory's position at time 0."""
+    return np.array([tr.evaluate(0.0)[:2] for tr in trajectories])

@@ -1,0 +1,142 @@
+"""Upload an mrfswarm plan straight to Crazyflies with cflib, and fly it (no ROS).
+
+Written by ``mrfswarm run`` into ``<run>/crazyflie/``; needs ``pip install 'mrfswarm[crazyflie]'``
+(cflib, and mrfswarm, whose :mod:`mrfswarm.export.cflib_` builds cflib's pieces).
+
+    python cflib_upload.py [--compressed] [--fly] [--robots 0,1,...]
+
+Radio addresses come from ``../crazyswarm2/crazyflies.yaml`` (``cf<k>`` is robot ``k - 1``).
+Raw pieces (``Poly4D``) are those of ``../trajectories/robot_<i>.csv``; at most 31 fit.
+``--compressed`` uploads the compressed pieces of ``compressed.json`` beside this file, the
+ones whose decoded flight ``result.json`` certifies (``crazyflie.compressed``); their
+positions are relative to ``origin_m``: the positioning system's origin must be there.
+``--fly`` then takes off, goes to each start, starts all trajectories at once, and lands.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+HERE = Path(__file__).resolve().parent
+PLAN = HERE.parent
+TRAJECTORY_ID = 1
+TAKEOFF_S = 3.0
+GOTO_S = 3.0
+LAND_S = 3.0
+SETTLE_S = 1.0
+
+
+def uris(plan: Path = PLAN) -> dict[int, str]:
+    """Robot index -> radio URI, from Crazyswarm2's ``crazyflies.yaml``."""
+    robots = yaml.safe_load((plan / "crazyswarm2" / "crazyflies.yaml").read_text())["robots"]
+    return {int(name[2:]) - 1: entry["uri"] for name, entry in robots.items() if entry.get("enabled", True)}
+
+
+def pieces(robots: list[int], compressed: bool, plan: Path = PLAN) -> tuple[dict[int, list[Any]], np.ndarray]:
+    """cflib elements per robot and the frame origin they are relative to (zero for raw pieces)."""
+    from mrfswarm.export import cflib_
+    from mrfswarm.trajectory import read_uav_csv
+
+    if not compressed:
+        out = {}
+        for i in robots:
+            tr = read_uav_csv(plan / "trajectories" / f"robot_{i}.csv", dim=4)
+            out[i] = cflib_.raw_pieces(tr, 0.0)
+        return out, np.zeros(3)
+    c = compressed_plan(plan)
+    return {i: cflib_.compressed_elements(c, i) for i in robots}, c.origin
+
+
+def compressed_plan(plan: Path = PLAN) -> Any:
+    """The :class:`~mrfswarm.export.cflib_.Compressed` flight of ``compressed.json``."""
+    from mrfswarm.export import cflib_
+
+    d = json.loads((plan / "crazyflie" / "compressed.json").read_text())
+    return cflib_.Compressed(np.array(d["origin_m"], dtype=float), [np.array(k, dtype=np.int64) for k in d["knots_ms"]],
+                             [np.array(p, dtype=np.int64) for p in d["points_mm"]], int(d["z_mm"]),
+                             float(d["position_error_bound_m"]))
+
+
+def upload(cf: Any, elements: list[Any], compressed: bool) -> int:
+    """Write ``elements`` into ``cf``'s trajectory memory and define trajectory ``TRAJECTORY_ID``; the bytes used."""
+    from cflib.crazyflie.high_level_commander import HighLevelCommander
+    from cflib.crazyflie.mem import MemoryElement
+
+    memory = cf.mem.get_mems(MemoryElement.TYPE_TRAJ)[0]
+    memory.trajectory = list(elements)
+    size = len(b"".join(bytes(e.pack()) for e in memory.trajectory))
+    if size > memory.size:
+        raise SystemExit(f"cflib_upload.py: {size} bytes do not fit the trajectory memory ({memory.size} bytes)"
+                         + ("" if compressed else "; try --compressed"))
+    if not memory.write_data_sync():
+        raise SystemExit(f"cflib_upload.py: uploading to {getattr(cf, 'link_uri', cf)} failed")
+    n = len(elements) - 2 if compressed else len(elements)  # compressed: not the start and end elements
+    kind = HighLevelCommander.TRAJECTORY_TYPE_POLY4D_COMPRESSED if compressed else HighLevelCommander.TRAJECTORY_TYPE_POLY4D
+    cf.high_level_commander.define_trajectory(TRAJECTORY_ID, 0, n, type=kind)
+    return size
+
+
+def start_of(elements: list[Any], compressed: bool) -> tuple[float, float, float]:
+    """Where the trajectory starts, in the frame it is flown in."""
+    e = elements[0]
+    if compressed:
+        return (e.x, e.y, e.z)  # CompressedStart, metres from the origin
+    return (e.x.values[0], e.y.values[0], e.z.values[0])
+
+
+def duration_of(elements: list[Any], compressed: bool) -> float:
+    return float(sum(e.duration for e in (elements[1:-1] if compressed else elements)))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--compressed", action="store_true", help="compressed pieces (fit 131 instead of 31)")
+    ap.add_argument("--fly", action="store_true", help="after uploading, take off, fly and land")
+    ap.add_argument("--robots", default=None, help="comma-separated robot indices (default: all in the yaml)")
+    args = ap.parse_args(argv)
+    addresses = uris()
+    robots = sorted(addresses) if args.robots is None else [int(v) for v in args.robots.split(",")]
+    missing = [i for i in robots if i not in addresses]
+    if missing:
+        raise SystemExit(f"cflib_upload.py: robots {missing} have no enabled entry in crazyswarm2/crazyflies.yaml")
+    elements, origin = pieces(robots, args.compressed)
+    if args.compressed and np.any(origin != 0):
+        print(f"compressed positions are relative to {origin.tolist()} m: the positioning system's origin must be there")
+
+    import cflib.crtp
+    from cflib.crazyflie.swarm import CachedCfFactory, Swarm
+
+    cflib.crtp.init_drivers()
+    by_uri = {addresses[i]: i for i in robots}
+    with Swarm(list(by_uri), factory=CachedCfFactory(rw_cache=str(HERE / "cache"))) as swarm:
+        swarm.parallel_safe(lambda scf: print(scf.cf.link_uri, upload(scf.cf, elements[by_uri[scf.cf.link_uri]],
+                                                                      args.compressed), "bytes"))
+        if not args.fly:
+            return 0
+        swarm.reset_estimators()
+        first = elements[robots[0]]
+        altitude = start_of(first, args.compressed)[2]
+        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.takeoff(altitude, TAKEOFF_S))
+        time.sleep(TAKEOFF_S + SETTLE_S)
+        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.go_to(
+            *start_of(elements[by_uri[scf.cf.link_uri]], args.compressed), 0.0, GOTO_S))
+        time.sleep(GOTO_S + SETTLE_S)
+        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.start_trajectory(
+            TRAJECTORY_ID, 1.0, relative_position=False))
+        time.sleep(max(duration_of(e, args.compressed) for e in elements.values()) + SETTLE_S)
+        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.land(0.04, LAND_S))
+        time.sleep(LAND_S + SETTLE_S)
+        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.stop())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

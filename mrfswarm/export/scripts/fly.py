@@ -1,0 +1,89 @@
+"""Fly an mrfswarm plan with Crazyswarm2 (written by ``mrfswarm run`` into ``<run>/crazyswarm2/``).
+
+1. Check ``crazyflies.yaml`` beside this file: one robot ``cf<k>`` per planned robot (it
+   flies ``../trajectories/robot_<k-1>.csv``), its radio ``uri`` and its
+   ``initial_position`` (the planned start, on the ground). Place each Crazyflie there.
+2. ``ros2 launch crazyflie launch.py crazyflies_yaml_file:=$PWD/crazyflies.yaml``
+3. ``python3 fly.py``: uploads every robot's trajectory (raw pieces: at most 31 fit a
+   Crazyflie's memory; for longer plans use ``../crazyflie/cflib_upload.py --compressed``),
+   takes off to the plan's altitude, goes to each start, starts all trajectories at once
+   (absolute positions: the plan's world frame is the motion-capture frame), lands.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+TRAJECTORIES = HERE.parent / "trajectories"
+MAX_RAW_PIECES = 31  # 4096-byte trajectory memory / 132 bytes a raw piece
+TAKEOFF_S = 3.0
+GOTO_S = 3.0
+LAND_S = 3.0
+SETTLE_S = 1.0
+TRAJECTORY_ID = 0
+
+
+def robot_index(name: str) -> int:
+    """``cf<k>`` flies the plan's robot ``k - 1``."""
+    if not (name.startswith("cf") and name[2:].isdigit()):
+        raise SystemExit(f"fly.py: robot name {name!r} in crazyflies.yaml is not cf<k>, as mrfswarm wrote it")
+    return int(name[2:]) - 1
+
+
+def load(names: list[str]) -> dict:
+    """Each robot's Crazyswarm2 ``Trajectory``, loaded from its CSV; refuses one that does not fit the memory."""
+    from crazyflie_py.uav_trajectory import Trajectory
+
+    out = {}
+    for name in names:
+        path = TRAJECTORIES / f"robot_{robot_index(name)}.csv"
+        if not path.is_file():
+            raise SystemExit(f"fly.py: no trajectory {path} for {name}")
+        traj = Trajectory()
+        traj.loadcsv(path)
+        if traj.n_pieces() > MAX_RAW_PIECES:
+            raise SystemExit(f"fly.py: {name}'s trajectory has {traj.n_pieces()} pieces; a Crazyflie holds "
+                             f"{MAX_RAW_PIECES} raw pieces: fly it compressed with ../crazyflie/cflib_upload.py "
+                             f"--compressed --fly")
+        out[name] = traj
+    return out
+
+
+def start_of(traj) -> np.ndarray:
+    """x, y, z at time 0 (the constant coefficients of the first piece)."""
+    p = traj.polynomials[0]
+    return np.array([p.px.p[0], p.py.p[0], p.pz.p[0]], dtype=float)
+
+
+def main() -> None:
+    from crazyflie_py import Crazyswarm
+
+    swarm = Crazyswarm()
+    time_helper = swarm.timeHelper
+    allcfs = swarm.allcfs
+    by_name = allcfs.crazyfliesByName
+    trajectories = load(sorted(by_name))
+    altitude = max(start_of(t)[2] for t in trajectories.values())
+    duration = max(t.duration for t in trajectories.values())
+
+    for name, traj in trajectories.items():
+        by_name[name].uploadTrajectory(TRAJECTORY_ID, 0, traj)
+
+    allcfs.takeoff(targetHeight=altitude, duration=TAKEOFF_S)
+    time_helper.sleep(TAKEOFF_S + SETTLE_S)
+    for name, traj in trajectories.items():
+        by_name[name].goTo(start_of(traj), 0.0, GOTO_S)
+    time_helper.sleep(GOTO_S + SETTLE_S)
+
+    allcfs.startTrajectory(TRAJECTORY_ID, timescale=1.0, relative=False)  # all at once: the plan is synchronous
+    time_helper.sleep(duration + SETTLE_S)
+
+    allcfs.land(targetHeight=0.04, duration=LAND_S)
+    time_helper.sleep(LAND_S + SETTLE_S)
+
+
+if __name__ == "__main__":
+    main()

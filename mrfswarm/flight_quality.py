@@ -1,0 +1,117 @@
+"""What a user feels of a flight: makespan over its dynamic lower bound, stops, speed.
+
+The lower bound of a flight is the time the slowest robot needs at best: the longest,
+over robots, of the shortest free path from its start cell to its final cell (the
+8-connected grid graph without corner cutting, the moves the discrete stage can make),
+flown at ``v_max``. No plan that moves robots between those cells can end sooner.
+
+A **stop** is a robot slower than :data:`STOP_SPEED` somewhere strictly inside its own
+flight: after it first exceeds that speed and before it last does (the departure and
+the final approach are excluded). Each maximal slow interval counts once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import csr_array
+from scipy.sparse.csgraph import dijkstra
+
+from mrfswarm.discrete.goal_distance import graph_moves
+from mrfswarm.discrete.motion import moves_clear
+from mrfswarm.trajectory import PiecewisePolynomial
+
+#: Speed (m/s) under which a robot counts as stopped.
+STOP_SPEED = 0.05
+#: Sampling rate (Hz) of the stop count.
+STOP_RATE_HZ = 50.0
+
+
+def _graph(free: np.ndarray, resolution: float) -> csr_array:
+    """The 8-connected free-cell graph without corner cutting, edge lengths in metres."""
+    W, H = free.shape
+    cells = np.argwhere(free)
+    moves = graph_moves(2)
+    ok = moves_clear(free, cells, np.broadcast_to(np.arange(1, len(moves) + 1), (len(cells), len(moves))), 2)
+    p, m = np.nonzero(ok)
+    src, dst = cells[p], cells[p] + moves[m]
+    length = np.hypot(*moves[m].T) * resolution
+    return csr_array((length, (src[:, 0] * H + src[:, 1], dst[:, 0] * H + dst[:, 1])), shape=(W * H, W * H))
+
+
+def free_path_lengths(free: np.ndarray, starts: np.ndarray, ends: np.ndarray, resolution: float = 1.0,
+                      via: np.ndarray | None = None) -> np.ndarray:
+    """(N,) shortest free-path length (metres) from each ``starts[i]`` to ``ends[i]`` (cells).
+
+    With ``via`` ((W, H) free-path distance to one common cell, e.g. the goal), only the
+    robots that can hold the maximum are searched exactly: ``via[s] + via[e]`` bounds a
+    robot's length from above (the way through that cell), so robots are searched in
+    decreasing order of that bound until it falls below the longest exact length found;
+    the others get NaN. Without ``via`` every robot is searched.
+    """
+    free = np.asarray(free, dtype=bool)
+    starts, ends = np.asarray(starts, dtype=np.intp), np.asarray(ends, dtype=np.intp)
+    H = free.shape[1]
+    graph = _graph(free, resolution)
+    out = np.full(len(starts), np.nan)
+    same = np.all(starts == ends, axis=1)
+    out[same] = 0.0
+    todo = np.flatnonzero(~same)
+    if via is not None:
+        upper = via[starts[todo, 0], starts[todo, 1]] + via[ends[todo, 0], ends[todo, 1]]
+        todo = todo[np.argsort(-upper, kind="stable")]
+        upper = np.sort(upper)[::-1]
+    best = 0.0
+    for n, i in enumerate(todo):
+        if via is not None and upper[n] <= best:
+            break
+        d = dijkstra(graph, directed=True, indices=int(ends[i, 0] * H + ends[i, 1]), limit=np.inf)
+        out[i] = d[starts[i, 0] * H + starts[i, 1]]
+        best = max(best, float(out[i]))
+    return out
+
+
+def makespan_lower_bound(free: np.ndarray, starts: np.ndarray, ends: np.ndarray, resolution: float, v_max: float,
+                         via: np.ndarray | None = None) -> float:
+    """Seconds: the longest shortest free path from a start cell to its final cell, at ``v_max``."""
+    lengths = free_path_lengths(free, starts, ends, resolution, via)
+    return float(np.nanmax(lengths, initial=0.0)) / v_max
+
+
+@dataclass(frozen=True)
+class Stops:
+    """Stops inside each robot's flight and its mean speed.
+
+    Attributes
+    ----------
+    per_robot
+        (N,) number of stops of each robot.
+    mean_speed
+        (N,) path length over the flight's duration (m/s).
+    """
+
+    per_robot: np.ndarray
+    mean_speed: np.ndarray
+
+    @property
+    def mean(self) -> float:
+        return float(self.per_robot.mean()) if self.per_robot.size else 0.0
+
+
+def count_stops(trajectories: list[PiecewisePolynomial], rate_hz: float = STOP_RATE_HZ,
+                speed: float = STOP_SPEED) -> Stops:
+    """Stops of every robot, sampled at ``rate_hz`` (see the module docstring)."""
+    stops, means = [], []
+    for tr in trajectories:
+        t = np.linspace(0.0, tr.duration, max(2, int(np.ceil(tr.duration * rate_hz)) + 1))
+        v = np.linalg.norm(tr.evaluate(t, 1), axis=-1)
+        fast = np.flatnonzero(v >= speed)
+        n = 0
+        if fast.size:
+            inside = v[fast[0]:fast[-1] + 1] < speed
+            n = int(np.count_nonzero(np.diff(inside.astype(np.int8)) == 1))
+        stops.append(n)
+        dt = t[1] - t[0]
+        means.append(float(v.sum() * dt / tr.duration) if tr.duration > 0 else 0.0)
+    return Stops(np.asarray(stops, dtype=np.int64), np.asarray(means))

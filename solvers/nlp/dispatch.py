@@ -1,0 +1,100 @@
+"""The one registry of NLP backends and the one dispatch, :func:`minimize`.
+
+Dispatch reads each backend's :class:`~solvers.nlp.capabilities.NLPCapabilities`: a
+problem with linear rows is refused by a backend without ``linear_constraints`` before
+any work. It hands the backend a copy of the problem whose callables are counted
+(:class:`~solvers.nlp.evaluation.Evaluations`), times the run, and completes the backend's
+:class:`~solvers.nlp.solution.Outcome` into a :class:`~solvers.nlp.solution.Solution`
+with ``f`` at the returned point.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+
+from solvers.errors import InvalidProblem, SolverError
+from solvers.nlp import ipopt_, lbfgsb_, slsqp_, sqpmethod_, trust_constr_
+from solvers.nlp.capabilities import NLPCapabilities
+from solvers.nlp.evaluation import Evaluations
+from solvers.nlp.problem import NLPProblem
+from solvers.nlp.solution import Options, Outcome, Solution
+from solvers.registry import Backend, Registry
+from solvers.status import Status
+
+log = logging.getLogger(__name__)
+
+BACKENDS: Registry[NLPCapabilities] = Registry(
+    "NLP",
+    [
+        ipopt_.BACKEND,
+        sqpmethod_.BACKEND,
+        slsqp_.BACKEND,
+        trust_constr_.BACKEND,
+        lbfgsb_.BACKEND,
+    ],
+)
+
+DEFAULT_BACKEND = "ipopt"
+
+
+def available() -> list[str]:
+    """Names of the installed NLP backends, in preference order."""
+    return BACKENDS.available()
+
+
+def _accepts(record: Backend[NLPCapabilities], problem: NLPProblem) -> None:
+    if problem.has_linear_rows and not record.capabilities.linear_constraints:
+        able = ", ".join(BACKENDS.available(lambda c: c.linear_constraints)) or "none"
+        raise InvalidProblem(f"backend {record.name!r} takes bounds only; this problem has linear rows "
+                             f"(installed backends that take them: {able})")
+
+
+def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Options | None = None) -> Solution:
+    """Minimize ``problem`` with ``backend``, from ``problem.x0``.
+
+    A run that stops short (``MAX_ITER``, ``TIME_LIMIT``, a failed line search) is not an
+    exception: the solution says so in ``status`` and holds the last iterate, which a
+    caller with an iteration budget uses. The point returned is inside the bounds. A point where ``f`` is not finite is never
+    reported optimal (``ERROR``), whatever the backend said.
+
+    Raises
+    ------
+    SolverNotFound
+        If ``backend`` is unknown or not installed.
+    InvalidProblem
+        If the problem has linear rows and the backend takes none, or ``grad`` returns a
+        vector of the wrong size.
+    SolverError
+        If the backend itself fails (raises), carrying its error text.
+    Exception
+        Whatever ``problem.fun`` or ``problem.grad`` raised, as itself.
+    """
+    record = BACKENDS.get(backend)
+    _accepts(record, problem)
+    options = options or Options()
+    ev = Evaluations(problem, replace_nan=not record.capabilities.nan_step_back)
+    t0 = time.perf_counter()
+    try:
+        out: Outcome = record.entry(ev.counted(), options)
+    except Exception as e:
+        if ev.raised is not None:  # the user's callable (or the gradient's shape check) failed
+            raise ev.raised from None
+        raise SolverError(f"{record.name} failed: {type(e).__name__}: {e}", backend=record.name,
+                          status=type(e).__name__) from e
+    if ev.raised is not None:  # a backend that swallowed it
+        raise ev.raised
+    total = time.perf_counter() - t0
+    x = np.clip(out.x, problem.lower, problem.upper)  # Ipopt relaxes the bounds by 1e-8
+    objective = ev.value_at(x)
+    status = out.status
+    if status.ok and not np.isfinite(objective):  # sqpmethod can end on a failed line search's point
+        status = Status.ERROR
+    sol = Solution(x=x, status=status, objective=objective, iterations=out.iterations,
+                   evaluations=ev.fun_calls, gradient_evaluations=ev.grad_calls, setup_time_s=out.setup_time_s,
+                   solve_time_s=total - out.setup_time_s, backend=record.name, raw_status=out.raw_status)
+    log.debug("%s: %s in %d iterations, %d evaluations, f = %.6g", record.name, sol.raw_status, sol.iterations,
+              sol.evaluations, sol.objective)
+    return sol

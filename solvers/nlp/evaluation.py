@@ -1,0 +1,95 @@
+"""The problem's callables as every backend calls them: counted, checked, remembered.
+
+Dispatch hands each backend a copy of the problem whose ``fun`` and ``grad`` are an
+:class:`Evaluations`' methods, so that evaluations are counted the same way for every
+backend, a gradient of the wrong shape is an :class:`~solvers.errors.InvalidProblem`
+whichever backend asked for it, and an exception raised by the user's callable reaches
+the caller as itself even through a native backend (CasADi turns it into its own
+``RuntimeError``; dispatch re-raises the original).
+
+NaN: ``f`` may be NaN where it cannot be evaluated. A backend whose record has
+``nan_step_back`` (Ipopt) sees the NaN and shortens its step itself. The others would
+stop at the first NaN (L-BFGS-B's line search ends "abnormal", sqpmethod's sensitivities
+become irregular), so they see instead a value above every finite one seen so far (and the last finite
+gradient there, which a line search or a trust region never uses: it steps back, as Ipopt
+does).
+The returned :class:`~solvers.nlp.Solution` still reports ``f``'s own value.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from solvers.errors import InvalidProblem
+from solvers.nlp.problem import NLPProblem
+
+
+class Evaluations:
+    """Counting wrappers of ``problem.fun`` and ``problem.grad``.
+
+    Attributes
+    ----------
+    fun_calls, grad_calls
+        How many times each was called.
+    raised
+        The first exception a callable (or a check here) raised, if any.
+    """
+
+    def __init__(self, problem: NLPProblem, *, replace_nan: bool = False) -> None:
+        self.problem = problem
+        self.replace_nan = replace_nan
+        self.highest = -np.inf
+        self._last_gradient: np.ndarray | None = None
+        self.fun_calls = 0
+        self.grad_calls = 0
+        self.raised: BaseException | None = None
+        self._values: dict[bytes, float] = {}
+
+    def fun(self, x: np.ndarray) -> float:
+        """``f(x)``, counted and remembered."""
+        self.fun_calls += 1
+        x = np.array(x, dtype=float).reshape(-1)
+        try:
+            value = float(self.problem.fun(x))
+        except BaseException as e:
+            self.raised = self.raised or e
+            raise
+        self._values[x.tobytes()] = value
+        if np.isnan(value) and self.replace_nan:
+            return self.step_back_value()
+        if np.isfinite(value):
+            self.highest = max(self.highest, value)
+        return value
+
+    def step_back_value(self) -> float:
+        """What a backend without ``nan_step_back`` sees for NaN: above every finite value seen."""
+        if not np.isfinite(self.highest):
+            return 1e150  # nothing finite seen yet: any finite value will look better
+        return self.highest + max(1.0, abs(self.highest))
+
+    def grad(self, x: np.ndarray) -> np.ndarray:
+        """``grad f(x)`` as a float vector of shape (n,), counted."""
+        self.grad_calls += 1
+        x = np.array(x, dtype=float).reshape(-1)
+        try:
+            g = np.asarray(self.problem.grad(x), dtype=float)
+            if g.size != x.size:
+                raise InvalidProblem(f"grad returned {g.size} entries, the problem has {x.size} variables")
+        except BaseException as e:
+            self.raised = self.raised or e
+            raise
+        if self.replace_nan:
+            if np.any(np.isnan(g)):
+                return np.zeros(x.size) if self._last_gradient is None else self._last_gradient.copy()
+            self._last_gradient = g.reshape(-1).copy()
+        return g.reshape(-1)
+
+    def value_at(self, x: np.ndarray) -> float:
+        """``f(x)``: the value already computed at exactly ``x``, else one more (uncounted) call."""
+        x = np.asarray(x, dtype=float).reshape(-1)
+        known = self._values.get(x.tobytes())
+        return float(self.problem.fun(x.copy())) if known is None else known
+
+    def counted(self) -> NLPProblem:
+        """The problem with these wrappers as its callables."""
+        return self.problem.with_functions(self.fun, self.grad)

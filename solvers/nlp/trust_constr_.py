@@ -1,0 +1,64 @@
+"""SciPy's ``trust-constr``: a trust-region interior-point method.
+
+Byrd, Hribar, Nocedal, "An interior point algorithm for large-scale nonlinear
+programming", SIAM Journal on Optimization 9 (1999); Conn, Gould, Toint,
+"Trust-Region Methods" (2000). Called through ``scipy.optimize.minimize``
+(:mod:`solvers.nlp.scipy_minimize`).
+
+With bounds or rows SciPy runs its ``tr_interior_point`` algorithm (a barrier problem
+solved by equality-constrained SQP in a trust region). The Hessian is SciPy's ``BFGS()``
+quasi-Newton approximation. Bounds are kept feasible (``keep_feasible=True``): ``f`` is
+evaluated inside them only.
+
+Translation of :class:`~solvers.nlp.Options`: ``tol`` is ``gtol`` (the Lagrangian
+gradient's norm, with the constraint violation) and ``xtol`` (the trust radius), and
+the final barrier parameter ``barrier_tol``; ``max_iter`` is ``maxiter``; ``verbose``
+sets ``verbose`` 2 (else 0); ``time_limit`` is checked between iterations.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from solvers.nlp import scipy_minimize
+from solvers.nlp.capabilities import NLPCapabilities
+from solvers.nlp.problem import NLPProblem
+from solvers.nlp.solution import Options, Outcome
+from solvers.registry import Backend
+from solvers.status import Status
+
+# trust-constr's status -> Status (0: the iteration cap, called "function evaluations" in
+# SciPy's message; 4: the constraint violation is still above gtol: ERROR)
+STATUS = {0: Status.MAX_ITER, 1: Status.OPTIMAL, 2: Status.OPTIMAL_INACCURATE}
+
+
+def _settings(o: Options) -> dict:
+    """``Options`` as trust-constr's options (the one place they are translated)."""
+    return {"gtol": o.tol, "xtol": o.tol, "barrier_tol": o.tol, "maxiter": int(o.max_iter),
+            "verbose": 2 if o.verbose else 0}
+
+
+def solve(problem: NLPProblem, options: Options) -> Outcome:
+    """Minimize ``problem`` with trust-constr (BFGS Hessian)."""
+    from scipy.optimize import BFGS
+
+    with warnings.catch_warnings():
+        # after a NaN, dispatch repeats the last gradient (solvers.nlp.evaluation): BFGS then
+        # skips its update and SciPy warns that f looks linear, which it is not
+        warnings.filterwarnings("ignore", message="delta_grad == 0.0", category=UserWarning)
+        res, timed_out = scipy_minimize.run(problem, "trust-constr", _settings(options), options, hess=BFGS())
+    status = Status.TIME_LIMIT if timed_out else STATUS.get(int(res.status), Status.ERROR)
+    return Outcome(x=np.asarray(res.x, dtype=float), status=status, raw_status=str(res.message),
+                   iterations=int(res.nit))
+
+
+BACKEND = Backend(
+    name="trust_constr",
+    entry=solve,
+    requires=("scipy",),
+    summary="SciPy trust-constr: trust-region interior point (Byrd-Hribar-Nocedal), BFGS Hessian, bounds and rows",
+    capabilities=NLPCapabilities(bounds=True, linear_constraints=True, needs_gradient=True, quasi_newton=True,
+                                 nan_step_back=False, time_limit_native=False),
+)

@@ -1,0 +1,113 @@
+"""`mrfswarm run --out`: a folder never mixes two runs and is never left half-written."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from mrfswarm import outputs
+from mrfswarm.cli import main
+from support.repository import ROOT
+
+
+def config(tmp_path: Path, n: int) -> Path:
+    p = tmp_path / f"swarm{n}.toml"
+    starts = ", ".join(f"[{3 + 2 * i}, 5]" for i in range(n))
+    p.write_text(f"[scenario]\nmap = {{ kind = \"free\", size = [20, 12] }}\nstart = {{ positions = [{starts}] }}\n"
+                 "goal = [15, 9]\n[interaction]\nk = 2\n[mrf]\nmax_steps = 6\n[simulation]\nenabled = false\n")
+    return p
+
+
+def run(tmp_path, n, out, *extra):
+    return main(["run", str(config(tmp_path, n)), "--out", str(out), *extra])
+
+
+def snapshot(folder: Path) -> dict:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_six_then_five_robots_refused_then_overwritten(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert run(tmp_path, 6, out) == 0
+    first = snapshot(out)
+    assert "trajectories/robot_5.csv" in first and json.loads(first["result.json"])["complete"] is True
+    capsys.readouterr()
+    assert run(tmp_path, 5, out) == 2  # refused before planning
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "already holds a run" in err and "--overwrite" in err and str(out) in err
+    assert snapshot(out) == first  # intact
+    assert run(tmp_path, 5, out, "--overwrite") == 0
+    second = snapshot(out)
+    assert "trajectories/robot_5.csv" not in second and "trajectories/robot_4.csv" in second
+    res = json.loads(second["result.json"])
+    assert res["n_robots"] == 5 and res["complete"] is True and len(res["crazyflie"]["robots"]) == 5
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out.")]  # no staging or old folder left
+
+
+def test_a_folder_that_is_not_a_run_is_never_replaced(tmp_path, capsys):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("keep me")
+    assert run(tmp_path, 3, out, "--overwrite") == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not an mrfswarm run's" in err and "notes.txt" in err
+    assert (out / "notes.txt").read_text() == "keep me" and len(list(out.iterdir())) == 1
+
+
+def test_an_empty_folder_is_used(tmp_path):
+    out = tmp_path / "empty"
+    out.mkdir()
+    assert run(tmp_path, 3, out) == 0 and json.loads((out / "result.json").read_text())["complete"] is True
+
+
+def test_a_late_writer_failing_leaves_the_old_run_intact(tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    assert run(tmp_path, 6, out) == 0
+    first = snapshot(out)
+
+    def broken(result, out):  # the last writer before result.json
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(outputs, "write_crazyflie_outputs", broken)
+    assert run(tmp_path, 5, out, "--overwrite") == 130
+    assert snapshot(out) == first
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # the staging folder is gone
+    fresh = tmp_path / "fresh"
+    assert run(tmp_path, 5, fresh) == 130
+    assert not fresh.exists()  # nothing complete-looking, nothing at all
+
+
+def test_killed_run_leaves_no_result(tmp_path):
+    """Kill a real process while it writes its outputs: --out gets no result.json (nor anything)."""
+    out = tmp_path / "out"
+    cfg = config(tmp_path, 6)
+    slow = tmp_path / "slow.py"  # the real CLI, with figures that take a while so the kill lands while writing
+    slow.write_text("import sys, time\nfrom mrfswarm import plots\nreal = plots.save_figure\n"
+                    "def save(*a, **k):\n    print('writing', flush=True)\n    time.sleep(30)\n"
+                    "plots.save_figure = save\nfrom mrfswarm.cli import main\nsys.exit(main(sys.argv[1:]))\n")
+    proc = subprocess.Popen([sys.executable, str(slow), "run", str(cfg), "--out", str(out)], cwd=ROOT,
+                            stdout=subprocess.PIPE, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert proc.stdout.readline().strip() == b"writing"
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=30)
+    assert not out.exists()
+    partial = [p for p in tmp_path.iterdir() if p.name.startswith(".out.partial-")]
+    assert len(partial) == 1 and not (partial[0] / "result.json").exists()  # the hidden staging folder only
+    assert run(tmp_path, 6, out) == 0  # and the next run is not bothered by it
+
+
+def test_check_output_dir_guards(tmp_path):
+    from mrfswarm.errors import ExportError
+
+    run_dir = tmp_path / "r"
+    run_dir.mkdir()
+    (run_dir / "result.json").write_text("{}")
+    outputs.check_output_dir(run_dir, overwrite=True)
+    with pytest.raises(ExportError, match="already holds a run"):
+        outputs.check_output_dir(run_dir)
+    outputs.check_output_dir(tmp_path / "nowhere")
+

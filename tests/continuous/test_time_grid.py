@@ -1,0 +1,39 @@
+"""The default time grid: speed profiles from the robots' motion and the limits."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mrfswarm.continuous.time_grid import motion_durations, motion_profile, segment_times
+
+
+def test_motion_durations_cruise_straight_and_slow_for_reversals():
+    straight = np.array([[[i, 0]] for i in range(12)])  # (T + 1, 1, 2): 11 one-cell moves along x
+    d = motion_durations(straight, 1.0, 2.0, 1.0)
+    assert np.allclose(d[4:7], 0.5)  # cruising at v_max in the middle
+    assert d[0] > 0.5 and d[-1] > 0.5  # speeding up from rest, slowing down to rest
+    back = np.array([[[i, 0]] for i in range(6)] + [[[i, 0]] for i in range(4, -1, -1)])
+    db = motion_durations(back, 1.0, 2.0, 1.0)
+    assert db[4] > d[4] and db[5] > d[5]  # the reversal at step 5 slows the steps around it
+    # the swarm's durations change no faster than a speed profile can: no short step between long ones
+    assert np.all(np.abs(np.diff(1.0 / db)) <= 1.0 * np.maximum(db[:-1], db[1:]) + 1e-9)
+
+
+def test_segment_times_are_the_trapezoid():
+    # from rest to rest over 4 m at a = 1, v_max = 10: a triangle, 2 * sqrt(4 / 1)
+    assert segment_times(np.array([4.0]), np.array([0.0]), np.array([0.0]), 10.0, 1.0)[0] == 4.0
+    # cruise at v_max: 1 m at 2 m/s
+    assert segment_times(np.array([1.0]), np.array([2.0]), np.array([2.0]), 2.0, 1.0)[0] == 0.5
+    assert segment_times(np.array([0.0]), np.array([0.0]), np.array([0.0]), 2.0, 1.0)[0] == 0.0
+
+
+def test_a_window_brakes_to_rest_at_its_end_and_keeps_the_flight_pace_before():
+    straight = np.array([[[i, 0]] for i in range(30)])  # 29 one-cell moves along x
+    prof = motion_profile(straight, 1.0, 2.0, 1.0)
+    whole = prof.durations
+    win = prof.window(10, 18)  # a window of 8 steps in the cruise, at rest at step 18
+    np.testing.assert_allclose(win[:4], whole[10:14])  # the executed half flies at the flight's pace
+    assert win[-1] > 2 * whole[17]  # the last step brakes to rest
+    # braking from v to 0 at a over the tail: the tail lasts at least v / a
+    assert win[4:].sum() >= 2.0 / 1.0 - 1e-9
+    np.testing.assert_allclose(prof.window(0, 29), whole)  # the whole flight: the same profile

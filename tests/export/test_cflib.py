@@ -1,0 +1,135 @@
+"""The Crazyflie memory: cflib's packing, decoded back and evaluated as the firmware does, and the report."""
+
+import numpy as np
+import pytest
+
+from mrfswarm.config import load_config
+from mrfswarm.errors import ExportError
+from mrfswarm.pipeline import plan
+from mrfswarm.trajectory.polynomial import PiecewisePolynomial
+from support.repository import EXPERIMENTS
+
+pytest.importorskip("cflib")
+from mrfswarm.export import cflib_  # noqa: E402
+
+TAUS = np.linspace(0.0, 1.0, 41)
+
+
+@pytest.fixture(scope="module")
+def corridor():
+    return plan(load_config(EXPERIMENTS / "corridor.toml", ["simulation.enabled=false"]), progress=False, workers=1)
+
+
+def test_raw_pieces_are_cflibs_poly4d_and_float32_within_2_mm(corridor):
+    from cflib.crazyflie.mem import Poly4D
+
+    c = corridor.smoothed()
+    alt = corridor.config.scenario.altitude
+    for tr in c.trajectories:
+        elements = cflib_.raw_pieces(tr, alt)
+        assert all(isinstance(e, Poly4D) for e in elements) and len(elements) == tr.pieces
+        data = cflib_.pack_raw(tr, alt)
+        assert len(data) == cflib_.RAW_PIECE_BYTES * tr.pieces == len(b"".join(e.pack() for e in elements))
+        s, x = cflib_.firmware_positions_raw(data, TAUS)  # the firmware's float32 Horner
+        planned = tr.evaluate(tr.knots[:-1, None] + s.astype(float))
+        err = np.linalg.norm(x[..., :2] - planned, axis=-1).max()
+        assert err < 2e-3 and err < 1e-4  # measured some micrometres
+        assert np.all(x[..., 2] == np.float32(alt))
+        dec = cflib_.decode_raw(data, dim=2)  # the stored values, exactly as float32
+        assert np.allclose(dec.durations, tr.durations, rtol=1e-7, atol=0)
+        assert np.array_equal(dec.coefficients, tr.coefficients.astype(np.float32).astype(float))
+
+
+def test_compressed_decodes_within_the_stated_margin_and_is_cflibs(corridor):
+    from cflib.crazyflie.mem import CompressedSegment, CompressedStart
+
+    c = corridor.smoothed()
+    comp = cflib_.compress(c.trajectories, corridor.config.scenario.altitude, c.v_max, c.regions)
+    assert comp.origin.tolist() == [20.0, 0.0, 0.0]  # the map reaches 40 m: shifted to whole metres
+    blobs = [cflib_.pack_compressed(comp, i) for i in range(len(c.trajectories))]
+    el = cflib_.compressed_elements(comp, 0)
+    assert isinstance(el[0], CompressedStart) and all(isinstance(e, CompressedSegment) for e in el[1:])
+    assert el[-1].duration == 0  # the end segment
+    durations, fw = cflib_.firmware_positions_compressed(blobs, TAUS)
+    for i, tr in enumerate(c.trajectories):
+        assert len(blobs[i]) == comp.n_bytes(i) == 8 + 31 * tr.pieces + 3
+        dec = cflib_.decode_compressed(blobs[i], comp.origin, dim=2)
+        assert np.abs(dec.knots - tr.knots).max() <= 0.5e-3 + 1e-12  # knots rounded, not durations
+        t = dec.knots[:-1, None] + durations[i][:, None].astype(float) * TAUS[None, :]
+        exact = np.linalg.norm(dec.evaluate(t) - tr.evaluate(t), axis=-1).max()
+        assert exact <= comp.position_error_bound  # proven in exact arithmetic
+        xy = fw[i][..., :2].astype(float) + comp.origin[:2]
+        firmware = np.linalg.norm(xy - tr.evaluate(t), axis=-1).max()
+        deviation = np.linalg.norm(xy - dec.evaluate(t), axis=-1).max()
+        assert firmware <= comp.position_error_bound + deviation
+        assert deviation < 1e-3  # float32: measured 0.4 mm on this 40 m map
+        assert np.all(np.abs(fw[i][..., 2] - 1.0) < 1e-6)
+
+
+def test_compressed_rounding_stays_in_the_regions(corridor):
+    c = corridor.smoothed()
+    alt = corridor.config.scenario.altitude
+    from mrfswarm.continuous.certificate import certify
+
+    for regions in (c.regions, None):
+        comp = cflib_.compress(c.trajectories, alt, c.v_max, regions)
+        dec = [cflib_.decode_compressed(cflib_.pack_compressed(comp, i), comp.origin, 2)
+               for i in range(len(c.trajectories))]
+        cert = certify(dec, dec[0].knots, c.regions, 2 * corridor.config.scenario.robot_radius,
+                       (corridor.config.smoothing.v_max, corridor.config.smoothing.a_max, corridor.config.smoothing.j_max))
+        # nearest rounding puts points on region edges a hair outside; rounding into the regions does not
+        assert cert.ok is (regions is not None), cert.problems
+
+
+def test_report_per_robot_and_swarm(corridor):
+    s = corridor.summary()
+    cf = s["crazyflie"]
+    assert cf["memory_bytes"] == 4096 and len(cf["robots"]) == 5
+    for r in cf["robots"]:
+        assert r["pieces"] == 33 and r["bytes_raw"] == 33 * 132 and r["fits_raw"] is False
+        assert r["bytes_compressed"] == 8 + 33 * 31 + 3 and r["fits_compressed"] is True
+        assert r["compressed_certified"] is True and r["compressed_error_m"] <= cf["compressed"]["error_margin_m"]
+    assert cf["max_pieces"] == 33 and cf["all_fit_raw"] is False and cf["all_fit_compressed"] is True
+    assert cf["compressed"]["certificate"]["ok"] is True and cf["compressed"]["not_certified_robots"] == []
+    assert s["certificate"]["ok"] is True  # existing keys kept
+
+
+def test_a_compressed_flight_that_leaves_its_regions_is_reported(corridor, monkeypatch):
+    """Break the region-aware rounding (nearest instead): the report must say the export is not certified."""
+    real = cflib_.compress
+    monkeypatch.setattr(cflib_, "compress", lambda trs, alt, v, regions=None: real(trs, alt, v, None))
+    from mrfswarm.export.crazyflie_memory import memory_report
+
+    report, _ = memory_report(corridor)
+    comp = report["compressed"]
+    assert comp["certificate"]["ok"] is False and comp["certificate"]["problems"]
+    assert comp["not_certified_robots"]
+    bad = [r for r in report["robots"] if not r["compressed_certified"]]
+    assert bad and all(r["compressed_clearance_lower_bound_m"] < 0.25 for r in bad)
+    assert min(r["compressed_clearance_lower_bound_m"] for r in bad) > 0.25 - 1e-3
+
+
+def test_flight_too_wide_is_refused_with_its_span():
+    T = np.array([1.0])
+    wide = [PiecewisePolynomial(T, np.array([[[0.0, 0.0], [70.0, 0.0]] + [[0.0, 0.0]] * 6]))]
+    with pytest.raises(ExportError, match=r"spans 70\.000 m x 0\.000 m.*\+/-32\.767 m"):
+        cflib_.compress(wide, 1.0, 70.0)
+    fits = [PiecewisePolynomial(T, np.array([[[100.0, -50.0], [60.0, 0.0]] + [[0.0, 0.0]] * 6]))]
+    c = cflib_.compress(fits, 1.0, 60.0)
+    assert c.origin.tolist() == [130.0, -50.0, 0.0]
+    assert np.abs(c.points_mm[0]).max() <= cflib_.INT16_MAX
+
+
+def test_every_millimetre_survives_cflibs_truncating_encoder():
+    from cflib.crazyflie.mem import CompressedStart
+
+    for n in range(-cflib_.INT16_MAX, cflib_.INT16_MAX + 1, 7):
+        data = CompressedStart(cflib_._metres(n), 0.0, 0.0, 0.0).pack()
+        assert int.from_bytes(data[:2], "little", signed=True) == n
+
+
+def test_decoders_reject_bad_data():
+    with pytest.raises(ExportError, match="132-byte"):
+        cflib_.decode_raw(b"\0" * 100)
+    with pytest.raises(ExportError, match="end segment"):
+        cflib_.parse_compressed(b"\0" * 8 + b"\x0f\x10\x00")

@@ -1,0 +1,196 @@
+"""crazyswarm2/crazyflies.yaml read as Crazyswarm2 reads it; fly.py against a fake crazyflie_py; cflib_upload.py's
+packing with cflib's real classes (only the radio link is fake)."""
+
+import importlib.util
+import sys
+import types
+
+import numpy as np
+import pytest
+import yaml
+
+from mrfswarm.cli import main
+from mrfswarm.trajectory import read_uav_csv
+from support.repository import EXPERIMENTS
+
+pytest.importorskip("cflib")
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("run") / "out"
+    assert main(["run", str(EXPERIMENTS / "corridor.toml"), "--out", str(out), "--set", "simulation.enabled=false",
+                 "--workers", "1"]) == 0
+    return out
+
+
+def load_script(path, name):
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_yaml_as_crazyswarm2_launch_reads_it(run_dir):
+    c = yaml.safe_load((run_dir / "crazyswarm2" / "crazyflies.yaml").read_text())
+    fileversion = c.get("fileversion", 1)
+    assert fileversion == 3
+    rigid = {}
+    for key, value in c["robots"].items():  # crazyflie/launch/launch.py's loop
+        kind = c["robot_types"][value["type"]]
+        if value["enabled"] and kind["motion_capture"]["tracking"] == "librigidbodytracker":
+            rigid[key] = {"initial_position": value["initial_position"], "marker": kind["motion_capture"]["marker"],
+                          "dynamics": kind["motion_capture"]["dynamics"]}
+    assert list(rigid) == ["cf1", "cf2", "cf3", "cf4", "cf5"]
+    assert [v["initial_position"] for v in rigid.values()] == [[4.0, y, 0.0] for y in (16.0, 18.0, 20.0, 22.0, 24.0)]
+    ids = [int(v["uri"][-2:], 16) for v in c["robots"].values()]  # crazyflie_py's cfid
+    assert ids == [1, 2, 3, 4, 5] and c["robots"]["cf1"]["uri"] == "radio://0/80/2M/E7E7E7E701"
+    assert c["all"]["firmware_params"]["commander"]["enHighLevel"] == 1
+
+
+class FakeTrajectory:
+    """crazyflie_py.uav_trajectory.Trajectory: loadcsv as Crazyswarm2 does it."""
+
+    def loadcsv(self, filename):
+        data = np.loadtxt(filename, delimiter=",", skiprows=1, usecols=range(33), ndmin=2)
+        self.rows = data
+        P = types.SimpleNamespace
+        self.polynomials = [P(duration=r[0], px=P(p=r[1:9]), py=P(p=r[9:17]), pz=P(p=r[17:25]), pyaw=P(p=r[25:33]))
+                            for r in data]
+        self.duration = float(np.sum(data[:, 0]))
+
+    def n_pieces(self):
+        return len(self.polynomials)
+
+
+def fake_crazyflie_py(calls, names):
+    class Cf:
+        def __init__(self, name):
+            self.name = name
+
+        def uploadTrajectory(self, trajectory_id, offset, trajectory):
+            calls.append(("upload", self.name, trajectory_id, offset, trajectory))
+
+        def goTo(self, goal, yaw, duration, relative=False, groupMask=0):
+            calls.append(("goTo", self.name, np.asarray(goal, dtype=float), yaw, duration, relative))
+
+    class Server:
+        def __init__(self):
+            self.crazyfliesByName = {n: Cf(n) for n in names}
+            self.crazyflies = list(self.crazyfliesByName.values())
+
+        def takeoff(self, targetHeight, duration, groupMask=0):
+            calls.append(("takeoff", targetHeight, duration))
+
+        def startTrajectory(self, trajectoryId, timescale=1.0, reverse=False, relative=True, groupMask=0):
+            calls.append(("start", trajectoryId, timescale, reverse, relative))
+
+        def land(self, targetHeight, duration, groupMask=0):
+            calls.append(("land", targetHeight, duration))
+
+    class TimeHelper:
+        def sleep(self, duration):
+            calls.append(("sleep", duration))
+
+    class Crazyswarm:
+        def __init__(self):
+            self.allcfs = Server()
+            self.timeHelper = TimeHelper()
+
+    pkg = types.ModuleType("crazyflie_py")
+    pkg.Crazyswarm = Crazyswarm
+    sub = types.ModuleType("crazyflie_py.uav_trajectory")
+    sub.Trajectory = FakeTrajectory
+    pkg.uav_trajectory = sub
+    return {"crazyflie_py": pkg, "crazyflie_py.uav_trajectory": sub}
+
+
+def test_fly_py_calls_in_order_with_each_robots_csv(run_dir, monkeypatch, tmp_path):
+    # the corridor's 33 pieces do not fit raw: fly.py refuses before any call
+    calls = []
+    monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, ["cf1", "cf2"])})
+    fly = load_script(run_dir / "crazyswarm2" / "fly.py", "fly_corridor")
+    with pytest.raises(SystemExit, match="33 pieces.*31 raw pieces.*--compressed"):
+        fly.main()
+    assert calls == []
+    # a short plan: keep the first 20 pieces of each robot's CSV
+    short = tmp_path / "short"
+    (short / "crazyswarm2").mkdir(parents=True)
+    (short / "trajectories").mkdir()
+    (short / "crazyswarm2" / "fly.py").write_bytes((run_dir / "crazyswarm2" / "fly.py").read_bytes())
+    for i in range(5):
+        lines = (run_dir / "trajectories" / f"robot_{i}.csv").read_text().splitlines()
+        (short / "trajectories" / f"robot_{i}.csv").write_text("\n".join(lines[:21]) + "\n")
+    names = ["cf1", "cf2", "cf3", "cf4", "cf5"]
+    monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, names)})
+    load_script(short / "crazyswarm2" / "fly.py", "fly_short").main()
+    kinds = [c[0] for c in calls if c[0] != "sleep"]
+    assert kinds == ["upload"] * 5 + ["takeoff"] + ["goTo"] * 5 + ["start", "land"]
+    seq = [c[0] for c in calls]
+    for a, b in (("takeoff", "goTo"), ("goTo", "start"), ("start", "land")):  # a wait between phases
+        assert seq[seq.index(b) - 1] == "sleep" and seq.index(a) < seq.index(b)
+    takeoff = next(c for c in calls if c[0] == "takeoff")
+    assert takeoff[1] == 1.0  # the plan's altitude
+    start = next(c for c in calls if c[0] == "start")
+    assert start[4] is False  # absolute positions
+    waits = [c[1] for c in calls if c[0] == "sleep"]
+    uploads = {c[1]: c[4] for c in calls if c[0] == "upload"}
+    for name in names:
+        i = int(name[2:]) - 1
+        csv = read_uav_csv(short / "trajectories" / f"robot_{i}.csv", dim=4)
+        up = uploads[name]
+        assert np.array_equal(up.rows[:, 0], csv.durations)
+        assert np.array_equal(up.rows[:, 1:].reshape(-1, 4, 8), np.moveaxis(csv.coefficients, 1, 2))
+        goal = next(c[2] for c in calls if c[0] == "goTo" and c[1] == name)
+        assert np.allclose(goal, [*csv.evaluate(0.0)[:2], 1.0])
+    assert waits[seq[:seq.index("land")].count("sleep") - 1] >= max(u.duration for u in uploads.values())
+
+
+class FakeLink:
+    """Only the radio: cflib's Memory handler replaced by one that records the bytes and acknowledges."""
+
+    def __init__(self):
+        self.data = None
+
+    def write(self, memory, addr, data, flush_queue=False):
+        self.data = bytes(data)
+        memory.write_done(memory, addr)
+        return True
+
+
+@pytest.mark.parametrize("compressed", [False, True], ids=["raw", "compressed"])
+def test_cflib_upload_packs_with_cflib(run_dir, compressed):
+    from cflib.crazyflie.high_level_commander import HighLevelCommander
+    from cflib.crazyflie.mem import MemoryElement, TrajectoryMemory
+
+    from mrfswarm.export import cflib_
+
+    script = load_script(run_dir / "crazyflie" / "cflib_upload.py", f"cflib_upload_{compressed}")
+    assert script.uris(run_dir) == {i: f"radio://0/80/2M/E7E7E7E70{i + 1}" for i in range(5)}
+    elements, origin = script.pieces([0, 3], compressed, run_dir)
+    packets = []
+    link = FakeLink()
+    memory = TrajectoryMemory(id=1, type=MemoryElement.TYPE_TRAJ, size=4096, mem_handler=link)
+    cf = types.SimpleNamespace(mem=types.SimpleNamespace(get_mems=lambda kind: [memory]),
+                               send_packet=packets.append, link_uri="radio://fake")
+    cf.high_level_commander = HighLevelCommander(cf)
+    if not compressed:
+        with pytest.raises(SystemExit, match="4356 bytes do not fit.*--compressed"):
+            script.upload(cf, elements[3], compressed)
+        elements[3] = elements[3][:31]  # what fits
+    n = script.upload(cf, elements[3], compressed)
+    assert n == len(link.data) <= 4096
+    csv = read_uav_csv(run_dir / "trajectories" / "robot_3.csv", dim=2)
+    if compressed:
+        dec = cflib_.decode_compressed(link.data, origin, dim=2)
+        t = np.linspace(0, dec.duration, 2001)
+        assert np.abs(dec.evaluate(t) - csv.evaluate(t)).max() < 3e-3
+        assert link.data == cflib_.pack_compressed(script.compressed_plan(run_dir), 3)  # the certified bytes
+    else:
+        dec = cflib_.decode_raw(link.data, dim=2)
+        assert dec.pieces == 31
+        assert np.allclose(dec.coefficients, csv.coefficients[:31], rtol=1e-6, atol=1e-6)
+    define = packets[-1].data
+    kind = HighLevelCommander.TRAJECTORY_TYPE_POLY4D_COMPRESSED if compressed else HighLevelCommander.TRAJECTORY_TYPE_POLY4D
+    assert define[0] == HighLevelCommander.COMMAND_DEFINE_TRAJECTORY and define[1] == script.TRAJECTORY_ID
+    assert define[3] == kind and define[-1] == (33 if compressed else 31)
