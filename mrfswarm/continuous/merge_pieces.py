@@ -230,6 +230,37 @@ def merge_trajectories(trajectories: list[PiecewisePolynomial], sizes: np.ndarra
     return [PiecewisePolynomial(durations, coef[i]) for i in range(len(trajectories))]
 
 
+def step_split(piece_knots: np.ndarray, knot_times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Which piece flies each step, and where in the piece's normalized time the step starts and ends.
+
+    Parameters
+    ----------
+    piece_knots
+        (P + 1,) a trajectory's knots: each a step time of ``knot_times`` (to :data:`KNOT_TOLERANCE`),
+        the first and last the grid's.
+    knot_times
+        (T + 1,) the step times.
+
+    Returns
+    -------
+    tuple of numpy.ndarray or None
+        ``piece`` (T,) int, ``u0``, ``u1`` (T,) in [0, 1] (exactly 0 and 1 at the piece's own
+        knots); None when the knots are not step times as above.
+    """
+    piece_knots, knot_times = np.asarray(piece_knots, dtype=float), np.asarray(knot_times, dtype=float)
+    steps, pieces = len(knot_times) - 1, len(piece_knots) - 1
+    at = np.searchsorted(knot_times, piece_knots - KNOT_TOLERANCE)  # the step each knot is
+    if (pieces > steps or at[0] != 0 or at[-1] != steps or np.any(np.diff(at) <= 0)
+            or not np.allclose(knot_times[np.minimum(at, steps)], piece_knots, rtol=0, atol=KNOT_TOLERANCE)):
+        return None
+    durations = np.diff(piece_knots)
+    piece = np.repeat(np.arange(pieces), np.diff(at))  # (steps,) the piece flying each step
+    j = np.arange(steps)
+    u0 = np.where(at[piece] == j, 0.0, (knot_times[:-1] - piece_knots[piece]) / durations[piece])
+    u1 = np.where(at[piece + 1] == j + 1, 1.0, (knot_times[1:] - piece_knots[piece]) / durations[piece])
+    return piece, u0, u1
+
+
 def step_pieces(trajectories: list[PiecewisePolynomial], knot_times: np.ndarray) -> list[PiecewisePolynomial] | str:
     """Every trajectory split at the step times ``knot_times``: one piece per step, the same curves.
 
@@ -258,14 +289,10 @@ def step_pieces(trajectories: list[PiecewisePolynomial], knot_times: np.ndarray)
             groups.setdefault(tr.durations.tobytes(), []).append(i)
     for members in groups.values():
         tr = trajectories[members[0]]
-        at = np.searchsorted(knot_times, tr.knots - KNOT_TOLERANCE)  # the step each knot is
-        if (tr.pieces > steps or at[0] != 0 or at[-1] != steps or np.any(np.diff(at) <= 0)
-                or not np.allclose(knot_times[np.minimum(at, steps)], tr.knots, rtol=0, atol=KNOT_TOLERANCE)):
+        where = step_split(tr.knots, knot_times)
+        if where is None:
             return f"robot {members[0]}'s pieces do not end on the common time grid's knots"
-        piece = np.repeat(np.arange(tr.pieces), np.diff(at))  # (steps,) the piece flying each step
-        j = np.arange(steps)
-        u0 = np.where(at[piece] == j, 0.0, (knot_times[:-1] - tr.knots[piece]) / tr.durations[piece])
-        u1 = np.where(at[piece + 1] == j + 1, 1.0, (knot_times[1:] - tr.knots[piece]) / tr.durations[piece])
+        piece, u0, u1 = where
         R = restriction_matrix(tr.degree, u0, u1)  # (steps, K, K)
         c = np.stack([trajectories[i].tau_coefficients() for i in members])  # (n, pieces, K, dim)
         split = np.einsum("jkl,njld->njkd", R, c[:, piece])

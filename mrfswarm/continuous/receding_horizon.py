@@ -691,8 +691,19 @@ class RecedingHorizon:
         B = np.zeros((T, N, pm.nz - 2 * q, 2))
         durations = np.zeros(T)
         records, prev, used = [], None, 0
-        for a, c, b in self.windows():
-            pieces = window_pieces(c - a, T - a, cfg.max_pieces - used) if cfg.max_pieces else None
+        windows = self.windows()
+        # the last window brakes to rest at the goal: one piece over several of its steps is all but fixed by
+        # its two ends (swarm100: infeasible at every duration, 32 pieces), so its steps are kept out of the
+        # share and it gets what is left
+        last = windows[-1][0]
+        reserve = T - last
+        for a, c, b in windows:
+            if not cfg.max_pieces:
+                pieces = None
+            elif a == last:
+                pieces = window_pieces(c - a, T - a, cfg.max_pieces - used)
+            else:
+                pieces = window_pieces(c - a, last - a, cfg.max_pieces - used - reserve)
             sol, rec = self._plan_window(a, c, b, Y[a], prev, pieces)
             used += rec.pieces
             Y[a:c + 1] = sol.Y[:, :c - a + 1].transpose(1, 0, 2, 3)

@@ -54,9 +54,10 @@ from typing import Any
 
 import numpy as np
 
+from mrfswarm.continuous.merge_pieces import restriction_matrix, step_split
 from mrfswarm.continuous.regions import Regions
 from mrfswarm.errors import ExportError
-from mrfswarm.trajectory.bernstein import control_points, monomial_to_bernstein
+from mrfswarm.trajectory.bernstein import control_point_matrix, control_points, monomial_to_bernstein
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial, tau_to_time
 from mrfswarm.trajectory.uav_csv import to_rows
 
@@ -69,6 +70,12 @@ COMPRESSED_END_BYTES = 3  # the zero-duration segment that ends a compressed tra
 INT16_MAX = 32767
 """The largest int16: a coordinate of the compressed format is within +/-32.767 m of its origin."""
 MAX_DURATION_MS = 65535
+INSIDE_MM = 1e-6
+"""In-region rounding counts a point closer than this to a region's edge (mm) as outside: the certificate
+recomputes it in metres from other arithmetic (measured 1.6e-15 m)."""
+WINDOW = 3
+"""In-region rounding (:func:`_round_inside`) tries every floor/ceil choice of this many consecutive control
+points on one axis at once (one point's millimetre can break a short piece's jerk limit alone)."""
 DEGREE = 7
 MODULES = ("cflib",)
 INSTALL = "pip install 'mrfswarm[crazyflie]'"
@@ -203,7 +210,8 @@ class Compressed:
 
 
 def compress(trajectories: Sequence[PiecewisePolynomial], altitude: float, v_max: float,
-             regions: Regions | None = None) -> Compressed:
+             regions: Regions | None = None, knot_times: np.ndarray | None = None,
+             limits: tuple[float, float, float] | None = None) -> Compressed:
     """Round every robot's planar flight to the compressed format (module docstring).
 
     Parameters
@@ -216,10 +224,20 @@ def compress(trajectories: Sequence[PiecewisePolynomial], altitude: float, v_max
         An upper bound on every robot's speed (the plan's exact maximum): the timing part
         of :attr:`Compressed.position_error_bound`.
     regions
-        The plan's safe regions (one per robot and piece): each control point is then
-        rounded to whichever of the (up to 4) neighbouring millimetre points lies in the
-        regions it lay in (nearest first), falling back to the nearest; a point moves at
-        most 1 mm per axis instead of 0.5. Without them, to the nearest.
+        The plan's safe regions (one per robot and step): each control point is then
+        rounded to one of its (up to 4) neighbouring millimetre points such that the
+        control points the certificate checks stay in their steps' regions
+        (:func:`_round_inside`), nearest first; a point moves at most 1 mm per axis
+        instead of 0.5. Without them, or when the robots' pieces differ in their knots,
+        to the nearest.
+    knot_times
+        (T + 1,) the plan's step times, where pieces span several steps
+        (:mod:`mrfswarm.continuous.merge_pieces`): each piece's knots are step times, and
+        its part in step k must lie in region k. Default: one piece per step.
+    limits
+        (v_max, a_max, j_max): with ``regions``, the rounding also keeps the certificate's
+        derivative control points within them where it can (a millimetre matters on short
+        pieces: :func:`_round_inside`).
 
     Raises
     ------
@@ -247,13 +265,6 @@ def compress(trajectories: Sequence[PiecewisePolynomial], altitude: float, v_max
         raise ExportError(f"the flight spans {span[0]:.3f} m x {span[1]:.3f} m (z up to {hi[2]:.3f} m); the "
                           f"compressed Crazyflie format holds +/-{reach} m around one origin ({2 * reach:.3f} m): "
                           f"use the raw format or a smaller area")
-    if regions is not None and len({p.shape for p in cps}) == 1 and cps[0].shape[0] == regions.steps \
-            and len(cps) == regions.robots:
-        stacked = _round_inside(np.stack(cps), origin[:2], regions)
-        points = list(stacked)
-    else:
-        points = [np.rint((p - origin[:2]) * 1000).astype(np.int64) for p in cps]
-    moved = max(float(np.linalg.norm(n / 1000 + origin[:2] - p, axis=-1).max()) for n, p in zip(points, cps))
     knots = []
     for i, tr in enumerate(trs):
         k = np.rint(tr.knots * 1000).astype(np.int64)
@@ -263,46 +274,125 @@ def compress(trajectories: Sequence[PiecewisePolynomial], altitude: float, v_max
             raise ExportError(f"robot {i}'s piece {j} lasts {tr.durations[j]:.6g} s; the compressed format holds "
                               f"1 ms to {MAX_DURATION_MS / 1000} s a piece")
         knots.append(k)
+    split = None
+    if regions is not None and len(cps) == regions.robots and all(np.array_equal(tr.knots, trs[0].knots) for tr in trs):
+        steps = trs[0].knots if knot_times is None else knot_times
+        split = step_split(trs[0].knots, steps) if len(steps) == regions.steps + 1 else None
+    if regions is not None and split is not None:
+        points = list(_round_inside(np.stack(cps), origin[:2], regions, split, np.diff(knots[0]), limits))
+    else:
+        points = [np.rint((p - origin[:2]) * 1000).astype(np.int64) for p in cps]
+    moved = max(float(np.linalg.norm(n / 1000 + origin[:2] - p, axis=-1).max()) for n, p in zip(points, cps))
     z_mm = int(np.rint((altitude - origin[2]) * 1000))
     bound = moved + float(v_max) * 0.5e-3
     return Compressed(origin, knots, points, z_mm, float(bound))
 
 
-def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions) -> np.ndarray:
-    """Control points (N, M, 8, 2) in int mm from ``origin``, each at a neighbouring mm point inside its regions.
+def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tuple[np.ndarray, np.ndarray, np.ndarray],
+                  durations: np.ndarray | None = None, limits: tuple[float, float, float] | None = None,
+                  sweeps: int = 8) -> np.ndarray:
+    """Control points (N, M, 8, 2) in int mm from ``origin``, each at a neighbouring mm point, such that
+    what the certificate checks still holds where such points can be found.
 
-    Point k of piece j lies in region j; the end points are shared, so point 0 must also lie
-    in region j - 1 and point 7 in region j + 1. Of the 4 floor/ceil combinations, the
-    nearest inside all of them; the nearest of all if none is.
+    Step k is flown by piece ``piece[k]`` over ``[u0[k], u1[k]]`` of its normalized time
+    (``split``, :func:`~mrfswarm.continuous.merge_pieces.step_split`); its control points,
+    those the certificate checks, are fixed convex combinations of the piece's (de
+    Casteljau's subdivision: :func:`~mrfswarm.continuous.merge_pieces.restriction_matrix` in
+    the Bernstein basis; the identity for a piece of one step), as are, divided by the
+    step's duration to the r-th power, those of its derivatives. The end points are
+    shared (point 7 of piece j is point 0 of piece j + 1), so a robot's points are one
+    chain, piece j its points 7j..7j+7.
+
+    Each point takes one of its 4 floor/ceil combinations: first the nearest; then, for
+    the robots whose steps fail a check, coordinate descent over a few sweeps: every
+    choice of :data:`WINDOW` consecutive points of the chain on one axis (across knots
+    too), all robots and windows two pieces apart at once, keeping the one under which
+    the pieces these points shape fail the fewest checks (then by the least excess,
+    then the nearest). The checks: the steps' control points in their regions (excess
+    in millimetres) and, given the rounded piece ``durations`` (M, ms) and ``limits``,
+    their speed, acceleration and jerk control points on the certificate's
+    :data:`~mrfswarm.continuous.formulation.LIMIT_PARTS` sub-intervals within the limits
+    (excess relative to the limit). A millimetre at one point moves a jerk control point
+    by 210 mm / T^3, 1.4 m/s^3 on a 0.53 s piece: short steps need the windows. Whether
+    the result is safe is for the certificate to say (:mod:`mrfswarm.export.crazyflie_memory`
+    runs it on the decoded flight, with the separation of pairs this does not look at).
     """
-    mm = (P - origin) * 1000
-    lo = np.floor(mm)
-    cand = np.stack([lo + np.array([a, b]) for a in (0, 1) for b in (0, 1)])  # (4, N, M, 8, 2)
-    world = cand / 1000 + origin
-    ax = regions.axes.transpose(1, 0, 2, 3)  # (N, M, 2 slabs, 2)
-    lower, upper = regions.lower.transpose(1, 0, 2), regions.upper.transpose(1, 0, 2)
+    from mrfswarm.continuous.formulation import LIMIT_PARTS
 
-    def outside(points: np.ndarray, shift: int) -> np.ndarray:
-        """(4, N, M, 8) slab violation of ``points`` in the regions of piece j + shift (0 where there is none)."""
-        A, L, U = (np.roll(v, -shift, axis=1) for v in (ax, lower, upper))
-        s = np.einsum("nmka,cnmpa->cnmpk", A, points)
-        v = np.maximum(L[None, :, :, None] - s, s - U[None, :, :, None]).max(axis=-1)
-        M = points.shape[2]
-        if shift == 1:
-            v[:, :, M - 1] = -np.inf
-        elif shift == -1:
-            v[:, :, 0] = -np.inf
-        return v
+    piece, u0, u1 = split
+    N, M, K, _ = P.shape
+    S, D = len(piece), K - 1
+    chain_mm = (np.concatenate([P[:, :, :D].reshape(N, M * D, 2), P[:, -1:, D]], axis=1) - origin) * 1000  # (N, C, 2)
+    C = chain_mm.shape[1]
+    floor = np.floor(chain_mm)
+    frac = chain_mm - floor  # a point's bit b on an axis puts it at floor + b, |frac - b| mm away
+    at = D * np.arange(M)[:, None] + np.arange(K)[None, :]  # (M, K): piece j's points in the chain
+    Bm = monomial_to_bernstein(D)
+    to_tau = restriction_matrix(D, u0, u1) @ np.linalg.inv(Bm)  # (S, K, K): the step's tau-coefficients
+    W = Bm @ to_tau  # (S, K, K): the step's control points from the piece's
+    W[(u0 == 0) & (u1 == 1)] = np.eye(K)  # a step that is its own piece: its points exactly
+    derivative = []
+    if durations is not None and limits is not None:
+        h = (u1 - u0) * np.asarray(durations, dtype=float)[piece] / 1000.0  # (S,) the step's duration, ms -> s
+        for r, lim in zip((1, 2, 3), limits):
+            derivative.append(control_point_matrix(D, r, LIMIT_PARTS) @ to_tau / (h[:, None, None] ** r * lim * 1000.0))
+    ax = regions.axes.transpose(1, 0, 2, 3)  # (N, S, 2 slabs, 2)
+    shift = np.einsum("nsad,d->nsa", ax, origin * 1000)  # the slabs in mm from the origin
+    lower = regions.lower.transpose(1, 0, 2) * 1000 - shift
+    upper = regions.upper.transpose(1, 0, 2) * 1000 - shift
+    owner = np.zeros((M, S))  # (M, S): which piece flies each step, for the per-piece sums
+    owner[piece, np.arange(S)] = 1.0
 
-    viol = outside(world, 0)
-    viol[..., 7] = np.maximum(viol[..., 7], outside(world, 1)[..., 7])
-    viol[..., 0] = np.maximum(viol[..., 0], outside(world, -1)[..., 0])
-    dist = np.linalg.norm(cand - mm, axis=-1)
-    score = np.where(viol <= 0, dist, dist + 1e6)  # inside first, then nearest
-    best = np.argmin(score, axis=0)
-    out = np.take_along_axis(cand, best[None, ..., None], axis=0)[0]
-    out[:, 1:, 0] = out[:, :-1, 7]  # one value for each shared end point (chosen as piece j's point 7)
-    return out.astype(np.int64)
+    def failing(bits: np.ndarray, robots: np.ndarray) -> np.ndarray:
+        """(n, M): per piece of ``robots``, how many of its steps' checks fail, plus (below 1) by how much."""
+        flying = (floor[robots] + bits)[:, at][:, piece]  # (n, S, K, 2)
+        q = np.einsum("skl,nsld->nskd", W, flying)
+        s = np.einsum("nsad,nskd->nska", ax[robots], q)
+        excess = [np.maximum(np.maximum(lower[robots][:, :, None] - s, s - upper[robots][:, :, None]) + INSIDE_MM, 0.0)
+                  .reshape(len(robots), S, -1)]
+        for L in derivative:
+            excess.append(np.maximum(np.linalg.norm(np.einsum("sjl,nsld->nsjd", L, flying), axis=-1) - 1.0, 0.0))
+        e = np.concatenate(excess, axis=-1)  # (n, S, checks)
+        count, total = (e > 0).sum(axis=-1) @ owner.T, e.sum(axis=-1) @ owner.T
+        return count + total / (1.0 + total)
+
+    bits = (frac > 0.5).astype(float)  # (N, C, 2): the nearest first
+    w = min(WINDOW, C)
+    combos = ((np.arange(2 ** w)[:, None] >> np.arange(w)[None, :]) & 1).astype(float)  # (2^w, w)
+    stride = 2 * D  # windows this far apart shape no piece in common (a window spans at most one knot)
+    for _ in range(sweeps):
+        robots = np.flatnonzero(failing(bits, np.arange(N)).any(axis=1))
+        if len(robots) == 0:
+            break
+        changed = False
+        for offset in range(min(stride, C - w + 1)):
+            starts = np.arange(offset, C - w + 1, stride)
+            window = starts[:, None] + np.arange(w)[None, :]  # (n_w, w) chain points
+            # the pieces each window shapes: those holding one of its points
+            first = np.maximum((window[:, 0] - 1) // D, 0)
+            last = np.minimum(window[:, -1] // D, M - 1)
+            shaped = np.zeros((M, len(starts)))
+            for k in range(len(starts)):
+                shaped[first[k]:last[k] + 1, k] = 1.0
+            for axis in (0, 1):
+                scores = np.empty((len(combos), len(robots), len(starts)))
+                near = np.abs(frac[robots][:, window, axis][None] - combos[:, None, None, :]).sum(axis=-1)
+                for o, combo in enumerate(combos):
+                    trial = bits[robots].copy()
+                    trial[:, window, axis] = combo
+                    scores[o] = failing(trial, robots) @ shaped
+                low = scores.min(axis=0)
+                pick = np.argmin(np.where(scores <= low + 1e-12, near, np.inf), axis=0)  # (n, n_w)
+                new = combos[pick]  # (n, n_w, w)
+                sub = bits[robots]
+                if np.any(new != sub[:, window, axis]):
+                    changed = True
+                    sub[:, window, axis] = new
+                    bits[robots] = sub
+        if not changed:
+            break
+    chain = (floor + bits).astype(np.int64)
+    return chain[:, at]
 
 
 def _metres(n: int) -> float:

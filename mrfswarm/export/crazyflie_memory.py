@@ -10,8 +10,10 @@ so the plan's certificate does not carry over by itself. Here the flight the com
 bytes stand for (decoded in exact arithmetic, :func:`~mrfswarm.export.cflib_.decode_compressed`)
 is certified anew by the continuous stage's own function,
 :func:`~mrfswarm.continuous.certificate.certify`, on the plan's regions, safety distance
-and limits: all robots share the rounded knots, so piece j of every robot is still step j
-and the proof holds as it stands. A compressed flight that fails it is reported so,
+and limits: all robots share the rounded knots, so piece j of every robot still flies the
+same steps; a piece spanning several steps is split at their times moved with the
+piece's rounding (:func:`~mrfswarm.continuous.merge_pieces.step_times`: the same fractions
+of the piece as planned), and the proof holds step by step as it stands. A compressed flight that fails it is reported so,
 with the lower bounds it does have: per robot, clearance >= radius - sqrt(2) x (largest slab
 violation of its control points: a region is two orthonormal slabs, so a point that far
 outside both is sqrt(2) times as far from the region) and separation >= the exact distance
@@ -87,6 +89,7 @@ def _compressed(result: Result, taus: np.ndarray,
                 robots: list[dict[str, Any]]) -> tuple[dict[str, Any], cflib_.Compressed]:
     """Pack, decode and certify the compressed flight; fill each robot's entry, return the swarm's."""
     from mrfswarm.continuous.certificate import certify, control_point_stack, hull_distance_from_origin
+    from mrfswarm.continuous.merge_pieces import step_pieces, step_times
     from mrfswarm.continuous.regions import near_pairs
 
     c = result.smoothed()
@@ -95,10 +98,14 @@ def _compressed(result: Result, taus: np.ndarray,
     distance = 2 * radius
     sm = cfg.smoothing
     limits = (sm.v_max, sm.a_max, sm.j_max)
-    comp = cflib_.compress(c.trajectories, cfg.scenario.altitude, c.v_max, c.regions)
+    comp = cflib_.compress(c.trajectories, cfg.scenario.altitude, c.v_max, c.regions, c.knot_times, limits)
     blobs = [cflib_.pack_compressed(comp, i) for i in range(len(robots))]
     decoded = [cflib_.decode_compressed(b, comp.origin, dim=2) for b in blobs]
-    cert = certify(decoded, decoded[0].knots, c.regions, distance, limits)
+    # the steps' times within the rounded knots (pieces may span several steps)
+    piece_steps = np.arange(len(c.knot_times)) if c.piece_steps is None else c.piece_steps
+    steps = step_times(decoded[0].knots, c.knot_times, piece_steps) \
+        if len(decoded[0].knots) == len(piece_steps) else decoded[0].knots
+    cert = certify(decoded, steps, c.regions, distance, limits)
 
     # the firmware's float32 maths against the exact decoding, and against the plan
     durations, fw = cflib_.firmware_positions_compressed(blobs, taus)
@@ -110,12 +117,13 @@ def _compressed(result: Result, taus: np.ndarray,
         error[i] = np.linalg.norm(xy - tr.evaluate(t), axis=-1).max()
 
     # per robot: the certificate's checks, attributed
-    on_grid = not any("time grid" in p for p in cert.problems)
+    split = step_pieces(decoded, steps)  # one piece per step, as the certificate checks them
+    on_grid = not isinstance(split, str)
     clearance = np.full(len(robots), radius)
     separation = np.full(len(robots), distance)
     within = np.ones(len(robots), dtype=bool)
-    if on_grid:
-        cps = control_point_stack(decoded)
+    if not isinstance(split, str):
+        cps = control_point_stack(split)
         P = cps[0]
         slab = c.regions.violation(P.transpose(1, 0, 2, 3)).max(axis=0)  # (N,)
         clearance = radius - np.sqrt(2) * slab

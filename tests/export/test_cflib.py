@@ -17,7 +17,20 @@ TAUS = np.linspace(0.0, 1.0, 41)
 
 @pytest.fixture(scope="module")
 def corridor():
+    """The corridor by default: 33 steps in 31 pieces (two pieces of two steps), which fit raw."""
     return plan(load_config(EXPERIMENTS / "corridor.toml", ["simulation.enabled=false"]), progress=False, workers=1)
+
+
+@pytest.fixture(scope="module")
+def corridor_per_step():
+    """The corridor with one piece per step (smoothing.max_pieces = 0): 33 pieces, which do not fit raw."""
+    return plan(load_config(EXPERIMENTS / "corridor.toml", ["simulation.enabled=false", "smoothing.max_pieces=0"]),
+                progress=False, workers=1)
+
+
+def _limits(run):
+    sm = run.config.smoothing
+    return sm.v_max, sm.a_max, sm.j_max
 
 
 def test_raw_pieces_are_cflibs_poly4d_and_float32_within_2_mm(corridor):
@@ -66,38 +79,73 @@ def test_compressed_decodes_within_the_stated_margin_and_is_cflibs(corridor):
         assert np.all(np.abs(fw[i][..., 2] - 1.0) < 1e-6)
 
 
-def test_compressed_rounding_stays_in_the_regions(corridor):
-    c = corridor.smoothed()
-    alt = corridor.config.scenario.altitude
+@pytest.mark.parametrize("which", ["corridor", "corridor_per_step"])
+def test_compressed_rounding_stays_in_the_regions_and_limits(which, request):
     from mrfswarm.continuous.certificate import certify
+    from mrfswarm.continuous.merge_pieces import step_times
 
+    run = request.getfixturevalue(which)
+    c = run.smoothed()
+    assert (c.trajectories[0].pieces < len(c.knot_times) - 1) is (which == "corridor")
+    alt = run.config.scenario.altitude
     for regions in (c.regions, None):
-        comp = cflib_.compress(c.trajectories, alt, c.v_max, regions)
+        comp = cflib_.compress(c.trajectories, alt, c.v_max, regions, c.knot_times, _limits(run))
         dec = [cflib_.decode_compressed(cflib_.pack_compressed(comp, i), comp.origin, 2)
                for i in range(len(c.trajectories))]
-        cert = certify(dec, dec[0].knots, c.regions, 2 * corridor.config.scenario.robot_radius,
-                       (corridor.config.smoothing.v_max, corridor.config.smoothing.a_max, corridor.config.smoothing.j_max))
-        # nearest rounding puts points on region edges a hair outside; rounding into the regions does not
+        steps = step_times(dec[0].knots, c.knot_times, c.piece_steps)  # the steps inside the rounded pieces
+        cert = certify(dec, steps, c.regions, 2 * run.config.scenario.robot_radius, _limits(run))
+        # nearest rounding puts points on region edges a hair outside, and a millimetre breaks the jerk limit
+        # of 0.53 s steps (5.2 > 4 m/s^3); rounding into the regions and limits does neither
         assert cert.ok is (regions is not None), cert.problems
+        if regions is None:
+            assert any("leaves its region" in p for p in cert.problems)
+            assert any("jerk" in p for p in cert.problems)
 
 
-def test_report_per_robot_and_swarm(corridor):
-    s = corridor.summary()
-    cf = s["crazyflie"]
-    assert cf["memory_bytes"] == 4096 and len(cf["robots"]) == 5
-    for r in cf["robots"]:
-        assert r["pieces"] == 33 and r["bytes_raw"] == 33 * 132 and r["fits_raw"] is False
-        assert r["bytes_compressed"] == 8 + 33 * 31 + 3 and r["fits_compressed"] is True
-        assert r["compressed_certified"] is True and r["compressed_error_m"] <= cf["compressed"]["error_margin_m"]
-    assert cf["max_pieces"] == 33 and cf["all_fit_raw"] is False and cf["all_fit_compressed"] is True
-    assert cf["compressed"]["certificate"]["ok"] is True and cf["compressed"]["not_certified_robots"] == []
-    assert s["certificate"]["ok"] is True  # existing keys kept
+def test_rounding_keeps_a_merged_pieces_steps_in_their_regions():
+    """One piece over two steps whose split point lies on the edge of the first step's region: the rounding
+    must keep the subdivided control points (not only the piece's own) inside."""
+    from mrfswarm.continuous.certificate import certify
+    from mrfswarm.continuous.regions import Regions
+
+    coef = np.zeros((1, 8, 2))
+    coef[0, 0] = [0.0003, 0.0004]
+    coef[0, 1] = [0.3, 0.2]
+    coef[0, 2] = [0.1, -0.05]
+    piece = PiecewisePolynomial(np.array([2.0]), coef)
+    knot_times = np.array([0.0, 0.8, 2.0])
+    mid = piece.evaluate(np.array([0.8]))[0]
+    lower = np.full((2, 1, 2), -1.0)
+    upper = np.array([[[mid[0] + 1e-9, 1.0]], [[1.0, 1.0]]])
+    regions = Regions(np.broadcast_to(np.eye(2), (2, 1, 2, 2)).copy(), lower, upper, np.zeros((2, 1), dtype=bool), 0.1)
+    limits = (10.0, 10.0, 10.0)
+    results = {}
+    for name, reg in (("nearest", None), ("inside", regions)):
+        comp = cflib_.compress([piece], 1.0, 1.0, reg, knot_times, limits)
+        dec = cflib_.decode_compressed(cflib_.pack_compressed(comp, 0), comp.origin, 2)
+        results[name] = certify([dec], knot_times, regions, 0.2, limits)
+    assert not results["nearest"].ok and "leaves its region in step 0" in results["nearest"].problems[0]
+    assert results["inside"].ok, results["inside"].problems
+
+
+def test_report_per_robot_and_swarm(corridor, corridor_per_step):
+    for run, pieces, fits in ((corridor, 31, True), (corridor_per_step, 33, False)):
+        s = run.summary()
+        cf = s["crazyflie"]
+        assert cf["memory_bytes"] == 4096 and len(cf["robots"]) == 5
+        for r in cf["robots"]:
+            assert r["pieces"] == pieces and r["bytes_raw"] == pieces * 132 and r["fits_raw"] is fits
+            assert r["bytes_compressed"] == 8 + pieces * 31 + 3 and r["fits_compressed"] is True
+            assert r["compressed_certified"] is True and r["compressed_error_m"] <= cf["compressed"]["error_margin_m"]
+        assert cf["max_pieces"] == pieces and cf["all_fit_raw"] is fits and cf["all_fit_compressed"] is True
+        assert cf["compressed"]["certificate"]["ok"] is True and cf["compressed"]["not_certified_robots"] == []
+        assert s["certificate"]["ok"] is True and s["pieces_per_robot"] == [pieces] * 5  # existing keys kept
 
 
 def test_a_compressed_flight_that_leaves_its_regions_is_reported(corridor, monkeypatch):
     """Break the region-aware rounding (nearest instead): the report must say the export is not certified."""
     real = cflib_.compress
-    monkeypatch.setattr(cflib_, "compress", lambda trs, alt, v, regions=None: real(trs, alt, v, None))
+    monkeypatch.setattr(cflib_, "compress", lambda trs, alt, v, regions=None, *rest: real(trs, alt, v, None))
     from mrfswarm.export.crazyflie_memory import memory_report
 
     report, _ = memory_report(corridor)

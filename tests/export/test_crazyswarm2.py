@@ -16,12 +16,23 @@ from support.repository import EXPERIMENTS
 pytest.importorskip("cflib")
 
 
+def _run(tmp_path_factory, *sets):
+    out = tmp_path_factory.mktemp("run") / "out"
+    args = [a for s in ("simulation.enabled=false", *sets) for a in ("--set", s)]
+    assert main(["run", str(EXPERIMENTS / "corridor.toml"), "--out", str(out), *args, "--workers", "1"]) == 0
+    return out
+
+
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("run") / "out"
-    assert main(["run", str(EXPERIMENTS / "corridor.toml"), "--out", str(out), "--set", "simulation.enabled=false",
-                 "--workers", "1"]) == 0
-    return out
+    """The corridor by default: 33 steps in 31 pieces, which fit the raw memory."""
+    return _run(tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def per_step_dir(tmp_path_factory):
+    """The corridor with one piece per step (smoothing.max_pieces = 0): 33 pieces, 4356 raw bytes, which do not fit."""
+    return _run(tmp_path_factory, "smoothing.max_pieces=0")
 
 
 def load_script(path, name):
@@ -105,25 +116,22 @@ def fake_crazyflie_py(calls, names):
     return {"crazyflie_py": pkg, "crazyflie_py.uav_trajectory": sub}
 
 
-def test_fly_py_calls_in_order_with_each_robots_csv(run_dir, monkeypatch, tmp_path):
-    # the corridor's 33 pieces do not fit raw: fly.py refuses before any call
+def test_fly_py_refuses_a_flight_that_does_not_fit(per_step_dir, monkeypatch):
+    # 33 pieces do not fit raw: fly.py refuses before any call
     calls = []
     monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, ["cf1", "cf2"])})
-    fly = load_script(run_dir / "crazyswarm2" / "fly.py", "fly_corridor")
+    fly = load_script(per_step_dir / "crazyswarm2" / "fly.py", "fly_per_step")
     with pytest.raises(SystemExit, match="33 pieces.*31 raw pieces.*--compressed"):
         fly.main()
     assert calls == []
-    # a short plan: keep the first 20 pieces of each robot's CSV
-    short = tmp_path / "short"
-    (short / "crazyswarm2").mkdir(parents=True)
-    (short / "trajectories").mkdir()
-    (short / "crazyswarm2" / "fly.py").write_bytes((run_dir / "crazyswarm2" / "fly.py").read_bytes())
-    for i in range(5):
-        lines = (run_dir / "trajectories" / f"robot_{i}.csv").read_text().splitlines()
-        (short / "trajectories" / f"robot_{i}.csv").write_text("\n".join(lines[:21]) + "\n")
+
+
+def test_fly_py_calls_in_order_with_each_robots_csv(run_dir, monkeypatch):
+    # the corridor's 31 pieces (some spanning two steps) fit: the whole plan is flown
+    calls = []
     names = ["cf1", "cf2", "cf3", "cf4", "cf5"]
     monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, names)})
-    load_script(short / "crazyswarm2" / "fly.py", "fly_short").main()
+    load_script(run_dir / "crazyswarm2" / "fly.py", "fly_corridor").main()
     kinds = [c[0] for c in calls if c[0] != "sleep"]
     assert kinds == ["upload"] * 5 + ["takeoff"] + ["goTo"] * 5 + ["start", "land"]
     seq = [c[0] for c in calls]
@@ -137,9 +145,9 @@ def test_fly_py_calls_in_order_with_each_robots_csv(run_dir, monkeypatch, tmp_pa
     uploads = {c[1]: c[4] for c in calls if c[0] == "upload"}
     for name in names:
         i = int(name[2:]) - 1
-        csv = read_uav_csv(short / "trajectories" / f"robot_{i}.csv", dim=4)
+        csv = read_uav_csv(run_dir / "trajectories" / f"robot_{i}.csv", dim=4)
         up = uploads[name]
-        assert np.array_equal(up.rows[:, 0], csv.durations)
+        assert csv.pieces == 31 and np.array_equal(up.rows[:, 0], csv.durations)
         assert np.array_equal(up.rows[:, 1:].reshape(-1, 4, 8), np.moveaxis(csv.coefficients, 1, 2))
         goal = next(c[2] for c in calls if c[0] == "goTo" and c[1] == name)
         assert np.allclose(goal, [*csv.evaluate(0.0)[:2], 1.0])
@@ -174,12 +182,8 @@ def test_cflib_upload_packs_with_cflib(run_dir, compressed):
     cf = types.SimpleNamespace(mem=types.SimpleNamespace(get_mems=lambda kind: [memory]),
                                send_packet=packets.append, link_uri="radio://fake")
     cf.high_level_commander = HighLevelCommander(cf)
-    if not compressed:
-        with pytest.raises(SystemExit, match="4356 bytes do not fit.*--compressed"):
-            script.upload(cf, elements[3], compressed)
-        elements[3] = elements[3][:31]  # what fits
     n = script.upload(cf, elements[3], compressed)
-    assert n == len(link.data) <= 4096
+    assert n == len(link.data) == (31 * 132 if not compressed else 8 + 31 * 31 + 3)
     csv = read_uav_csv(run_dir / "trajectories" / "robot_3.csv", dim=2)
     if compressed:
         dec = cflib_.decode_compressed(link.data, origin, dim=2)
@@ -188,9 +192,23 @@ def test_cflib_upload_packs_with_cflib(run_dir, compressed):
         assert link.data == cflib_.pack_compressed(script.compressed_plan(run_dir), 3)  # the certified bytes
     else:
         dec = cflib_.decode_raw(link.data, dim=2)
-        assert dec.pieces == 31
-        assert np.allclose(dec.coefficients, csv.coefficients[:31], rtol=1e-6, atol=1e-6)
+        assert dec.pieces == csv.pieces == 31
+        assert np.allclose(dec.coefficients, csv.coefficients, rtol=1e-6, atol=1e-6)
     define = packets[-1].data
     kind = HighLevelCommander.TRAJECTORY_TYPE_POLY4D_COMPRESSED if compressed else HighLevelCommander.TRAJECTORY_TYPE_POLY4D
     assert define[0] == HighLevelCommander.COMMAND_DEFINE_TRAJECTORY and define[1] == script.TRAJECTORY_ID
-    assert define[3] == kind and define[-1] == (33 if compressed else 31)
+    assert define[3] == kind and define[-1] == 31
+
+
+def test_cflib_upload_refuses_raw_pieces_that_do_not_fit(per_step_dir):
+    from cflib.crazyflie.mem import MemoryElement, TrajectoryMemory
+
+    script = load_script(per_step_dir / "crazyflie" / "cflib_upload.py", "cflib_upload_per_step")
+    elements, _ = script.pieces([3], False, per_step_dir)
+    link = FakeLink()
+    memory = TrajectoryMemory(id=1, type=MemoryElement.TYPE_TRAJ, size=4096, mem_handler=link)
+    cf = types.SimpleNamespace(mem=types.SimpleNamespace(get_mems=lambda kind: [memory]),
+                               send_packet=lambda p: None, link_uri="radio://fake")
+    with pytest.raises(SystemExit, match="4356 bytes do not fit.*--compressed"):
+        script.upload(cf, elements[3], False)
+    assert link.data is None  # nothing written
