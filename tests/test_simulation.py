@@ -43,7 +43,9 @@ def test_tracking_gain_of_the_linear_model():
 def test_the_linear_model_explains_rotorpys_tracking_error():
     """The justification of the bound: the linearized loop, driven by the reference's jerk and by
     rotor drag at the reference's speed, predicts the flown error."""
-    r = plan(mrfswarm.load_config(EXPERIMENTS / "free5.toml", ["simulation.enabled=false"]))
+    # at the 1.25 m/s cruise of the earlier default: the share of drag in the error (last line) is a fact of this
+    # flight; on the default grid (from the limits) free5 flies jerkier and jerk's term is 0.79 of the error
+    r = plan(mrfswarm.load_config(EXPERIMENTS / "free5.toml", ["simulation.enabled=false", "smoothing.speed=1.25"]))
     sys_j, sys_d, _ = linear_model()
     c1, c2 = drag("crazyflie")
     assert c1 == pytest.approx(0.244, abs=0.01) and c2 == 0.0

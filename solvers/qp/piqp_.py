@@ -42,8 +42,9 @@ log = logging.getLogger(__name__)
 
 #: PIQP converges in tens of iterations; one that has not in this many will not (an infeasible
 #: problem it fails to detect would otherwise run ``Options.max_iter``, sized for first-order
-#: methods: 50000 iterations took 26 s on a 5-robot window).
-MAX_ITER = 1000
+#: methods: 50000 iterations took 26 s on a 5-robot window; 1000 took 15 s on a 50-robot window that the
+#: lazy rows then solved in 3 rounds at other durations; the window QPs take 10 iterations on average).
+MAX_ITER = 250
 
 
 def _settings(o: Options) -> dict:
