@@ -240,6 +240,10 @@ class WindowSpec:
     margin
         Tightening of region and corridor rows (metres); limits are tightened by the
         same relative amount.
+    slack
+        Metres kept free inside every region and corridor row besides ``margin``: room for
+        an exporter's rounding (the Crazyflie's compressed format moves control points by
+        up to about 2 mm), which the certificate of the rounded flight then still proves.
     limit_mask
         (M, G, 3) bool: which (step, robot, derivative order) get limit rows (None: all).
         The window loop adds them lazily, where a solution without them exceeds a limit.
@@ -262,6 +266,7 @@ class WindowSpec:
     limits: tuple[float, float, float]
     time_scale: float
     margin: float = 1e-6
+    slack: float = 0.0
     limit_mask: np.ndarray | None = None
     merged: np.ndarray | None = None
 
@@ -384,7 +389,8 @@ class WindowFormulation:
         cf = reg.axes[J, Gi, Kk, Dd]
         shift = np.einsum("mgka,ga->mgk", reg.axes, origin)[:, :, None, :]
         add(shape_r, ridx, col(Gi, Dd, J, Aa), pm.k_index(J, 0, Mm, Aa), cf, pm.masks[0][Mm, Aa] & (cf != 0),
-            reg.lower[:, :, None, :] - shift + spec.margin, reg.upper[:, :, None, :] - shift - spec.margin)
+            reg.lower[:, :, None, :] - shift + spec.margin + spec.slack,
+            reg.upper[:, :, None, :] - shift - spec.margin - spec.slack)
         # limits: rows (j, g, m, direction) per order
         for r, lim in zip(LIMIT_ORDERS, spec.limits):
             R = pm.rows[r]
@@ -408,7 +414,7 @@ class WindowFormulation:
             offs = ((origin[pf] - origin[ps]) * nrm).sum(-1)[:, None]
             first_rows = n_rows
             add((P, D + 1), ridx, col(pf[Pi], Dd, pj[Pi], Aa), pm.k_index(pj[Pi], 0, Mm, Aa), nrm[Pi, Dd], keep,
-                spec.distance + spec.margin - offs, np.inf)
+                spec.distance + spec.margin + spec.slack - offs, np.inf)
             n_rows = first_rows  # the second robot's entries share the same rows
             add((0,), ridx, col(ps[Pi], Dd, pj[Pi], Aa), pm.k_index(pj[Pi], 0, Mm, Aa), -nrm[Pi, Dd], keep, 0.0, 0.0)
             n_rows = first_rows + P * (D + 1)

@@ -141,6 +141,10 @@ NLP_OPTIONS = NLPOptions(tol=1e-4, max_iter=12)
 #: 100-robot crossing and a 1000-robot window, each one a needless slower attempt or a rest-to-rest witness) and cost it 3x the
 #: iterations; osqp and clarabel also converge faster without it.
 QP_OPTIONS = QPOptions(eps_abs=1e-7, eps_rel=1e-7, max_iter=50000, scaling=False)
+#: Metres every region and corridor row keeps free for the Crazyflie's compressed format, which moves control
+#: points by up to its error bound (1.7 mm on the arena, 2.4 mm on the corridor: mrfswarm.export.cflib_), so that
+#: the rounded flight certifies with the robot radius itself.
+EXPORT_SLACK = 3e-3
 #: Robots per chunk: independent groups are packed into QPs of about this many robots.
 CHUNK_ROBOTS = 64
 #: Swarms at least this large (two chunks or more) solve their chunks in worker processes (forked, so
@@ -353,6 +357,9 @@ class RecedingHorizon:
         self.E = max(1, round(cfg.execution * cfg.horizon))
         self.radius = float(radius)
         self.distance = 2 * self.radius
+        # room for the compressed export's rounding, where the cells leave it (a quarter of what a cell leaves
+        # around a robot: the rest-to-rest witness keeps that much, so a window never lacks a feasible point)
+        self.slack = float(min(EXPORT_SLACK, 0.25 * (0.5 * grid.resolution - self.radius)))
         self.limits = (cfg.v_max, cfg.a_max, cfg.j_max)
         self.X = grid.cell_to_world(self.paths)
         self.index = ObstacleIndex(grid)
@@ -416,7 +423,7 @@ class RecedingHorizon:
             pair_step=seps.step - a, pair_first=local[seps.first], pair_second=local[seps.second],
             pair_normal=seps.normal, distance=self.distance, start=start[robots], end=self.X[b, robots],
             origin=self.X[a, robots], limits=self.limits, time_scale=float(np.exp(np.log(self.nominal[a:b]).mean())),
-            margin=MARGIN if merged is None else MERGED_MARGIN, limit_mask=self.limit_rows[a:b, robots],
+            margin=MARGIN if merged is None else MERGED_MARGIN, slack=self.slack, limit_mask=self.limit_rows[a:b, robots],
             merged=merged)
 
     def _solve(self, a: int, b: int, start: np.ndarray, durations: np.ndarray, rec: WindowRecord,
@@ -471,7 +478,7 @@ class RecedingHorizon:
             gap = np.full(len(cand), np.inf)
             gap[look] = np.einsum("pmk,pk->pm", cps[0][seps.first[look], seps.step[look] - a]
                                   - cps[0][seps.second[look], seps.step[look] - a], seps.normal[look]).min(axis=1)
-            new_pairs = (gap < self.distance + MARGIN / 2) & ~self.active[cand]
+            new_pairs = (gap < self.distance + self.slack + MARGIN / 2) & ~self.active[cand]
             new_limits = np.zeros((M, self.N, 3), dtype=bool)
             for r, lim in zip((1, 2, 3), self.limits):
                 proj = np.abs(cps[r][robots] @ OCTAGON.T).max(axis=(2, 3))  # (n, M)

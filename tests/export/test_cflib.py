@@ -28,6 +28,18 @@ def corridor_per_step():
                 progress=False, workers=1)
 
 
+@pytest.fixture(scope="module")
+def corridor_no_slack():
+    """The corridor planned without the rows' room for the compressed rounding (EXPORT_SLACK = 0): control
+    points on region edges, where nearest rounding leaves the regions."""
+    from mrfswarm.continuous import receding_horizon
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(receding_horizon, "EXPORT_SLACK", 0.0)
+        return plan(load_config(EXPERIMENTS / "corridor.toml", ["simulation.enabled=false"]), progress=False,
+                    workers=1)
+
+
 def _limits(run):
     sm = run.config.smoothing
     return sm.v_max, sm.a_max, sm.j_max
@@ -98,8 +110,25 @@ def test_compressed_rounding_stays_in_the_regions_and_limits(which, request):
         # of 0.53 s steps (5.2 > 4 m/s^3); rounding into the regions and limits does neither
         assert cert.ok is (regions is not None), cert.problems
         if regions is None:
-            assert any("leaves its region" in p for p in cert.problems)
             assert any("jerk" in p for p in cert.problems)
+
+
+def test_the_plans_slack_keeps_nearest_rounding_in_the_regions(corridor, corridor_no_slack):
+    """The rows' slack (EXPORT_SLACK) is what keeps rounded control points in their regions: without it nearest
+    rounding leaves them by a hair; with it, it does not (the limits still need the region-aware search)."""
+    from mrfswarm.continuous.certificate import certify
+    from mrfswarm.continuous.merge_pieces import step_times
+
+    leaves = {}
+    for name, run in (("slack", corridor), ("none", corridor_no_slack)):
+        c = run.smoothed()
+        comp = cflib_.compress(c.trajectories, run.config.scenario.altitude, c.v_max, None)
+        dec = [cflib_.decode_compressed(cflib_.pack_compressed(comp, i), comp.origin, 2)
+               for i in range(len(c.trajectories))]
+        cert = certify(dec, step_times(dec[0].knots, c.knot_times, c.piece_steps), c.regions,
+                       2 * run.config.scenario.robot_radius, _limits(run))
+        leaves[name] = any("leaves its region" in p for p in cert.problems)
+    assert leaves == {"slack": False, "none": True}
 
 
 def test_rounding_keeps_a_merged_pieces_steps_in_their_regions():
@@ -142,13 +171,13 @@ def test_report_per_robot_and_swarm(corridor, corridor_per_step):
         assert s["certificate"]["ok"] is True and s["pieces_per_robot"] == [pieces] * 5  # existing keys kept
 
 
-def test_a_compressed_flight_that_leaves_its_regions_is_reported(corridor, monkeypatch):
+def test_a_compressed_flight_that_leaves_its_regions_is_reported(corridor_no_slack, monkeypatch):
     """Break the region-aware rounding (nearest instead): the report must say the export is not certified."""
     real = cflib_.compress
     monkeypatch.setattr(cflib_, "compress", lambda trs, alt, v, regions=None, *rest: real(trs, alt, v, None))
     from mrfswarm.export.crazyflie_memory import memory_report
 
-    report, _ = memory_report(corridor)
+    report, _ = memory_report(corridor_no_slack)
     comp = report["compressed"]
     assert comp["certificate"]["ok"] is False and comp["certificate"]["problems"]
     assert comp["not_certified_robots"]
