@@ -282,10 +282,9 @@ def test_chunks_are_alike_in_size_and_never_larger_than_asked():
 def test_regions_and_corridors_keep_room_for_the_compressed_rounding():
     """EXPORT_SLACK: the plan keeps 3 mm inside every region and corridor (the certificate's bound on the
     separation says so), less where the cells leave less room around a robot."""
+    from mrfswarm.continuous.certificate import certify
     from mrfswarm.continuous.receding_horizon import EXPORT_SLACK, RecedingHorizon
     from mrfswarm.maps import OccupancyGrid
-
-    from mrfswarm.continuous.certificate import certify
 
     r = run("arena")  # robots a cell (0.25 m) apart, radius 0.1 m: near pairs in every step
     c, sm = r.continuous, r.config.smoothing
