@@ -704,8 +704,15 @@ class RecedingHorizon:
         # share and it gets what is left
         last = windows[-1][0]
         reserve = T - last
+        # a window flies at least one piece: with more windows than pieces the flight cannot fit however its
+        # windows merge, and merging would only cost time (a 1000-robot crossing of 232 steps ran for over 20
+        # minutes trying) and speed: fly one piece per step and report it
+        merge = bool(cfg.max_pieces) and len(windows) <= cfg.max_pieces
+        if cfg.max_pieces and not merge:
+            log.warning("%d windows of %d steps cannot fit smoothing.max_pieces = %d pieces: one piece per step",
+                        len(windows), T, cfg.max_pieces)
         for a, c, b in windows:
-            if not cfg.max_pieces:
+            if not merge:
                 pieces = None
             elif a == last:
                 pieces = window_pieces(c - a, T - a, cfg.max_pieces - used)

@@ -311,7 +311,8 @@ def test_a_flight_that_does_not_fit_is_reported(caplog):
                                                ["simulation.enabled=false", "smoothing.max_pieces=5"]))
     c = r.continuous
     assert c.certificate.ok and not c.pieces_fit
-    assert c.pieces_per_robot == [len(r.continuous.windows)] * 5  # one piece per window: as merged as it gets
+    # a window flies one piece at least, so nine cannot fit five: no merging (it would only cost), one per step
+    assert c.pieces_per_robot == [r.discrete.n_steps] * 5
     s = r.summary()["piece_limit"]
-    assert s == {"max_pieces": 5, "fits": False, "robots_over": [0, 1, 2, 3, 4], "steps_per_piece_max": 4}
-    assert "does not fit" in caplog.text
+    assert s == {"max_pieces": 5, "fits": False, "robots_over": [0, 1, 2, 3, 4], "steps_per_piece_max": 1}
+    assert "cannot fit smoothing.max_pieces = 5" in caplog.text and "does not fit" in caplog.text
