@@ -18,8 +18,7 @@ import numpy as np
 from scipy.sparse import csr_array
 from scipy.sparse.csgraph import dijkstra
 
-from mrfswarm.discrete.goal_distance import graph_moves
-from mrfswarm.discrete.motion import moves_clear
+from mrfswarm.discrete.goal_distance import free_moves, graph_moves
 from mrfswarm.trajectory import PiecewisePolynomial
 
 #: Speed (m/s) under which a robot counts as stopped.
@@ -29,14 +28,10 @@ STOP_RATE_HZ = 50.0
 
 
 def _graph(free: np.ndarray, resolution: float) -> csr_array:
-    """The 8-connected free-cell graph without corner cutting, edge lengths in metres."""
+    """The 8-connected free-cell graph without corner cutting (the goal field's search graph), edges in metres."""
     W, H = free.shape
-    cells = np.argwhere(free)
-    moves = graph_moves(2)
-    ok = moves_clear(free, cells, np.broadcast_to(np.arange(1, len(moves) + 1), (len(cells), len(moves))), 2)
-    p, m = np.nonzero(ok)
-    src, dst = cells[p], cells[p] + moves[m]
-    length = np.hypot(*moves[m].T) * resolution
+    src, dst, m = free_moves(free, 2)
+    length = np.hypot(*graph_moves(2)[m].T) * resolution
     return csr_array((length, (src[:, 0] * H + src[:, 1], dst[:, 0] * H + dst[:, 1])), shape=(W * H, W * H))
 
 

@@ -96,7 +96,7 @@ def graph_moves(order: int) -> np.ndarray:
     return off[1:]  # without "stay"
 
 
-def _edges(free: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def free_moves(free: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Directed edges (from p, to q, move index) of the clear one-step moves between free cells."""
     W, H = free.shape
     cells = np.argwhere(free)
@@ -142,7 +142,7 @@ def goal_distance(free: np.ndarray, goal_cell: np.ndarray, resolution: float = 1
         raise ValueError(f"climb_weight must be finite and >= 0, got {climb_weight!r}")
     if climb_weight > 0 and obstacle is None:
         raise ValueError("climb_weight > 0 needs the obstacle potential")
-    src, dst, m_idx = _edges(free, order)
+    src, dst, m_idx = free_moves(free, order)
     length = np.hypot(*graph_moves(order)[m_idx].T) * resolution
     n = W * H
     # Edges point from q (nearer the goal) to p so that one search from the goal follows
