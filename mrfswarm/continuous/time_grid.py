@@ -115,16 +115,14 @@ def _passes(u: np.ndarray, ell: np.ndarray, a: float) -> None:
         u[k] = min(u[k], np.sqrt(u[k + 1] ** 2 + 2 * a * ell[k]))
 
 
-def motion_durations(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
-                     rest_at_waits: bool = False) -> np.ndarray:
+def motion_durations(paths: np.ndarray, resolution: float, v_max: float, acceleration: float) -> np.ndarray:
     """(T,) step durations of the whole flight from :func:`motion_profile`."""
     if len(paths) < 2:
         return np.zeros(0)
-    return motion_profile(paths, resolution, v_max, acceleration, rest_at_waits).durations
+    return motion_profile(paths, resolution, v_max, acceleration).durations
 
 
-def motion_profile(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
-                   rest_at_waits: bool = False) -> SwarmProfile:
+def motion_profile(paths: np.ndarray, resolution: float, v_max: float, acceleration: float) -> SwarmProfile:
     r"""(T,) step durations derived from every robot's own motion and the limits.
 
     Each robot flies its discrete polyline with a speed profile of its own: at most
@@ -147,9 +145,6 @@ def motion_profile(paths: np.ndarray, resolution: float, v_max: float, accelerat
     # knot speed limits (T + 1, N): rest at the ends and next to a wait
     cap = np.full((T + 1, len(L[0])), float(v_max))
     cap[0] = cap[-1] = 0.0
-    moving = L > 0
-    if rest_at_waits:
-        cap[1:-1][~(moving[:-1] & moving[1:])] = 0.0
     cos = (m[:-1] * m[1:]).sum(-1) / np.maximum(L[:-1] * L[1:], 1e-12)
     half = np.sqrt(np.clip((1 - cos) / 2, 0.0, 1.0))  # sin(theta / 2)
     with np.errstate(divide="ignore"):
