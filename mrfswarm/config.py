@@ -64,6 +64,9 @@ class ScenarioConfig:
     within ``goal_radius`` plus the free-path radius that holds 4 free cells per robot
     (:mod:`mrfswarm.discrete.robot_outcomes`). Without a goal there is no
     goal potential (the paper's free-space formation experiments, rho_S = 0 there).
+    ``downwash`` = c >= 1 stretches each robot along z (3-D maps): two robots are apart when
+    sqrt(dx^2 + dy^2 + (dz / c)^2) >= 2 robot_radius, and the discrete plan keeps them one cell
+    apart in that scaled metric (no effect on a 2-D map).
     """
 
     map: dict = field(default_factory=lambda: {"kind": "free", "size": [20, 20]})
@@ -72,6 +75,7 @@ class ScenarioConfig:
     goal_radius: float | None = None
     altitude: float = 1.0
     robot_radius: float = 0.25
+    downwash: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -377,6 +381,7 @@ def _validate(cfg: Config) -> None:
     need(s.goal_radius is None or s.goal_radius > 0, "scenario.goal_radius", s.goal_radius, "must be > 0 (metres)")
     need(s.altitude > 0, "scenario.altitude", s.altitude, "must be > 0")
     need(s.robot_radius > 0, "scenario.robot_radius", s.robot_radius, "must be > 0 (metres)")
+    need(s.downwash >= 1, "scenario.downwash", s.downwash, "must be >= 1")
     i = cfg.interaction
     need(i.k >= 1, "interaction.k", i.k, "must be >= 1")
     # the paper's Morse conditions and zeta, where the potential is defined (one place); imported

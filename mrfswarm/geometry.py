@@ -10,6 +10,23 @@ import numpy as np
 _EPS = 1e-12
 
 
+def downwash_scale(ndim: int, downwash: float = 1.0) -> np.ndarray:
+    """Per-axis factors (ndim,) that map positions into the downwash-scaled space.
+
+    Two robots are apart when ``|| (p - q) * downwash_scale(d, c) || >= 2 r``, that is
+    sqrt(dx^2 + dy^2 + (dz / c)^2) >= 2 r in 3-D; in 2-D (or with c = 1) the factors are all 1,
+    so every distance in the scaled space is the plain Euclidean one.
+    """
+    if ndim not in (2, 3):
+        raise ValueError(f"downwash_scale: ndim must be 2 or 3, got {ndim}")
+    if not downwash >= 1.0 or not np.isfinite(downwash):
+        raise ValueError(f"downwash_scale: downwash must be a finite number >= 1, got {downwash}")
+    s = np.ones(ndim)
+    if ndim == 3:
+        s[2] = 1.0 / downwash
+    return s
+
+
 def point_segment_distance(x: np.ndarray, p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Distance from point x to segment pq."""
     d = q - p

@@ -174,6 +174,8 @@ def test_set_reaches_the_options_tables_from_the_cli(tmp_path):
     ("smoothing.qp_options.eps=1e-6", "unknown config key smoothing.qp_options.eps; allowed: eps_abs, eps_rel"),
     ("smoothing.qp_options.eps_abs=true", "smoothing.qp_options.eps_abs must be a number, got True"),
     ("smoothing.qp_options.time_limit=-1", "smoothing.qp_options: time_limit must be positive, got -1"),
+    ("scenario.downwash=0.5", "scenario.downwash = 0.5: must be >= 1"),
+    ("scenario.downwash=inf", "scenario.downwash must be finite, got inf"),
 ])
 def test_bad_solver_options_are_one_line_naming_the_key(tmp_path, capsys, override, message):
     with pytest.raises(ConfigError) as e:

@@ -194,3 +194,15 @@ def test_contested_rule_is_checked():
         label_sets(free, np.array([[0, 0]]), 2, contested="random")
     with pytest.raises(ValueError, match="needs the static field"):
         label_sets(free, np.array([[0, 0]]), 2, contested="downhill")
+
+
+def test_downwash_scale_shrinks_only_z():
+    from mrfswarm.geometry import downwash_scale
+
+    assert downwash_scale(2, 3.0).tolist() == [1.0, 1.0]
+    assert downwash_scale(3, 2.0).tolist() == [1.0, 1.0, 0.5]
+    # one voxel straight above is 0.5 cells away in the scaled metric with c = 2: not apart
+    assert np.linalg.norm(np.array([0, 0, 1]) * downwash_scale(3, 2.0)) == 0.5
+    for bad in [(3, 0.5), (3, float("nan")), (4, 1.0)]:
+        with pytest.raises(ValueError, match="downwash_scale"):
+            downwash_scale(*bad)

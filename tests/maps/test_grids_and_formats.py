@@ -81,6 +81,7 @@ def test_from_occupied_and_equality():
     (np.full((2, 2), 1.5), 1.0, (0, 0), r"prob\[0, 0\] = 1\.5"),
     (np.full((2, 2), np.nan), 1.0, (0, 0), "nan"),
     (np.zeros(3), 1.0, (0, 0), r"shape \(W, H\)"),
+    (np.zeros((2, 2, 2, 2)), 1.0, (0, 0), r"\(W, H, D\)"),
     (np.zeros((0, 3)), 1.0, (0, 0), r"\(0, 3\)"),
     (np.zeros((2, 2)), 0.0, (0, 0), "resolution = 0.0"),
     (np.zeros((2, 2)), -1, (0, 0), "resolution = -1"),
@@ -99,6 +100,29 @@ def test_world_to_cell_default_frame():
     assert world_to_cell_list(g, pts) == [(4, 16), (4, 16), (5, 16), (4, 16), (0, 0), (-1, 0), (39, 40)]
     assert g.in_bounds(g.world_to_cell(pts)).tolist() == [True] * 5 + [False, False]
     assert np.array_equal(g.snap(np.array([[4.4, 15.6], [-3.2, 0.1]])), [[4.0, 16.0], [-3.0, 0.0]])
+
+
+def test_voxel_grid_is_the_same_grid_one_axis_more():
+    """A (W, H, D) grid: voxel (i, j, k) centred at origin + res (i, j, k); points and cells are (..., 3)."""
+    occ = np.zeros((4, 3, 2), dtype=bool)
+    occ[1, 2, 1] = True
+    g = OccupancyGrid.from_occupied(occ, resolution=0.5, origin=(1.0, 2.0, 3.0))
+    assert g.ndim == 3 and g.shape == (4, 3, 2) and g.depth == 2
+    assert g.cell_to_world(np.array([1, 2, 1])).tolist() == [1.5, 3.0, 3.5]
+    assert g.world_to_cell(np.array([[1.5, 3.0, 3.5], [1.5, 3.0, 3.74], [1.5, 3.0, 3.75]])).tolist() == [
+        [1, 2, 1], [1, 2, 1], [1, 2, 2]]
+    ij = np.array([[1, 2, 1], [1, 2, 0], [0, 0, 2], [0, 0, -1], [3, 2, 1]])
+    assert g.is_free(ij).tolist() == [False, True, False, False, True]
+    assert g.in_bounds(ij).tolist() == [True, True, False, False, True]
+    lo, hi = g.bounds
+    assert lo.tolist() == [0.75, 1.75, 2.75] and hi.tolist() == [2.75, 3.25, 3.75]
+    assert OccupancyGrid(np.zeros((2, 2, 2))).origin == (0.0, 0.0, 0.0)  # a 2-D origin puts z at 0
+    assert OccupancyGrid(np.zeros((2, 2, 2)), origin=(1.0, 2.0)).origin == (1.0, 2.0, 0.0)
+    with pytest.raises(ScenarioError, match=r"\(\.\.\., 3\)"):
+        g.world_to_cell(np.zeros((4, 2)))
+    with pytest.raises(ScenarioError, match=r"prob\[1, 0, 1\] = 2\.0"):
+        OccupancyGrid(np.where(np.arange(8).reshape(2, 2, 2) == 5, 2.0, 0.0))
+    assert "4 x 3 x 2 cells" in repr(g) and OccupancyGrid(np.zeros((4, 3))).bounds[1].tolist() == [3.5, 2.5]
 
 
 def world_to_cell_list(g, pts):
