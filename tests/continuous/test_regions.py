@@ -36,17 +36,21 @@ def brute_region_clearance(regions: Regions, grid: OccupancyGrid, samples: int =
     return np.minimum(out, edge)
 
 
-def test_obstacle_index_counts_like_brute_force():
+@pytest.mark.parametrize("shape", [(9, 7), (6, 5, 4)])
+def test_obstacle_index_counts_like_brute_force(shape):
     rng = np.random.default_rng(0)
-    occ = rng.random((9, 7)) < 0.3
+    occ = rng.random(shape) < 0.3
     index = ObstacleIndex(OccupancyGrid.from_occupied(occ))
-    padded = np.ones((20, 20), bool)  # the map with a wide margin of off-map (occupied) cells
-    padded[3:12, 3:10] = occ
+    d = len(shape)
+    padded = np.ones((20,) * d, bool)  # the map with a wide margin of off-map (occupied) cells
+    padded[tuple(slice(3, 3 + n) for n in shape)] = occ
     for _ in range(300):
-        lo = rng.integers(-3, 10, 2)
-        hi = lo + rng.integers(-1, 5, 2)
-        want = padded[lo[0] + 3:hi[0] + 4, lo[1] + 3:hi[1] + 4].sum() if (hi >= lo).all() else 0
+        lo = rng.integers(-3, 10, d)
+        hi = lo + rng.integers(-1, 5, d)
+        want = padded[tuple(slice(a + 3, b + 4) for a, b in zip(lo, hi))].sum() if (hi >= lo).all() else 0
         assert index.occupied_count(lo, hi) == want
+    many = rng.integers(-2, 8, (4, 5, d))  # vectorized over leading axes
+    assert index.occupied_count(many, many + 1).shape == (4, 5)
 
 
 def test_polygon_box_distance_matches_sampling():
