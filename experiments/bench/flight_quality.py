@@ -27,7 +27,8 @@ Cases (deterministic maps built here; 1 m cells unless said):
 - ``aisles30``: 30 robots through a warehouse of shelves with 2-cell aisles, k = 7;
 - ``arena8``: 8 robots in a 6 x 3.5 m arena of 0.25 m cells (robot radius 0.1 m, v_max 1 m/s);
 - ``big200`` (``--cases`` only): 200 robots on 128 x 128 with 15 % obstacles;
-- ``cross1000`` (``--cases`` only): 1000 robots crossing 240 m of open field.
+- ``cross1000`` (``--cases`` only): 1000 robots crossing 240 m of open field;
+- ``cross300`` (``--cases`` only): 300 robots crossing 110 m of open field (the big swarm's windows, quicker).
 
     python experiments/bench/flight_quality.py [--cases ...] [--variants default,refined]
         [--baseline REV] [--baseline-variants default] [--out experiments/bench/results/flight_quality.csv]
@@ -144,6 +145,10 @@ def case_config(case: str) -> tuple[dict, Path]:
     if case == "cross1000":
         scn = {"map": {"kind": "free", "size": [300, 120]},
                "start": {"center": [30, 60], "n_robots": 1000, "sigma": 12.0, "seed": 0}, "goal": [270, 60]}
+        return {"scenario": scn, "interaction": {"k": 7}}, EXP
+    if case == "cross300":
+        scn = {"map": {"kind": "free", "size": [150, 80]},
+               "start": {"center": [20, 40], "n_robots": 300, "sigma": 6.5, "seed": 0}, "goal": [130, 40]}
         return {"scenario": scn, "interaction": {"k": 7}}, EXP
     raise SystemExit(f"unknown case {case!r}")
 

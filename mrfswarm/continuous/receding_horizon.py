@@ -396,6 +396,8 @@ class RecedingHorizon:
         self.limit_rows = np.zeros((self.T, self.N, 3), dtype=bool)
         self.workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
         self._pool: ProcessPoolExecutor | None = None
+        # robots of the chunk whose QP failed last: solved first, so a failing attempt costs one chunk
+        self._hard = np.zeros(self.N, dtype=bool)
         self.regions_s = time.perf_counter() - t0
         self._check_s = 0.0
 
@@ -459,12 +461,11 @@ class RecedingHorizon:
                 mine = np.zeros(self.N, dtype=bool)
                 mine[robots] = True
                 specs.append(self._spec(a, b, robots, start, cand[self.active[cand] & mine[seps.first]], merged))
-            results = self._map(solve_window, [(spec, durations, self.backend, self.qp_options, gradient)
-                                               for spec in specs])
+            results, why = self._solve_chunks(chunks, specs, durations, gradient)
             rec.rounds += 1
+            if why:
+                return None, why
             for robots, out in zip(chunks, results):
-                if isinstance(out, str):
-                    return None, f"{len(robots)} robots: {out}"
                 Y[robots], B[robots], cost[robots], g = out
                 if grad is not None:
                     if g is None:
@@ -498,6 +499,35 @@ class RecedingHorizon:
                 if touched[g].any():
                     todo[g] = True
         return None, "constraint generation did not settle"  # unreachable: the last round has every row
+
+    def _solve_chunks(self, chunks: list[np.ndarray], specs: list[WindowSpec], durations: np.ndarray,
+                      gradient: bool) -> tuple[list, str]:
+        """:func:`solve_window` of every chunk, the chunks holding robots that failed last time first.
+
+        A window's attempts share their durations across the swarm, so one chunk that cannot
+        meet them fails the attempt: when those chunks fail again, the others are not solved.
+        The solutions, and the attempt chosen, are the same as solving all chunks at once; only
+        a failing attempt is cheaper. Returns the chunks' solutions and "" or, when a chunk
+        failed, why (and solutions that must not be used).
+        """
+        args = [(spec, durations, self.backend, self.qp_options, gradient) for spec in specs]
+        first = [k for k, robots in enumerate(chunks) if self._hard[robots].any()]
+        if not first or len(first) == len(chunks):
+            results = self._map(solve_window, args)
+        else:
+            results = [None] * len(chunks)
+            for k, out in zip(first, self._map(solve_window, [args[k] for k in first])):
+                results[k] = out
+            if not any(isinstance(results[k], str) for k in first):
+                rest = [k for k in range(len(chunks)) if k not in set(first)]
+                for k, out in zip(rest, self._map(solve_window, [args[k] for k in rest])):
+                    results[k] = out
+        failed = [k for k, out in enumerate(results) if isinstance(out, str)]
+        if failed:
+            self._hard[:] = False
+            self._hard[chunks[failed[0]]] = True
+            return results, f"{len(chunks[failed[0]])} robots: {results[failed[0]]}"
+        return results, ""
 
     def _map(self, fn: Callable, args: list[tuple]) -> list:
         """``fn(*a)`` for every ``a``: in the worker processes when there are several chunks and workers."""

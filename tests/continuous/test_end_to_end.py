@@ -13,6 +13,7 @@ from mrfswarm.cli import main
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous import RecedingHorizon
 from mrfswarm.continuous.merge_pieces import step_pieces
+from mrfswarm.continuous.receding_horizon import WindowRecord
 from mrfswarm.pipeline import plan
 from mrfswarm.trajectory import read_uav_csv, seam_jumps
 from mrfswarm.trajectory.bernstein import control_points
@@ -295,3 +296,34 @@ def test_regions_and_corridors_keep_room_for_the_compressed_rounding():
     for res, radius, slack in ((1.0, 0.25, EXPORT_SLACK), (0.25, 0.124, 0.25 * (0.125 - 0.124))):
         grid = OccupancyGrid(np.zeros((6, 6)), resolution=res)
         assert RecedingHorizon(paths, grid, SmoothingConfig(), radius).slack == pytest.approx(slack)
+
+
+def test_a_failing_attempt_solves_the_chunk_that_failed_last_first_and_stops_there(monkeypatch):
+    """Durations no chunk can meet: the first attempt solves every chunk, the next only the chunk that failed
+    (the others are not solved, the attempt fails the same); durations every chunk meets give the same
+    solutions in either order."""
+    import mrfswarm.continuous.receding_horizon as rhm
+    from mrfswarm.maps import OccupancyGrid
+
+    monkeypatch.setattr(rhm, "CHUNK_ROBOTS", 6)
+    block = np.array([[3 * i, 3 * j] for i in range(4) for j in range(3)]) + 2  # 12 robots, 2 chunks, no pairs
+    paths = np.array([block + k * np.array([1, 0]) for k in range(5)])
+    grid = OccupancyGrid.from_occupied(np.zeros((20, 12), bool))
+    rh = RecedingHorizon(paths, grid, SmoothingConfig(), 0.25, workers=1)
+    calls = []
+    real = rhm.solve_window
+    monkeypatch.setattr(rhm, "solve_window", lambda spec, *a: calls.append(spec) or real(spec, *a))
+    a, c, b = rh.windows()[0]
+    start = rh._witness(a, b, rh.witness[a:b], None).Y[:, 0]
+    rh.limit_rows[a:b] = True  # every limit row on: too short durations are infeasible
+    for attempt in range(2):
+        calls.clear()
+        sol, why = rh._solve(a, b, start, np.full(b - a, 0.05), WindowRecord(a=a, c=c, b=b))
+        assert sol is None and "6 robots" in why and len(calls) == (2 if attempt == 0 else 1), (attempt, why)
+    hard = rh._hard.copy()
+    assert hard.sum() == 6
+    good = rh.witness[a:b]
+    first, _ = rh._solve(a, b, start, good, WindowRecord(a=a, c=c, b=b))
+    rh._hard[:] = ~hard  # the other chunk first
+    second, _ = rh._solve(a, b, start, good, WindowRecord(a=a, c=c, b=b))
+    np.testing.assert_array_equal(first.Y, second.Y)
