@@ -120,7 +120,7 @@ def build_scenario(cfg: Config, seed: int | None = None) -> Scenario:
         # wide as a cell leaves the continuous stage no room
         raise ConfigError(f"scenario.robot_radius = {cfg.scenario.robot_radius:g} m must be below half a cell "
                           f"({0.5 * grid.resolution:g} m on this map)")
-    start = start_cells(cfg.scenario.start, grid, seed)
+    start = start_cells(cfg.scenario.start, grid, seed, downwash=cfg.scenario.downwash)
     check_k(cfg.interaction.k, len(start))
     goal = None if cfg.scenario.goal is None else goal_cell(cfg.scenario.goal, grid)
     distances = None

@@ -4,6 +4,11 @@ The paper samples the initial positions "from a multivariate Gaussian distributi
 mean set to a fixed starting position for the robot team", each robot on a distinct free
 cell, with every robot having a neighbour (N_i != ∅, which the k-NN graph guarantees for
 1 <= k < N). Robots sit on cell centres in the discrete stage.
+
+On a voxel map the start is a step of the discrete plan like any other, so its robots
+keep one cell apart in the downwash-scaled metric (:func:`mrfswarm.geometry.downwash_scale`,
+``scenario.downwash`` = c): two robots in one column need |dz| >= c cells. Distinct
+cells are one cell apart in the plane, where the rule is the paper's.
 """
 
 from __future__ import annotations
@@ -11,8 +16,10 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from mrfswarm.errors import ConfigError, ScenarioError
+from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import OccupancyGrid
 
 log = logging.getLogger(__name__)
@@ -30,6 +37,9 @@ def format_point(p: np.ndarray | tuple[float, ...]) -> str:
     return "(" + ", ".join(f"{float(v):g}" for v in p) + ")"
 
 
+#: Scaled distances below 1 cell by more than rounding are too close (dz = c is exactly 1).
+_TOO_CLOSE = 1.0 - 1e-9
+
 
 def _off_map(grid: OccupancyGrid) -> str:
     """The map's box, as an off-map message states it: ``x in [x0, x1), y in [y0, y1)[, z in [z0, z1)]``."""
@@ -37,30 +47,36 @@ def _off_map(grid: OccupancyGrid) -> str:
     return ", ".join(f"{a} in [{lo[k]:g}, {hi[k]:g})" for k, a in enumerate("xyz"[:grid.ndim]))
 
 
-def _first_taken(keys: np.ndarray) -> np.ndarray:
-    """Bool (N,): whether each key appeared earlier in ``keys`` (all but each value's first occurrence)."""
-    _, first = np.unique(keys, return_index=True)
-    taken = np.ones(len(keys), dtype=bool)
-    taken[first] = False
-    return taken
+def _crowded(cells: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Bool (N,): whether each cell is less than one cell (scaled by ``scale``) from an EARLIER one.
+
+    With factors 1 (the plane, or c = 1) that is a cell someone took before.
+    """
+    crowded = np.zeros(len(cells), dtype=bool)
+    if len(cells) > 1:
+        pairs = cKDTree(cells * scale).query_pairs(_TOO_CLOSE, output_type="ndarray")
+        crowded[pairs.max(axis=1)] = True
+    return crowded
 
 
-def place(grid: OccupancyGrid, points: np.ndarray, what: str = "robot") -> np.ndarray:
-    """Cells of world ``points`` (N, d), checked: on the map, free, one robot per cell.
+def place(grid: OccupancyGrid, points: np.ndarray, what: str = "robot", downwash: float = 1.0) -> np.ndarray:
+    """Cells of world ``points`` (N, d), checked: on the map, free, one cell apart (downwash-scaled).
 
     Raises
     ------
     ScenarioError
-        Naming the first robot that is off the map, in an obstacle or in another's cell,
-        its position and the cell.
+        Naming the first robot that is off the map, in an obstacle, in another's cell or
+        (on a voxel map) fewer than ``downwash`` cells above or below another, its
+        position and the cell.
     """
     pts = np.asarray(points, dtype=float)
     cells = grid.world_to_cell(pts)
     inside = grid.in_bounds(cells)
     free = grid.is_free(cells)
-    keys = np.ravel_multi_index(tuple(np.where(inside[:, None], cells, 0).T), grid.shape)
-    again = _first_taken(keys) & free
-    bad = np.flatnonzero(~free | again)
+    scale = downwash_scale(grid.ndim, downwash)
+    crowded = np.zeros(len(cells), dtype=bool)
+    crowded[free] = _crowded(cells[free], scale)  # robots before the first bad one are all free
+    bad = np.flatnonzero(~free | crowded)
     if len(bad):
         i = int(bad[0])
         p, c = pts[i], cells[i]
@@ -68,8 +84,14 @@ def place(grid: OccupancyGrid, points: np.ndarray, what: str = "robot") -> np.nd
             raise ScenarioError(f"{what} {i} at {format_point(p)} is off the map ({_off_map(grid)})")
         if not free[i]:
             raise ScenarioError(f"{what} {i} at {format_point(p)} is inside an obstacle (cell {format_point(c)})")
-        j = int(np.flatnonzero(keys == keys[i])[0])
-        raise ScenarioError(f"robots {j} and {i} are both in cell {format_point(c)} (at {format_point(pts[j])} and {format_point(p)})")
+        near = np.linalg.norm((cells[:i] - c) * scale, axis=-1) < _TOO_CLOSE
+        j = int(np.flatnonzero(near)[0])
+        if np.array_equal(cells[j], c):
+            raise ScenarioError(f"robots {j} and {i} are both in cell {format_point(c)} (at {format_point(pts[j])} "
+                                f"and {format_point(p)})")
+        raise ScenarioError(f"robots {j} and {i} are in cells {format_point(cells[j])} and {format_point(c)}, "
+                            f"{abs(int(c[2] - cells[j][2]))} apart in z: scenario.downwash = {downwash:g} needs "
+                            f"{int(np.ceil(downwash - 1e-9))} (at {format_point(pts[j])} and {format_point(p)})")
     return cells.astype(np.intp)
 
 
@@ -105,7 +127,7 @@ def _number(spec: dict, key: str, positive: bool = False) -> float:
     return float(v)
 
 
-def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None) -> np.ndarray:
+def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None, downwash: float = 1.0) -> np.ndarray:
     """The start cells (N, d) from the config table ``scenario.start``, d = ``grid.ndim``.
 
     ``{positions = [[x, y], ...]}`` (``[x, y, z]`` on a voxel map) places robots explicitly
@@ -114,7 +136,9 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None) -> np.
     :data:`DEFAULT_SIGMA_CELLS` cells), snapped to distinct free cells, redrawing what
     falls off the map, in an obstacle or on a taken cell (draws are taken in order, in
     batches of N, so a seed gives the same swarm as it always did). ``seed`` overrides
-    the table's seed (``--seed``).
+    the table's seed (``--seed``). On a voxel map robots keep one cell apart in the
+    metric scaled by ``downwash`` (``scenario.downwash``; module docstring): explicit
+    positions closer are an error, sampled draws closer are redrawn.
     """
     d = grid.ndim
     axes = "[x, y]" if d == 2 else "[x, y, z]"
@@ -124,7 +148,7 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None) -> np.
         if extra:
             raise ConfigError(f"unknown config key scenario.start.{sorted(extra)[0]} next to positions; "
                               "give either positions or center/n_robots/sigma/seed")
-        return place(grid, _points(spec["positions"], "scenario.start.positions", d))
+        return place(grid, _points(spec["positions"], "scenario.start.positions", d), downwash=downwash)
     unknown = keys - _SAMPLED_KEYS
     if unknown:
         raise ConfigError(f"unknown config key scenario.start.{sorted(unknown)[0]}; allowed: positions, or "
@@ -155,7 +179,7 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None) -> np.
     if n > n_free:
         raise ScenarioError(f"scenario.start.n_robots = {n}: the map has only {n_free} free cells")
     rng = np.random.default_rng(seed)
-    taken = np.zeros(grid.shape, dtype=bool)
+    scale = downwash_scale(d, downwash)
     cells = np.empty((0, d), dtype=np.intp)
     draws = 0
     while len(cells) < n:
@@ -165,12 +189,11 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None) -> np.
                 f"(placed {len(cells)}); increase scenario.start.sigma or move the centre")
         batch = grid.world_to_cell(rng.normal(c, sigma, size=(n, d)))
         draws += n
-        # a draw is kept when free, not taken before and its batch's first on that cell; in draw order
+        # a draw is kept when free and one cell (scaled) from every robot placed and every earlier free draw of its
+        # batch; in draw order (in the plane: the batch's first draw on a cell nobody took)
         ok = grid.is_free(batch)
-        idx = tuple(np.where(ok[:, None], batch, 0).T)
-        ok &= ~taken[idx]
-        ok &= ~_first_taken(np.where(ok, np.ravel_multi_index(idx, grid.shape), -1 - np.arange(n)))
-        new = batch[ok][:n - len(cells)]
-        taken[tuple(new.T)] = True
-        cells = np.concatenate([cells, new.astype(np.intp)])
+        if len(cells):
+            ok &= cKDTree(cells * scale).query(batch * scale, distance_upper_bound=1.0)[0] >= _TOO_CLOSE
+        ok[ok] = ~_crowded(batch[ok], scale)
+        cells = np.concatenate([cells, batch[ok][:n - len(cells)].astype(np.intp)])
     return cells
