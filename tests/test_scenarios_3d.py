@@ -11,6 +11,7 @@ from mrfswarm.discrete.start import start_cells
 from mrfswarm.errors import ScenarioError
 from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import load_map
+from mrfswarm.pipeline import plan
 from mrfswarm.scenario import build_scenario, goal_cell
 from support.repository import EXPERIMENTS
 
@@ -105,3 +106,16 @@ def test_2d_scenarios_carry_the_default_downwash():
     assert scn.downwash == 1.0 and scn.discrete_problem().downwash == 1.0
     scn = build_scenario(load_config(EXPERIMENTS / "corridor.toml", ["scenario.downwash=3"]))
     assert scn.discrete_problem().downwash == 3.0
+
+
+@needs_3d_potentials
+def test_a_3d_config_flows_through_plan_to_the_discrete_stage():
+    r = plan(load_config(EXPERIMENTS / "field3d.toml", ["smoothing.enabled=false"]))
+    paths = r.discrete.paths
+    assert paths.shape[1:] == (40, 3) and np.array_equal(paths[0], r.scenario.start)
+    world = r.discrete_paths_world()
+    assert world.shape == paths.shape and np.allclose(world[..., 2], paths[..., 2])  # 1 m voxels from z = 0
+    assert r.scenario.grid.is_free(paths).all()
+    for step in paths:  # the downwash the scenario carries reached the planner: one scaled cell apart
+        assert scaled_gaps(step, 2.0).min() >= 1.0 - 1e-9
+    assert r.summary()["goal"] == [27.0, 7.0, 4.0]
