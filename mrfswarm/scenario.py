@@ -15,6 +15,7 @@ from mrfswarm.discrete.robot_outcomes import goal_region_radius
 from mrfswarm.discrete.start import format_point, start_cells
 from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.maps import OccupancyGrid, load_map
+from mrfswarm.maps.spec import AXES
 
 #: ``scenario.goal_radius`` when the config leaves it unset, in cells: 3 m at the paper's 1 m cells.
 DEFAULT_GOAL_RADIUS_CELLS = 3.0
@@ -147,9 +148,8 @@ def goal_cell(goal: tuple[float, ...], grid: OccupancyGrid) -> np.ndarray:
     """
     g = np.asarray(goal, dtype=float)
     if g.shape != (grid.ndim,):
-        axes = "[x, y]" if grid.ndim == 2 else "[x, y, z]"
         raise ScenarioError(f"scenario.goal = {[float(v) for v in g]!r}: {g.size} coordinates on a {grid.ndim}-D map, "
-                            f"give {axes}")
+                            f"give {AXES[grid.ndim]}")
     gc = grid.world_to_cell(g)
     if not grid.in_bounds(gc):
         raise ScenarioError(f"scenario.goal {format_point(g)} is off the map")

@@ -21,6 +21,7 @@ from scipy.spatial import cKDTree
 from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import OccupancyGrid
+from mrfswarm.maps.spec import AXES
 
 log = logging.getLogger(__name__)
 
@@ -103,7 +104,7 @@ def _points(value: object, key: str, d: int) -> np.ndarray:
     ConfigError
         Not a non-empty list of lists of ``d`` finite numbers (on a map of ``d`` axes).
     """
-    axes = "[x, y]" if d == 2 else "[x, y, z]"
+    axes = AXES[d]
     if not isinstance(value, (list, tuple)) or not value:
         raise ConfigError(f"{key} must be a list of {axes} points, got {value!r}")
     for i, q in enumerate(value):
@@ -141,7 +142,7 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None, downwa
     positions closer are an error, sampled draws closer are redrawn.
     """
     d = grid.ndim
-    axes = "[x, y]" if d == 2 else "[x, y, z]"
+    axes = AXES[d]
     keys = set(spec)
     if "positions" in keys:
         extra = keys - _EXPLICIT_KEYS

@@ -40,20 +40,14 @@ def positive(value: Any, key: str) -> float:
     return v
 
 
-def pair(value: Any, key: str) -> tuple[float, float]:
-    """Two finite numbers ``[x, y]``."""
-    x, y = point(value, key, 2)
-    return x, y
-
-
 #: How a point of each length is written in messages.
-_AXES = {2: "[x, y]", 3: "[x, y, z]"}
+AXES = {2: "[x, y]", 3: "[x, y, z]"}
 
 
 def point(value: Any, key: str, d: int) -> tuple[float, ...]:
     """``d`` finite numbers, ``[x, y]`` or ``[x, y, z]`` (metres)."""
     if not isinstance(value, (list, tuple)) or len(value) != d:
-        raise ConfigError(f"{key} = {value!r}: must be a list of {d} numbers {_AXES[d]}{on_map(d)}")
+        raise ConfigError(f"{key} = {value!r}: must be a list of {d} numbers {AXES[d]}{on_map(d)}")
     return tuple(number(v, f"{key}[{i}]") for i, v in enumerate(value))
 
 
