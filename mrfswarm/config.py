@@ -55,6 +55,10 @@ SOLVER_OPTIONS: dict[str, type] = {
 class ScenarioConfig:
     """The map, the start swarm, the goal (metres, map frame) and the flight altitude.
 
+    Points have one number per axis of the map: ``[x, y]`` on a 2-D map, whose robots fly
+    at z = ``altitude``; ``[x, y, z]`` on a 3-D (voxel) map, where z comes from the map's
+    frame and ``altitude`` is not used.
+
     ``map`` and ``start`` are tables checked by :func:`mrfswarm.maps.load_map` and
     :func:`mrfswarm.discrete.start.start_cells`; ``robot_radius`` (metres, below half a cell) is
     each robot's size: trajectories keep it from obstacles and twice it (the safety
@@ -71,7 +75,7 @@ class ScenarioConfig:
 
     map: dict = field(default_factory=lambda: {"kind": "free", "size": [20, 20]})
     start: dict = field(default_factory=lambda: {"center": [5.0, 5.0], "n_robots": 5, "seed": 0})
-    goal: tuple[float, float] | None = None
+    goal: tuple[float, ...] | None = None
     goal_radius: float | None = None
     altitude: float = 1.0
     robot_radius: float = 0.25
@@ -296,6 +300,10 @@ def _coerce(key: str, value: Any, hint: Any) -> Any:
         if not isinstance(value, dict):
             raise ConfigError(f"{key} must be a table, got {value!r}")
         return value
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis:  # tuple[X, ...]: any length, checked later
+        if not isinstance(value, (list, tuple)):
+            raise ConfigError(f"{key} must be a list of numbers, got {value!r}")
+        return tuple(_coerce(f"{key}[{i}]", v, args[0]) for i, v in enumerate(value))
     if origin is tuple:
         if not isinstance(value, (list, tuple)) or len(value) != len(args):
             raise ConfigError(f"{key} must be a list of {len(args)} numbers, got {value!r}")
@@ -378,6 +386,8 @@ def _validate(cfg: Config) -> None:
     s = cfg.scenario
     kind = s.map.get("kind")
     need(kind in LOADERS, "scenario.map.kind", kind, f"must be one of {', '.join(LOADERS)}")
+    need(s.goal is None or len(s.goal) in (2, 3), "scenario.goal", None if s.goal is None else list(s.goal),
+         "must be [x, y] or, on a 3-D map, [x, y, z] (metres)")
     need(s.goal_radius is None or s.goal_radius > 0, "scenario.goal_radius", s.goal_radius, "must be > 0 (metres)")
     need(s.altitude > 0, "scenario.altitude", s.altitude, "must be > 0")
     need(s.robot_radius > 0, "scenario.robot_radius", s.robot_radius, "must be > 0 (metres)")

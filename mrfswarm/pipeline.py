@@ -134,7 +134,7 @@ class Result:
         return self._crazyflie
 
     def discrete_paths_world(self) -> np.ndarray:
-        """(T + 1, N, 2) discrete paths in metres."""
+        """(T + 1, N, d) discrete paths in metres (d = 3 on a voxel map: z from the map)."""
         return self.scenario.grid.cell_to_world(self.discrete.paths)
 
     def summary(self) -> dict:

@@ -12,9 +12,10 @@ from mrfswarm.discrete.interaction_graph import check_k
 from mrfswarm.discrete.planner import DiscreteProblem
 from mrfswarm.discrete.potentials import Morse, goal_distances, static_field
 from mrfswarm.discrete.robot_outcomes import goal_region_radius
-from mrfswarm.discrete.start import start_cells
+from mrfswarm.discrete.start import format_point, start_cells
 from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.maps import OccupancyGrid, load_map
+from mrfswarm.maps.spec import AXES
 
 #: ``scenario.goal_radius`` when the config leaves it unset, in cells: 3 m at the paper's 1 m cells.
 DEFAULT_GOAL_RADIUS_CELLS = 3.0
@@ -40,11 +41,11 @@ class Scenario:
     grid
         The occupancy grid.
     start
-        (N, 2) start cells.
+        (N, d) start cells, d = ``grid.ndim`` (2, or 3 on a voxel map).
     goal
-        Goal cell (2,), or None for the free-space formation experiments.
+        Goal cell (d,), or None for the free-space formation experiments.
     static
-        rho_S over the grid, (W, H).
+        rho_S over the grid, ``grid.shape``.
     morse
         The interaction potential, in metres (the config's lengths are in cells).
     config
@@ -76,6 +77,11 @@ class Scenario:
     def goal_world(self) -> np.ndarray | None:
         return None if self.goal is None else self.grid.cell_to_world(self.goal)
 
+    @property
+    def downwash(self) -> float:
+        """``scenario.downwash`` (c >= 1): dz counts 1/c in the separation metric of a voxel map."""
+        return self.config.scenario.downwash
+
     def discrete_problem(self) -> DiscreteProblem:
         """The discrete stage's inputs, in cells."""
         c = self.config
@@ -95,6 +101,7 @@ class Scenario:
             else None,
             goal_path=None if self.distances is None else self.distances.path,
             goal_region_radius=0.0 if self.goal_region_radius is None else self.goal_region_radius,
+            downwash=c.scenario.downwash,
         )
 
 
@@ -114,17 +121,9 @@ def build_scenario(cfg: Config, seed: int | None = None) -> Scenario:
         # wide as a cell leaves the continuous stage no room
         raise ConfigError(f"scenario.robot_radius = {cfg.scenario.robot_radius:g} m must be below half a cell "
                           f"({0.5 * grid.resolution:g} m on this map)")
-    start = start_cells(cfg.scenario.start, grid, seed)
+    start = start_cells(cfg.scenario.start, grid, seed, downwash=cfg.scenario.downwash)
     check_k(cfg.interaction.k, len(start))
-    goal = None
-    if cfg.scenario.goal is not None:
-        g = np.asarray(cfg.scenario.goal, dtype=float)
-        gc = grid.world_to_cell(g)
-        if not grid.in_bounds(gc):
-            raise ScenarioError(f"scenario.goal ({g[0]:g}, {g[1]:g}) is off the map")
-        if not grid.is_free(gc):
-            raise ScenarioError(f"scenario.goal ({g[0]:g}, {g[1]:g}) is inside an obstacle (cell ({gc[0]}, {gc[1]}))")
-        goal = gc.astype(np.intp)
+    goal = None if cfg.scenario.goal is None else goal_cell(cfg.scenario.goal, grid)
     distances = None
     if goal is not None:
         distances = goal_distances(grid.prob, goal, grid.resolution, cfg.goal_potential, cfg.obstacle_potential,
@@ -139,6 +138,26 @@ def build_scenario(cfg: Config, seed: int | None = None) -> Scenario:
                     distances=distances, goal_region_radius=region)
 
 
+def goal_cell(goal: tuple[float, ...], grid: OccupancyGrid) -> np.ndarray:
+    """The cell (d,) of ``scenario.goal`` (metres): on the map, free, one coordinate per axis of the map.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the goal: the wrong number of coordinates, off the map, in an obstacle.
+    """
+    g = np.asarray(goal, dtype=float)
+    if g.shape != (grid.ndim,):
+        raise ScenarioError(f"scenario.goal = {[float(v) for v in g]!r}: {g.size} coordinates on a {grid.ndim}-D map, "
+                            f"give {AXES[grid.ndim]}")
+    gc = grid.world_to_cell(g)
+    if not grid.in_bounds(gc):
+        raise ScenarioError(f"scenario.goal {format_point(g)} is off the map")
+    if not grid.is_free(gc):
+        raise ScenarioError(f"scenario.goal {format_point(g)} is inside an obstacle (cell {format_point(gc)})")
+    return gc.astype(np.intp)
+
+
 def _check_reachable(grid: OccupancyGrid, start: np.ndarray, goal: np.ndarray, distances: GoalDistance) -> None:
     """Every robot needs a free path to the goal for the geodesic field to guide it.
 
@@ -147,18 +166,17 @@ def _check_reachable(grid: OccupancyGrid, start: np.ndarray, goal: np.ndarray, d
     ScenarioError
         Naming the robots without a path (or saying that none has one).
     """
-    cut = ~distances.reachable[start[:, 0], start[:, 1]]
+    cut = ~distances.reachable[tuple(start.T)]
     if not cut.any():
         return
     g = grid.cell_to_world(goal)
     region = int(distances.reachable.sum())
     if cut.all():
         raise ScenarioError(
-            f"scenario.goal ({g[0]:g}, {g[1]:g}) cannot be reached: no robot has a free path to it (the goal's "
+            f"scenario.goal {format_point(g)} cannot be reached: no robot has a free path to it (the goal's "
             f"free region has {region} cells)")
     bad = np.flatnonzero(cut)
-    where = ", ".join(f"robot {i} at ({grid.cell_to_world(start[i])[0]:g}, {grid.cell_to_world(start[i])[1]:g})"
-                      for i in bad[:3])
+    where = ", ".join(f"robot {i} at {format_point(grid.cell_to_world(start[i]))}" for i in bad[:3])
     more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
-    raise ScenarioError(f"no free path to the goal ({g[0]:g}, {g[1]:g}) from {where}{more}; move them into the "
+    raise ScenarioError(f"no free path to the goal {format_point(g)} from {where}{more}; move them into the "
                         f"goal's free region or set goal_potential.distance = \"euclidean\"")

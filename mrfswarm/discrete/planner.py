@@ -98,6 +98,7 @@ class DiscreteProblem:
     goal_distance: np.ndarray | None = None
     goal_path: np.ndarray | None = None
     goal_region_radius: float = 0.0
+    downwash: float = 1.0
 
 
 @dataclass(frozen=True)

@@ -6,17 +6,22 @@ world and cell coordinates (nothing else in mrfswarm does). :func:`load_map` bui
 grid from the config table ``scenario.map``; one loader per ``kind``:
 
 ============  =================================================================
-``free``      ``{kind="free", size=[W, H]}``
-``boxes``     ``{kind="boxes", size=[W, H], boxes=[{center=[x, y], size=[lx, ly]}, ...]}``
+``free``      ``{kind="free", size=[W, H]}`` or ``size=[W, H, D]`` (voxels)
+``boxes``     ``{kind="boxes", size=[W, H], boxes=[{center=[x, y], size=[lx, ly]}, ...]}``;
+              with ``size=[W, H, D]``, boxes of ``center=[x, y, z]``, ``size=[lx, ly, lz]``
 ``ascii``     ``{kind="ascii", rows=["..#.", ...]}``
 ``movingai``  ``{kind="movingai", path="map.map"}`` (MovingAI benchmark ``.map``)
 ``ros``       ``{kind="ros", path="map.yaml"}`` (ROS map_server YAML + PGM/PNG)
+``npy``       ``{kind="npy", path="map.npy"}`` (a (W, H, D) NumPy array, True occupied)
+``binvox``    ``{kind="binvox", path="map.binvox"}`` (binvox voxels, read with trimesh)
 ============  =================================================================
 
-``free``, ``boxes``, ``ascii`` and ``movingai`` also take ``resolution`` (metres per cell,
-default 1.0) and ``origin`` (the centre of cell (0, 0), default [0, 0]); a ROS map's come
-from its YAML, which the config's may state but not change. Writers:
-:func:`save_movingai`, :func:`save_ros`.
+All but ``ros`` also take ``resolution`` (metres per cell, default 1.0) and ``origin``
+(the centre of cell (0, 0[, 0]), default zeros, one number per axis of the map); a ROS
+map's come from its YAML, which the config's may state but not change. A 2-D map of any
+kind takes ``extrude = D``: its cells raised into columns of D voxels
+(:mod:`mrfswarm.maps.extrusion`). Writers: :func:`save_movingai`, :func:`save_ros`,
+:func:`save_voxels`.
 """
 
 from __future__ import annotations
@@ -25,11 +30,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 from mrfswarm.errors import ConfigError
+from mrfswarm.maps import extrusion
 from mrfswarm.maps.grid import OCCUPIED_THRESHOLD, OccupancyGrid
 from mrfswarm.maps.inline import load_ascii, load_boxes, load_free
 from mrfswarm.maps.movingai import load_movingai, read_movingai, save_movingai
 from mrfswarm.maps.ros import load_ros, read_ros, save_ros
 from mrfswarm.maps.spec import PREFIX
+from mrfswarm.maps.voxels import load_binvox, load_npy, read_binvox, read_npy, save_voxels
 
 #: kind -> loader(spec, base_dir); the one list of map kinds.
 LOADERS: dict[str, Callable[[dict, Path], OccupancyGrid]] = {
@@ -38,7 +45,11 @@ LOADERS: dict[str, Callable[[dict, Path], OccupancyGrid]] = {
     "ascii": load_ascii,
     "movingai": load_movingai,
     "ros": load_ros,
+    "npy": load_npy,
+    "binvox": load_binvox,
 }
+#: The kinds that take ``extrude`` (2-D maps; ``free`` and ``boxes`` when their size has 2 numbers).
+EXTRUDABLE = ("free", "boxes", "ascii", "movingai", "ros")
 
 
 def load_map(spec: dict, base_dir: Path | str = ".") -> OccupancyGrid:
@@ -47,7 +58,8 @@ def load_map(spec: dict, base_dir: Path | str = ".") -> OccupancyGrid:
     Parameters
     ----------
     spec
-        The table, e.g. ``{"kind": "boxes", "size": [40, 40], "boxes": [...]}``.
+        The table, e.g. ``{"kind": "boxes", "size": [40, 40], "boxes": [...]}``, with
+        ``extrude`` for a 2-D map raised to that many voxels.
     base_dir
         Folder that relative ``path`` values are resolved against (the config file's).
 
@@ -55,7 +67,8 @@ def load_map(spec: dict, base_dir: Path | str = ".") -> OccupancyGrid:
     ------
     ConfigError
         Bad table: unknown kind or key, missing key, wrong type, size < 1, resolution
-        <= 0, malformed ascii rows. Names the key and the bad value.
+        <= 0, malformed ascii rows, a point or size with the wrong number of axes for the
+        map. Names the key and the bad value.
     ScenarioError
         A missing or malformed map file. Names the file and what is wrong.
     """
@@ -66,16 +79,22 @@ def load_map(spec: dict, base_dir: Path | str = ".") -> OccupancyGrid:
     kind = spec["kind"]
     if not isinstance(kind, str) or kind not in LOADERS:
         raise ConfigError(f"{PREFIX}.kind = {kind!r}: must be one of {', '.join(LOADERS)}")
+    if extrusion.KEY in spec and kind in EXTRUDABLE:  # the voxel kinds' own key check refuses it
+        return extrusion.load_extruded(spec, Path(base_dir), LOADERS[kind])
     return LOADERS[kind](spec, Path(base_dir))
 
 
 __all__ = [
+    "EXTRUDABLE",
     "LOADERS",
     "OCCUPIED_THRESHOLD",
     "OccupancyGrid",
     "load_map",
+    "read_binvox",
     "read_movingai",
+    "read_npy",
     "read_ros",
     "save_movingai",
     "save_ros",
+    "save_voxels",
 ]

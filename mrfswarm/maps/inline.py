@@ -1,7 +1,8 @@
 """Maps written in the config itself: ``free``, ``boxes`` and ``ascii``.
 
 All three accept optional ``resolution`` (metres per cell, default 1.0) and ``origin``
-(world coordinates of the centre of cell (0, 0), default [0, 0]) keys.
+(world coordinates of the centre of cell (0, 0), default zeros, one number per axis) keys.
+``free`` and ``boxes`` are 2-D or 3-D by the length of their ``size``; ``ascii`` is 2-D.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import numpy as np
 from mrfswarm.errors import ConfigError
 from mrfswarm.maps import characters
 from mrfswarm.maps.grid import MAX_CELLS, OccupancyGrid
-from mrfswarm.maps.spec import PREFIX, check_keys, pair, placement, positive, size_cells
+from mrfswarm.maps.spec import PREFIX, check_keys, lengths, placement, point, size_cells
 
 log = logging.getLogger(__name__)
 
@@ -34,49 +35,48 @@ _BOX_TOL = 1e-9
 
 
 def load_free(spec: dict, base_dir: Path) -> OccupancyGrid:
-    """``{kind="free", size=[W, H]}``: W x H free cells."""
+    """``{kind="free", size=[W, H]}`` or ``size=[W, H, D]``: W x H cells or W x H x D voxels, all free."""
     check_keys(spec, ("kind", "size", *_PLACEMENT), PREFIX, required=("size",))
-    w, h = size_cells(spec["size"], f"{PREFIX}.size")
-    res, ox, oy = placement(spec)
-    return OccupancyGrid(np.zeros((w, h)), resolution=res, origin=(ox, oy))
+    shape = size_cells(spec["size"], f"{PREFIX}.size")
+    res, origin = placement(spec, len(shape))
+    return OccupancyGrid(np.zeros(shape), resolution=res, origin=origin)
 
 
 def load_boxes(spec: dict, base_dir: Path) -> OccupancyGrid:
-    """``{kind="boxes", size=[W, H], boxes=[{center=[x, y], size=[lx, ly]}, ...]}``.
+    """``{kind="boxes", size=[W, H], boxes=[{center=[x, y], size=[lx, ly]}, ...]}``, or all of it with a z.
 
     A box (world metres) occupies every cell whose centre lies inside it, the box taken
     half-open like a cell: centre c is inside when ``center - size/2 <= c < center + size/2``
-    on both axes, so a box of size L covers L / resolution cells. Boxes may extend past
-    the map; the part outside is dropped.
+    on every axis, so a box of size L covers L / resolution cells. Boxes may extend past
+    the map; the part outside is dropped. A map of ``size = [W, H, D]`` takes boxes of
+    ``center = [x, y, z]`` and ``size = [lx, ly, lz]``: the same rule, one axis more.
     """
     check_keys(spec, ("kind", "size", "boxes", *_PLACEMENT), PREFIX, required=("size", "boxes"))
-    w, h = size_cells(spec["size"], f"{PREFIX}.size")
-    res, ox, oy = placement(spec)
+    shape = size_cells(spec["size"], f"{PREFIX}.size")
+    d = len(shape)
+    res, origin = placement(spec, d)
     boxes = spec["boxes"]
+    table = "{center=[x, y], size=[lx, ly]}" if d == 2 else "{center=[x, y, z], size=[lx, ly, lz]}"
     if not isinstance(boxes, (list, tuple)):
-        raise ConfigError(f"{PREFIX}.boxes = {boxes!r}: must be a list of tables {{center=[x, y], size=[lx, ly]}}")
-    xs = ox + res * np.arange(w)
-    ys = oy + res * np.arange(h)
-    occ = np.zeros((w, h), dtype=bool)
+        raise ConfigError(f"{PREFIX}.boxes = {boxes!r}: must be a list of tables {table}")
+    centres = [o + res * np.arange(n) for o, n in zip(origin, shape)]  # cell centres along each axis
+    occ = np.zeros(shape, dtype=bool)
     for k, box in enumerate(boxes):
         where = f"{PREFIX}.boxes[{k}]"
         if not isinstance(box, dict):
-            raise ConfigError(f"{where} = {box!r}: must be a table {{center=[x, y], size=[lx, ly]}}")
+            raise ConfigError(f"{where} = {box!r}: must be a table {table}")
         check_keys(box, ("center", "size"), where, required=("center", "size"))
-        cx, cy = pair(box["center"], f"{where}.center")
-        size = box["size"]
-        if not isinstance(size, (list, tuple)) or len(size) != 2:
-            raise ConfigError(f"{where}.size = {size!r}: must be a list of 2 numbers [lx, ly] (metres)")
-        lx, ly = positive(size[0], f"{where}.size[0]"), positive(size[1], f"{where}.size[1]")
-        tol_x = _BOX_TOL * max(1.0, abs(cx), lx)
-        tol_y = _BOX_TOL * max(1.0, abs(cy), ly)
-        in_x = (xs >= cx - lx / 2 - tol_x) & (xs < cx + lx / 2 - tol_x)
-        in_y = (ys >= cy - ly / 2 - tol_y) & (ys < cy + ly / 2 - tol_y)
-        if not (in_x.any() and in_y.any()):
-            log.warning("%s (center %s, size %s) contains no cell centre of the %d x %d map", where,
-                        box["center"], box["size"], w, h)
-        occ |= in_x[:, None] & in_y[None, :]
-    return OccupancyGrid.from_occupied(occ, resolution=res, origin=(ox, oy))
+        center = point(box["center"], f"{where}.center", d)
+        size = lengths(box["size"], f"{where}.size", d)
+        inside = []
+        for xs, c, length in zip(centres, center, size):
+            tol = _BOX_TOL * max(1.0, abs(c), length)
+            inside.append((xs >= c - length / 2 - tol) & (xs < c + length / 2 - tol))
+        if not all(m.any() for m in inside):
+            log.warning("%s (center %s, size %s) contains no cell centre of the %s map", where,
+                        box["center"], box["size"], " x ".join(map(str, shape)))
+        occ[np.ix_(*inside)] = True  # the box's cells: the product of its rows along each axis
+    return OccupancyGrid.from_occupied(occ, resolution=res, origin=origin)
 
 
 def load_ascii(spec: dict, base_dir: Path) -> OccupancyGrid:
@@ -101,9 +101,9 @@ def load_ascii(spec: dict, base_dir: Path) -> OccupancyGrid:
             raise ConfigError(f"{key}[{y}] has {len(row)} characters, expected {width} (the length of {key}[0])")
     if width * len(rows) > MAX_CELLS:
         raise ConfigError(f"{key}: {width} x {len(rows)} cells exceeds the limit of {MAX_CELLS}")
-    res, ox, oy = placement(spec)
+    res, origin = placement(spec)
     prob = characters.decode(list(rows), _ASCII_TABLE)
     if isinstance(prob, characters.BadCharacter):
         raise ConfigError(f"{key}[{prob.row}] column {prob.column}: unknown character {prob.char!r}; "
                           f"allowed: {ASCII_FREE!r} free, {', '.join(map(repr, ASCII_OCCUPIED))} occupied")
-    return OccupancyGrid(prob, resolution=res, origin=(ox, oy))
+    return OccupancyGrid(prob, resolution=res, origin=origin)

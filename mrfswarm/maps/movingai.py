@@ -45,8 +45,8 @@ def load_movingai(spec: dict, base_dir: Path) -> OccupancyGrid:
     (default [0, 0]) place the cells, which the file does not.
     """
     check_keys(spec, ("kind", "path", "resolution", "origin"), PREFIX, required=("path",))
-    res, ox, oy = placement(spec)
-    return read_movingai(file_path(spec, base_dir), resolution=res, origin=(ox, oy))
+    res, origin = placement(spec)
+    return read_movingai(file_path(spec, base_dir), resolution=res, origin=(origin[0], origin[1]))
 
 
 def _header_int(lines: list[str], n: int, name: str, path: Path) -> int:

@@ -67,7 +67,7 @@ def load_ros(spec: dict, base_dir: Path) -> OccupancyGrid:
     YAML's (module docstring).
     """
     check_keys(spec, ("kind", "path", "resolution", "origin"), PREFIX, required=("path",))
-    res, ox, oy = placement(spec)  # checks the values' types before the file is read
+    res, (ox, oy) = placement(spec)  # checks the values' types before the file is read
     path = file_path(spec, base_dir)
     grid = read_ros(path)
     if "resolution" in spec and not _same(res, grid.resolution):

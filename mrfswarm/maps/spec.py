@@ -40,17 +40,34 @@ def positive(value: Any, key: str) -> float:
     return v
 
 
-def pair(value: Any, key: str) -> tuple[float, float]:
-    """Two finite numbers ``[x, y]``."""
-    if not isinstance(value, (list, tuple)) or len(value) != 2:
-        raise ConfigError(f"{key} = {value!r}: must be a list of 2 numbers [x, y]")
-    return number(value[0], f"{key}[0]"), number(value[1], f"{key}[1]")
+#: How a point of each length is written in messages.
+AXES = {2: "[x, y]", 3: "[x, y, z]"}
 
 
-def size_cells(value: Any, key: str) -> tuple[int, int]:
-    """A grid size ``[W, H]`` in cells: two integers >= 1 whose product is at most MAX_CELLS."""
-    if not isinstance(value, (list, tuple)) or len(value) != 2:
-        raise ConfigError(f"{key} = {value!r}: must be a list of 2 integers [W, H]")
+def point(value: Any, key: str, d: int) -> tuple[float, ...]:
+    """``d`` finite numbers, ``[x, y]`` or ``[x, y, z]`` (metres)."""
+    if not isinstance(value, (list, tuple)) or len(value) != d:
+        raise ConfigError(f"{key} = {value!r}: must be a list of {d} numbers {AXES[d]}{on_map(d)}")
+    return tuple(number(v, f"{key}[{i}]") for i, v in enumerate(value))
+
+
+def lengths(value: Any, key: str, d: int) -> tuple[float, ...]:
+    """``d`` finite numbers > 0, ``[lx, ly]`` or ``[lx, ly, lz]`` (metres)."""
+    if not isinstance(value, (list, tuple)) or len(value) != d:
+        shown = "[lx, ly]" if d == 2 else "[lx, ly, lz]"
+        raise ConfigError(f"{key} = {value!r}: must be a list of {d} numbers {shown} (metres){on_map(d)}")
+    return tuple(positive(v, f"{key}[{i}]") for i, v in enumerate(value))
+
+
+def on_map(d: int) -> str:
+    """What a message adds about the map's dimension (nothing on a 2-D map, whose messages are as they were)."""
+    return " on a 3-D map" if d == 3 else ""
+
+
+def size_cells(value: Any, key: str) -> tuple[int, ...]:
+    """A grid size ``[W, H]`` or ``[W, H, D]`` in cells: integers >= 1 whose product is at most MAX_CELLS."""
+    if not isinstance(value, (list, tuple)) or len(value) not in (2, 3):
+        raise ConfigError(f"{key} = {value!r}: must be a list of 2 integers [W, H] or 3 [W, H, D]")
     out = []
     for i, v in enumerate(value):
         if isinstance(v, bool) or not isinstance(v, int):
@@ -58,16 +75,16 @@ def size_cells(value: Any, key: str) -> tuple[int, int]:
         if v < 1:
             raise ConfigError(f"{key}[{i}] = {v!r}: must be >= 1")
         out.append(v)
-    if out[0] * out[1] > MAX_CELLS:
-        raise ConfigError(f"{key} = {value!r}: {out[0] * out[1]} cells exceeds the limit of {MAX_CELLS}")
-    return out[0], out[1]
+    if math.prod(out) > MAX_CELLS:
+        raise ConfigError(f"{key} = {value!r}: {math.prod(out)} cells exceeds the limit of {MAX_CELLS}")
+    return tuple(out)
 
 
-def placement(spec: dict) -> tuple[float, float, float]:
-    """The optional ``resolution`` (default 1.0) and ``origin`` (default [0, 0]) keys."""
+def placement(spec: dict, d: int = 2) -> tuple[float, tuple[float, ...]]:
+    """The optional ``resolution`` (default 1.0) and ``origin`` (default zeros, ``d`` numbers) keys."""
     res = positive(spec.get("resolution", 1.0), f"{PREFIX}.resolution")
-    ox, oy = pair(spec.get("origin", [0.0, 0.0]), f"{PREFIX}.origin")
-    return res, ox, oy
+    origin = point(spec.get("origin", [0.0] * d), f"{PREFIX}.origin", d)
+    return res, origin
 
 
 def file_path(spec: dict, base_dir: Path | str) -> Path:
