@@ -50,20 +50,27 @@ def write_json(path: Path, data: dict) -> Path:
     return atomic_write(path, lambda p: p.write_text(json.dumps(data, indent=2) + "\n"))
 
 
-def write_discrete_csv(path: Path, paths_world: np.ndarray) -> Path:
-    """``step,robot,x,y`` in metres, one row per robot per step."""
-    T1, N, _ = paths_world.shape
+def write_discrete_csv(path: Path, paths_world: np.ndarray, altitude: float) -> Path:
+    """``step,robot,x,y,z`` in metres, one row per robot per step.
+
+    ``paths_world`` is (T + 1, N, d): a 3-D run's voxel centres, or a 2-D run's cell
+    centres, which fly at ``altitude`` (their z column).
+    """
+    T1, N, d = paths_world.shape
     steps = np.repeat(np.arange(T1), N)
     robots = np.tile(np.arange(N), T1)
-    xy = paths_world.reshape(-1, 2)
+    xyz = np.empty((T1 * N, 3))
+    xyz[:, :d] = paths_world.reshape(-1, d)
+    if d == 2:
+        xyz[:, 2] = altitude
 
     def write(p: Path) -> None:
         with open(p, "w") as f:
-            f.write("step,robot,x,y\n")
-            for a in range(0, len(xy), 100_000):  # one formatting call per block of rows
+            f.write("step,robot,x,y,z\n")
+            for a in range(0, len(xyz), 100_000):  # one formatting call per block of rows
                 b = a + 100_000
-                rows = zip(steps[a:b].tolist(), robots[a:b].tolist(), xy[a:b, 0].tolist(), xy[a:b, 1].tolist())
-                f.write("".join(f"{s},{r},{x:.6g},{y:.6g}\n" for s, r, x, y in rows))
+                rows = zip(steps[a:b].tolist(), robots[a:b].tolist(), *xyz[a:b].T.tolist())
+                f.write("".join(f"{s},{r},{x:.6g},{y:.6g},{z:.6g}\n" for s, r, x, y, z in rows))
 
     return atomic_write(path, write)
 
@@ -205,7 +212,7 @@ def write_discrete_outputs(result: Result, out: Path) -> list[Path]:
     figs = out / "figures"
     figs.mkdir(parents=True, exist_ok=True)
     world = result.discrete_paths_world()
-    written = [write_discrete_csv(out / "discrete_paths.csv", world)]
+    written = [write_discrete_csv(out / "discrete_paths.csv", world, result.config.scenario.altitude)]
     grid = result.scenario.grid
     goal = result.scenario.goal_world
     n = world.shape[1]

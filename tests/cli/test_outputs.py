@@ -111,3 +111,19 @@ def test_check_output_dir_guards(tmp_path):
         outputs.check_output_dir(run_dir)
     outputs.check_output_dir(tmp_path / "nowhere")
 
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_discrete_csv_has_a_z_column_in_every_run(tmp_path, d):
+    """``step,robot,x,y,z``: a 3-D run's voxel centres as they are, a 2-D run's cells at the altitude."""
+    import numpy as np
+
+    rng = np.random.default_rng(d)
+    paths = rng.integers(-5, 30, size=(4, 3, d)) * 0.5  # (T + 1, N, d) metres
+    path = outputs.write_discrete_csv(tmp_path / "p.csv", paths, altitude=1.25)
+    assert path.read_text().splitlines()[0] == "step,robot,x,y,z"
+    data = np.loadtxt(path, delimiter=",", skiprows=1)
+    assert data.shape == (12, 5)
+    assert np.array_equal(data[:, 0], np.repeat(np.arange(4), 3)) and np.array_equal(data[:, 1], np.tile(np.arange(3), 4))
+    assert np.array_equal(data[:, 2:2 + d], paths.reshape(-1, d))
+    assert np.array_equal(data[:, 4], paths[..., 2].ravel() if d == 3 else np.full(12, 1.25))
