@@ -101,7 +101,8 @@ def check_output_dir(out: Path, overwrite: bool = False) -> None:
 
 def write_outputs(result: Result, out: Path, animate: bool = False, overwrite: bool = False) -> list[Path]:
     """Everything a run computed, into ``out`` as a whole (module docstring): discrete outputs,
-    trajectories, continuous figures, GIF, the Crazyflie files, and ``result.json`` last.
+    trajectories, continuous figures, GIF, the Crazyflie files, for a 3-D run the interactive view
+    (``figures/scene.html``), and ``result.json`` last.
 
     Raises
     ------
@@ -119,6 +120,8 @@ def write_outputs(result: Result, out: Path, animate: bool = False, overwrite: b
         written = write_discrete_outputs(result, stage)
         if result.continuous is not None:
             written += write_continuous_outputs(result, stage, animate)
+        if result.scenario.grid.ndim == 3:
+            written.append(write_scene(result, stage))
         written.append(write_json(stage / RUN_MARKER, {**result.summary(), "complete": True}))
         check_output_dir(out, overwrite)  # nobody wrote into it meanwhile
         _swap(stage, out)
@@ -159,26 +162,17 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
     world = result.discrete_paths_world()
     title = f"smoothed trajectories ({cfg.smoothing.seam} seams, {result.qp}): makespan {c.makespan_s:.1f} s"
 
-    def traj_fig(p: Path) -> None:
-        plt = plots._plt()
-        fig, ax = plt.subplots(figsize=(6, 6), dpi=110)
-        plots.draw_map(ax, grid)
-        if n <= plots.INDIVIDUAL_MAX:  # the discrete paths beneath the smooth ones
-            plots._lines(ax, [world[:, i] for i in range(n)], "0.5", lw=0.8, ls=":")
-        plots.draw_paths(ax, grid, [pos[:, i] for i in range(n)], goal)
-        ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
-        ax.set_title(title, fontsize=9)
-        fig.tight_layout()
-        plots.save_figure(fig, p, dpi=110)
-
-    written.append(atomic_write(figs / "trajectories.png", traj_fig))
+    beneath = [world[:, i] for i in range(n)] if n <= plots.INDIVIDUAL_MAX else None  # the discrete paths
+    written.append(atomic_write(figs / "trajectories.png", lambda p: plots.plot_paths(
+        p, grid, [pos[:, i] for i in range(n)], goal, title, beneath=beneath, title_size=9)))
     from mrfswarm.metrics import distance_series
 
     ds = distance_series(pos)
     safety = 2 * cfg.scenario.robot_radius
     written.append(atomic_write(figs / "distances.png", lambda p: plots.plot_distances(
         p, t, ds.min, ds.mean, safety, mean_pairs=None if ds.exact else ds.n_pairs)))
-    written.append(atomic_write(figs / "robot_xy.png", lambda p: plots.plot_xy(p, t, pos)))
+    axes = plots.AXES[:pos.shape[-1]]
+    written.append(atomic_write(figs / f"robot_{axes}.png", lambda p: plots.plot_xy(p, t, pos)))
     f = result.flight
     if f is not None:
         err = np.stack([fl.tracking_error for fl in f.flights], axis=1)
@@ -188,6 +182,28 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
         written.append(atomic_write(out / "animation.gif", lambda p: plots.animate(p, grid, frames, c.positions(frames),
                                                                                  goal, fps=10)))
     return written
+
+
+#: Trajectory samples per second in the interactive view.
+SCENE_RATE_HZ = 10
+
+
+def write_scene(result: Result, out: Path) -> Path:
+    """``figures/scene.html``: the interactive 3-D view (:mod:`mrfswarm.figures.interactive`) of the map, the
+    discrete paths and, when the run has them, the trajectories."""
+    from mrfswarm.figures.interactive import write_scene as write_html
+
+    c = result.continuous
+    t = pos = None
+    if c is not None:
+        t = np.linspace(0.0, c.makespan_s, max(2, int(c.makespan_s * SCENE_RATE_HZ) + 1))
+        pos = c.positions(t)
+    cfg = result.config
+    title = f"{result.scenario.n_robots} robots, {result.mrf}: {result.discrete.n_steps} MRF steps" + (
+        "" if c is None else f", makespan {c.makespan_s:.1f} s")
+    return atomic_write(out / "figures" / "scene.html", lambda p: write_html(
+        p, result.scenario.grid, result.discrete_paths_world(), pos, t, result.scenario.goal_world,
+        cfg.scenario.altitude, title))
 
 
 def write_crazyflie_outputs(result: Result, out: Path) -> list[Path]:
