@@ -238,7 +238,7 @@ def check_available(vehicle: str, backend: str = "auto") -> None:
     resolve_backend(backend)
 
 
-def flat_outputs(traj: PiecewisePolynomial, t: np.ndarray, altitude: float) -> np.ndarray:
+def flat_outputs(traj: PiecewisePolynomial, t: np.ndarray | float, altitude: float) -> np.ndarray:
     """(5, ..., 3): position and its derivatives up to snap at times ``t``, in 3-D.
 
     A 3-D trajectory gives its own z; a 2-D one flies at ``altitude`` (z derivatives 0).
@@ -253,7 +253,7 @@ def flat_outputs(traj: PiecewisePolynomial, t: np.ndarray, altitude: float) -> n
 
 
 def _flat_outputs(traj: PiecewisePolynomial, t: float, altitude: float) -> dict:
-    x = flat_outputs(traj, np.float64(t), altitude)
+    x = flat_outputs(traj, float(t), altitude)
     return {"x": x[0], "x_dot": x[1], "x_ddot": x[2], "x_dddot": x[3], "x_ddddot": x[4],
             "yaw": 0.0, "yaw_dot": 0.0, "yaw_ddot": 0.0}
 
@@ -269,7 +269,7 @@ def fly(traj: PiecewisePolynomial, altitude: float, rate_hz: float = 100.0, vehi
     T = traj.duration + SETTLE_S if duration is None else duration
     n = int(np.ceil(T / dt)) + 1
     times = np.arange(n) * dt
-    start = flat_outputs(traj, np.float64(0.0), altitude)[0]
+    start = flat_outputs(traj, 0.0, altitude)[0]
     hover = np.sqrt(params["mass"] * 9.81 / (params["num_rotors"] * params["k_eta"]))
     state = {"x": start, "v": np.zeros(3), "q": np.array([0.0, 0.0, 0.0, 1.0]),
              "w": np.zeros(3), "wind": np.zeros(3), "rotor_speeds": np.full(params["num_rotors"], hover)}
@@ -327,7 +327,7 @@ def fly_batched(trajectories: list[PiecewisePolynomial], altitude: float, rate_h
         ctrl = BatchedSE3Control(bp, N, device, kp_pos=torch.tensor(g["kp_pos"]).repeat(N, 1),
                                  kd_pos=torch.tensor(g["kd_pos"]).repeat(N, 1),
                                  kp_att=torch.full((N, 1), g["kp_att"]), kd_att=torch.full((N, 1), g["kd_att"]))
-        start = np.array([flat_outputs(tr, np.float64(0.0), altitude)[0] for tr in trajectories])
+        start = np.array([flat_outputs(tr, 0.0, altitude)[0] for tr in trajectories])
         hover = np.sqrt(params["mass"] * 9.81 / (params["num_rotors"] * params["k_eta"]))
         state = {"x": torch.tensor(start),
                  "v": torch.zeros(N, 3), "q": torch.tensor([[0.0, 0.0, 0.0, 1.0]]).repeat(N, 1),
