@@ -215,11 +215,16 @@ def write_crazyflie_outputs(result: Result, out: Path) -> list[Path]:
     written = write_crazyswarm2(starts_of(c.trajectories), out)
     _, comp = result._crazyflie_export()
     if comp is not None:
-        written.append(write_json(out / "crazyflie" / "compressed.json", {
-            "origin_m": [float(v) for v in comp.origin], "z_mm": comp.z_mm,
-            "position_error_bound_m": comp.position_error_bound,
-            "knots_ms": [k.tolist() for k in comp.knots_ms], "points_mm": [p.tolist() for p in comp.points_mm]}))
+        written.append(write_json(out / "crazyflie" / "compressed.json", compressed_json(comp)))
     return written
+
+
+def compressed_json(comp) -> dict:
+    """The content of ``crazyflie/compressed.json`` (what ``cflib_upload.py --compressed`` uploads): the
+    :class:`~mrfswarm.export.cflib_.Compressed` flight; ``z_mm`` is null for a 3-D flight (z in the points)."""
+    return {"origin_m": [float(v) for v in comp.origin], "z_mm": comp.z_mm,
+            "position_error_bound_m": comp.position_error_bound,
+            "knots_ms": [k.tolist() for k in comp.knots_ms], "points_mm": [p.tolist() for p in comp.points_mm]}
 
 
 def write_discrete_outputs(result: Result, out: Path) -> list[Path]:
