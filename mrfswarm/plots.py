@@ -105,13 +105,16 @@ def view_figure(grid: OccupancyGrid, width: float = 6.0, dpi: int = 110):
     top = fig.add_subplot(gs[0, 0])
     side_x = fig.add_subplot(gs[1, 0], sharex=top)
     side_y = fig.add_subplot(gs[0, 1], sharey=top)
-    fig.add_subplot(gs[1, 1]).set_axis_off()
+    fig.add_subplot(gs[1, 1], label=_LEGEND).set_axis_off()
     return fig, [(top, (0, 1)), (side_x, (0, 2)), (side_y, (2, 1))]
 
 
+_LEGEND = "legend cell"
+
+
 def legend_axes(fig, panels: list):
-    """Where a figure's legend goes: the empty fourth cell of a 3-D layout, else the only panel."""
-    return panels[0][0] if len(panels) == 1 else fig.axes[-1]
+    """Where a figure's legend (and colour bar) goes: the empty fourth cell of a 3-D layout, else the only panel."""
+    return panels[0][0] if len(panels) == 1 else next(a for a in fig.axes if a.get_label() == _LEGEND)
 
 
 def draw_map(ax, grid: OccupancyGrid, view: View = (0, 1)) -> None:
@@ -139,11 +142,12 @@ def draw_map(ax, grid: OccupancyGrid, view: View = (0, 1)) -> None:
 
 def draw_paths(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], goal: np.ndarray | None = None,
                markers: bool = True, lw: float = 1.4, waypoints: Sequence[np.ndarray] | None = None,
-               view: View = (0, 1), colorbar: bool = True) -> None:
+               view: View = (0, 1), colorbar=True) -> None:
     """Each robot's path (an (T, d) array in metres) with start (green) and end (blue) markers, projected on ``view``.
 
     Above ``INDIVIDUAL_MAX`` robots: a density image and a highlighted sample of paths
-    (module docstring); waypoints only for the sample; ``colorbar`` for the density.
+    (module docstring); waypoints only for the sample; ``colorbar``: the density's colour
+    bar below ``ax`` (True), below another axes (an Axes) or none (False).
     """
     n = len(paths_world)
     v = list(view)
@@ -174,7 +178,7 @@ def draw_paths(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], goal:
 
 
 def _draw_swarm(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], lw: float,
-                waypoints: Sequence[np.ndarray] | None, view: View = (0, 1), colorbar: bool = True) -> None:
+                waypoints: Sequence[np.ndarray] | None, view: View = (0, 1), colorbar=True) -> None:
     """Density of robot-samples per cell (of the projection ``view``; paths already projected) and a
     highlighted sample of paths in colour."""
     n = len(paths_world)
@@ -187,9 +191,11 @@ def _draw_swarm(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], lw: 
     im = ax.imshow(masked, origin="lower", extent=(x0, x1, y0, y1), cmap="Purples", alpha=0.75,
                    interpolation="nearest", norm=_log_norm(1, max(2.0, float(hist.max()))),
                    zorder=1)
-    if colorbar:
-        cb = ax.figure.colorbar(im, ax=ax, orientation="horizontal", fraction=0.04, pad=0.1, aspect=40)
-        cb.set_label(f"samples of the {n} robots per cell")
+    if colorbar is not False:
+        cb = ax.figure.colorbar(im, ax=ax if colorbar is True else colorbar, orientation="horizontal", fraction=0.04,
+                                pad=0.1, aspect=40)
+        cb.set_label(f"samples of the {n} robots per cell" if colorbar is True  # else beside: two lines
+                     else f"samples per cell\n({n} robots)")
     pick = highlighted(n)
     colors = _robot_colors(len(pick))
     _lines(ax, [paths_world[i] for i in pick], colors, lw=max(lw, 1.2), zorder=4)
@@ -213,7 +219,8 @@ def plot_paths(path: Path, grid: OccupancyGrid, paths_world: Sequence[np.ndarray
         draw_map(ax, grid, view)
         if beneath is not None:
             _lines(ax, [np.asarray(p)[:, list(view)] for p in beneath], "0.5", lw=0.8, ls=":")
-        draw_paths(ax, grid, paths_world, goal, waypoints=waypoints, view=view, colorbar=k == 0)
+        draw_paths(ax, grid, paths_world, goal, waypoints=waypoints, view=view,
+                   colorbar=(k == 0) and (len(panels) == 1 or legend_axes(fig, panels)))
     size = {} if title_size is None else {"fontsize": title_size}
     if len(panels) == 1:
         panels[0][0].legend(loc="upper left", fontsize=8, framealpha=0.9)
