@@ -223,3 +223,18 @@ def test_3d_animation_frames(flight, tmp_path):
     gif.seek(len(t) - 1)
     last = np.asarray(gif.convert("RGB"))
     assert (first != last).any(axis=-1).sum() > 200  # the robots moved in the pictures
+
+
+def test_a_swarms_legend_and_colour_bar_go_to_the_fourth_cell(flight):
+    """Above INDIVIDUAL_MAX robots the density's colour bar is drawn beside the legend cell, and the legend cell is
+    still found after it (the colour bar is the figure's last axes)."""
+    rng = np.random.default_rng(1)
+    n = plots.INDIVIDUAL_MAX + 5
+    lo, hi = flight.grid.bounds
+    paths = [lo + (hi - lo) * rng.random((6, 3)) for _ in range(n)]
+    fig, panels = plots.view_figure(flight.grid)
+    cell = plots.legend_axes(fig, panels)
+    plots.draw_paths(panels[0][0], flight.grid, paths, view=(0, 1), colorbar=cell)
+    assert len(fig.axes) == 5 and plots.legend_axes(fig, panels) is cell and fig.axes[-1] is not cell
+    assert "40 robots" not in fig.axes[-1].get_xlabel() and f"({n} robots)" in fig.axes[-1].get_xlabel()
+    plots._plt().close(fig)

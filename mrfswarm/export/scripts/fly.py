@@ -6,7 +6,8 @@
 2. ``ros2 launch crazyflie launch.py crazyflies_yaml_file:=$PWD/crazyflies.yaml``
 3. ``python3 fly.py``: uploads every robot's trajectory (raw pieces: at most 31 fit a
    Crazyflie's memory; for longer plans use ``../crazyflie/cflib_upload.py --compressed``),
-   takes off to the plan's altitude, goes to each start, starts all trajectories at once
+   takes off to the plan's altitude (a 3-D plan's: its highest start), goes to each start
+   (a 3-D plan's own height), starts all trajectories at once
    (absolute positions: the plan's world frame is the motion-capture frame), lands.
 """
 
