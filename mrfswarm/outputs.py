@@ -165,12 +165,16 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
     beneath = [world[:, i] for i in range(n)] if n <= plots.INDIVIDUAL_MAX else None  # the discrete paths
     written.append(atomic_write(figs / "trajectories.png", lambda p: plots.plot_paths(
         p, grid, [pos[:, i] for i in range(n)], goal, title, beneath=beneath, title_size=9)))
+    from mrfswarm.geometry import downwash_scale
     from mrfswarm.metrics import distance_series
 
-    ds = distance_series(pos)
+    # in the metric the separation is kept in: z divided by the downwash factor (a 2-D run's distances as they are)
+    downwash = cfg.scenario.downwash if pos.shape[-1] == 3 else 1.0
+    ds = distance_series(pos * downwash_scale(pos.shape[-1], downwash))
     safety = 2 * cfg.scenario.robot_radius
+    ylabel = "distance [m]" if downwash == 1.0 else f"distance, z / {downwash:g} (downwash) [m]"
     written.append(atomic_write(figs / "distances.png", lambda p: plots.plot_distances(
-        p, t, ds.min, ds.mean, safety, mean_pairs=None if ds.exact else ds.n_pairs)))
+        p, t, ds.min, ds.mean, safety, mean_pairs=None if ds.exact else ds.n_pairs, ylabel=ylabel)))
     axes = plots.AXES[:pos.shape[-1]]
     written.append(atomic_write(figs / f"robot_{axes}.png", lambda p: plots.plot_xy(p, t, pos)))
     f = result.flight

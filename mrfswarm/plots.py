@@ -250,10 +250,11 @@ def plot_energy(path: Path, energies: dict[str, np.ndarray], title: str = "Swarm
 
 
 def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndarray, safety: float | None = None,
-                   xlabel: str = "time [s]", mean_pairs: int | None = None) -> Path:
+                   xlabel: str = "time [s]", mean_pairs: int | None = None, ylabel: str = "distance [m]") -> Path:
     """Minimum and average inter-robot distance over time (the paper's Fig. 7c).
 
     ``mean_pairs``: when the average is over a sample of pairs, how many (said in the legend).
+    ``ylabel``: which distance (the downwash-scaled one of a 3-D run says so).
     """
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 3.5), dpi=110)
@@ -262,7 +263,7 @@ def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndar
     if safety is not None:
         ax.axhline(safety, color="r", ls="--", lw=1, label=f"safety distance {safety:g} m")
     ax.set_xlabel(xlabel)
-    ax.set_ylabel("distance [m]")
+    ax.set_ylabel(ylabel)
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
