@@ -50,20 +50,27 @@ def write_json(path: Path, data: dict) -> Path:
     return atomic_write(path, lambda p: p.write_text(json.dumps(data, indent=2) + "\n"))
 
 
-def write_discrete_csv(path: Path, paths_world: np.ndarray) -> Path:
-    """``step,robot,x,y`` in metres, one row per robot per step."""
-    T1, N, _ = paths_world.shape
+def write_discrete_csv(path: Path, paths_world: np.ndarray, altitude: float) -> Path:
+    """``step,robot,x,y,z`` in metres, one row per robot per step.
+
+    ``paths_world`` is (T + 1, N, d): a 3-D run's voxel centres, or a 2-D run's cell
+    centres, which fly at ``altitude`` (their z column).
+    """
+    T1, N, d = paths_world.shape
     steps = np.repeat(np.arange(T1), N)
     robots = np.tile(np.arange(N), T1)
-    xy = paths_world.reshape(-1, 2)
+    xyz = np.empty((T1 * N, 3))
+    xyz[:, :d] = paths_world.reshape(-1, d)
+    if d == 2:
+        xyz[:, 2] = altitude
 
     def write(p: Path) -> None:
         with open(p, "w") as f:
-            f.write("step,robot,x,y\n")
-            for a in range(0, len(xy), 100_000):  # one formatting call per block of rows
+            f.write("step,robot,x,y,z\n")
+            for a in range(0, len(xyz), 100_000):  # one formatting call per block of rows
                 b = a + 100_000
-                rows = zip(steps[a:b].tolist(), robots[a:b].tolist(), xy[a:b, 0].tolist(), xy[a:b, 1].tolist())
-                f.write("".join(f"{s},{r},{x:.6g},{y:.6g}\n" for s, r, x, y in rows))
+                rows = zip(steps[a:b].tolist(), robots[a:b].tolist(), *xyz[a:b].T.tolist())
+                f.write("".join(f"{s},{r},{x:.6g},{y:.6g},{z:.6g}\n" for s, r, x, y, z in rows))
 
     return atomic_write(path, write)
 
@@ -94,7 +101,8 @@ def check_output_dir(out: Path, overwrite: bool = False) -> None:
 
 def write_outputs(result: Result, out: Path, animate: bool = False, overwrite: bool = False) -> list[Path]:
     """Everything a run computed, into ``out`` as a whole (module docstring): discrete outputs,
-    trajectories, continuous figures, GIF, the Crazyflie files, and ``result.json`` last.
+    trajectories, continuous figures, GIF, the Crazyflie files, for a 3-D run the interactive view
+    (``figures/scene.html``), and ``result.json`` last.
 
     Raises
     ------
@@ -112,6 +120,8 @@ def write_outputs(result: Result, out: Path, animate: bool = False, overwrite: b
         written = write_discrete_outputs(result, stage)
         if result.continuous is not None:
             written += write_continuous_outputs(result, stage, animate)
+        if result.scenario.grid.ndim == 3:
+            written.append(write_scene(result, stage))
         written.append(write_json(stage / RUN_MARKER, {**result.summary(), "complete": True}))
         check_output_dir(out, overwrite)  # nobody wrote into it meanwhile
         _swap(stage, out)
@@ -152,26 +162,21 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
     world = result.discrete_paths_world()
     title = f"smoothed trajectories ({cfg.smoothing.seam} seams, {result.qp}): makespan {c.makespan_s:.1f} s"
 
-    def traj_fig(p: Path) -> None:
-        plt = plots._plt()
-        fig, ax = plt.subplots(figsize=(6, 6), dpi=110)
-        plots.draw_map(ax, grid)
-        if n <= plots.INDIVIDUAL_MAX:  # the discrete paths beneath the smooth ones
-            plots._lines(ax, [world[:, i] for i in range(n)], "0.5", lw=0.8, ls=":")
-        plots.draw_paths(ax, grid, [pos[:, i] for i in range(n)], goal)
-        ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
-        ax.set_title(title, fontsize=9)
-        fig.tight_layout()
-        plots.save_figure(fig, p, dpi=110)
-
-    written.append(atomic_write(figs / "trajectories.png", traj_fig))
+    beneath = [world[:, i] for i in range(n)] if n <= plots.INDIVIDUAL_MAX else None  # the discrete paths
+    written.append(atomic_write(figs / "trajectories.png", lambda p: plots.plot_paths(
+        p, grid, [pos[:, i] for i in range(n)], goal, title, beneath=beneath, title_size=9)))
+    from mrfswarm.geometry import downwash_scale
     from mrfswarm.metrics import distance_series
 
-    ds = distance_series(pos)
+    # in the metric the separation is kept in: z divided by the downwash factor (a 2-D run's distances as they are)
+    downwash = cfg.scenario.downwash if pos.shape[-1] == 3 else 1.0
+    ds = distance_series(pos * downwash_scale(pos.shape[-1], downwash))
     safety = 2 * cfg.scenario.robot_radius
+    ylabel = "distance [m]" if downwash == 1.0 else f"distance, z / {downwash:g} (downwash) [m]"
     written.append(atomic_write(figs / "distances.png", lambda p: plots.plot_distances(
-        p, t, ds.min, ds.mean, safety, mean_pairs=None if ds.exact else ds.n_pairs)))
-    written.append(atomic_write(figs / "robot_xy.png", lambda p: plots.plot_xy(p, t, pos)))
+        p, t, ds.min, ds.mean, safety, mean_pairs=None if ds.exact else ds.n_pairs, ylabel=ylabel)))
+    axes = plots.AXES[:pos.shape[-1]]
+    written.append(atomic_write(figs / f"robot_{axes}.png", lambda p: plots.plot_xy(p, t, pos)))
     f = result.flight
     if f is not None:
         err = np.stack([fl.tracking_error for fl in f.flights], axis=1)
@@ -183,6 +188,28 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
     return written
 
 
+#: Trajectory samples per second in the interactive view.
+SCENE_RATE_HZ = 10
+
+
+def write_scene(result: Result, out: Path) -> Path:
+    """``figures/scene.html``: the interactive 3-D view (:mod:`mrfswarm.figures.interactive`) of the map, the
+    discrete paths and, when the run has them, the trajectories."""
+    from mrfswarm.figures.interactive import write_scene as write_html
+
+    c = result.continuous
+    t = pos = None
+    if c is not None:
+        t = np.linspace(0.0, c.makespan_s, max(2, int(c.makespan_s * SCENE_RATE_HZ) + 1))
+        pos = c.positions(t)
+    cfg = result.config
+    title = f"{result.scenario.n_robots} robots, {result.mrf}: {result.discrete.n_steps} MRF steps" + (
+        "" if c is None else f", makespan {c.makespan_s:.1f} s")
+    return atomic_write(out / "figures" / "scene.html", lambda p: write_html(
+        p, result.scenario.grid, result.discrete_paths_world(), pos, t, result.scenario.goal_world,
+        cfg.scenario.altitude, title))
+
+
 def write_crazyflie_outputs(result: Result, out: Path) -> list[Path]:
     """crazyswarm2/ (crazyflies.yaml, fly.py), crazyflie/ (cflib_upload.py and, when the flight fits the
     compressed format, compressed.json: the rounded pieces whose decoding ``result.json`` certifies)."""
@@ -192,11 +219,16 @@ def write_crazyflie_outputs(result: Result, out: Path) -> list[Path]:
     written = write_crazyswarm2(starts_of(c.trajectories), out)
     _, comp = result._crazyflie_export()
     if comp is not None:
-        written.append(write_json(out / "crazyflie" / "compressed.json", {
-            "origin_m": [float(v) for v in comp.origin], "z_mm": comp.z_mm,
-            "position_error_bound_m": comp.position_error_bound,
-            "knots_ms": [k.tolist() for k in comp.knots_ms], "points_mm": [p.tolist() for p in comp.points_mm]}))
+        written.append(write_json(out / "crazyflie" / "compressed.json", compressed_json(comp)))
     return written
+
+
+def compressed_json(comp) -> dict:
+    """The content of ``crazyflie/compressed.json`` (what ``cflib_upload.py --compressed`` uploads): the
+    :class:`~mrfswarm.export.cflib_.Compressed` flight; ``z_mm`` is null for a 3-D flight (z in the points)."""
+    return {"origin_m": [float(v) for v in comp.origin], "z_mm": comp.z_mm,
+            "position_error_bound_m": comp.position_error_bound,
+            "knots_ms": [k.tolist() for k in comp.knots_ms], "points_mm": [p.tolist() for p in comp.points_mm]}
 
 
 def write_discrete_outputs(result: Result, out: Path) -> list[Path]:
@@ -205,7 +237,7 @@ def write_discrete_outputs(result: Result, out: Path) -> list[Path]:
     figs = out / "figures"
     figs.mkdir(parents=True, exist_ok=True)
     world = result.discrete_paths_world()
-    written = [write_discrete_csv(out / "discrete_paths.csv", world)]
+    written = [write_discrete_csv(out / "discrete_paths.csv", world, result.config.scenario.altitude)]
     grid = result.scenario.grid
     goal = result.scenario.goal_world
     n = world.shape[1]

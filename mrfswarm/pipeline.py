@@ -227,6 +227,7 @@ class Result:
             "max_tracking_error_m": f.max_tracking_error,
             "tracking_error_bound_m": f.tracking_bound,
             "rms_tracking_error_m": f.rms_tracking_error,
+            **f.per_axis(),  # max_tracking_error_axis_m, rms_tracking_error_axis_m: {"x", "y", "z"}
             "min_separation_m": _num(f.min_separation),
             "min_obstacle_clearance_m": _num(f.min_clearance),
             "entered_obstacle": f.in_obstacle,

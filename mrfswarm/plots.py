@@ -8,6 +8,12 @@ Many robots: lines are drawn as one ``LineCollection`` per figure element (one a
 not one per robot). Above ``INDIVIDUAL_MAX`` robots a figure shows the swarm instead of
 each robot: how long robots stayed in each cell as a density image and the paths of a
 sample of ``HIGHLIGHT`` robots (spread over the swarm) in colour.
+
+The dimension is data: a figure of a 3-D run (a voxel grid, positions (..., 3)) shows
+the same drawing in three orthographic projections (:func:`views`): the top view x-y,
+the side view x-z below it and the side view z-y beside it, sharing their axes (the
+draughtsman's layout). A projected map shades each column by the fraction of its voxels
+that are occupied, so a wall with a window is a lighter patch where the window is.
 """
 
 from __future__ import annotations
@@ -66,28 +72,92 @@ def _robot_colors(n: int):
     return [cmap(i % 10) if n <= 10 else cmap(i / max(1, n - 1)) for i in range(n)]
 
 
-def draw_map(ax, grid: OccupancyGrid) -> None:
-    """Obstacles in grey on white, world coordinates, equal aspect."""
-    x0, x1, y0, y1 = grid.extent
-    ax.imshow(np.where(grid.occupied, 0.55, 1.0).T, origin="lower", extent=(x0, x1, y0, y1), cmap="gray",
+AXES = "xyz"
+"""Axis names, in the order of a position's coordinates."""
+
+View = tuple[int, int]
+"""A projection: the coordinates (horizontal, vertical) a panel shows."""
+
+
+def views(ndim: int) -> list[View]:
+    """The panels of a figure: the plane for a 2-D run; top (x-y), side (x-z) and side (z-y) for a 3-D one."""
+    return [(0, 1)] if ndim == 2 else [(0, 1), (0, 2), (2, 1)]
+
+
+def view_figure(grid: OccupancyGrid, width: float = 6.0, dpi: int = 110):
+    """A figure with one panel per :func:`views` of ``grid``: ``(fig, [(ax, view), ...])``.
+
+    A 2-D grid gets one square figure ``width`` wide. A 3-D grid gets the three projections
+    on a 2 x 2 grid whose rows and columns are sized by the map's extents, the top view's
+    x shared with the x-z view below it and its y with the z-y view beside it; the fourth
+    cell holds the legend (:func:`legend_axes`).
+    """
+    plt = _plt()
+    if grid.ndim == 2:
+        fig, ax = plt.subplots(figsize=(width, width), dpi=dpi)
+        return fig, [(ax, (0, 1))]
+    lo, hi = grid.bounds
+    span = hi - lo
+    w = 1.25 * width
+    h = w * (span[1] + span[2]) / (span[0] + span[2]) + 1.0  # room for titles and labels
+    fig = plt.figure(figsize=(w, h), dpi=dpi)
+    gs = fig.add_gridspec(2, 2, width_ratios=[span[0], span[2]], height_ratios=[span[1], span[2]])
+    top = fig.add_subplot(gs[0, 0])
+    side_x = fig.add_subplot(gs[1, 0], sharex=top)
+    side_y = fig.add_subplot(gs[0, 1], sharey=top)
+    fig.add_subplot(gs[1, 1], label=_LEGEND).set_axis_off()
+    return fig, [(top, (0, 1)), (side_x, (0, 2)), (side_y, (2, 1))]
+
+
+_LEGEND = "legend cell"
+
+
+def legend_axes(fig, panels: list):
+    """Where a figure's legend (and colour bar) goes: the empty fourth cell of a 3-D layout, else the only panel."""
+    return panels[0][0] if len(panels) == 1 else next(a for a in fig.axes if a.get_label() == _LEGEND)
+
+
+def draw_map(ax, grid: OccupancyGrid, view: View = (0, 1)) -> None:
+    """Obstacles in grey on white, world coordinates, equal aspect, projected on ``view``.
+
+    A column of voxels along the axis the view leaves out is shaded by the fraction of it
+    that is occupied (all: the 2-D grey; none: white).
+    """
+    a, b = view
+    occupied = grid.occupied
+    if grid.ndim == 3:
+        frac = occupied.mean(axis=3 - a - b)  # the axis the view leaves out; rows and columns stay in axis order
+        image = 0.55 + 0.45 * (1.0 - (frac if a < b else frac.T))
+    else:
+        image = np.where(occupied if a < b else occupied.T, 0.55, 1.0)
+    lo, hi = grid.bounds
+    ax.imshow(image.T, origin="lower", extent=(lo[a], hi[a], lo[b], hi[b]), cmap="gray",
               vmin=0, vmax=1, interpolation="nearest")
-    ax.set_xlim(x0, x1)
-    ax.set_ylim(y0, y1)
+    ax.set_xlim(lo[a], hi[a])
+    ax.set_ylim(lo[b], hi[b])
     ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
+    ax.set_xlabel(f"{AXES[a]} [m]")
+    ax.set_ylabel(f"{AXES[b]} [m]")
 
 
 def draw_paths(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], goal: np.ndarray | None = None,
-               markers: bool = True, lw: float = 1.4, waypoints: Sequence[np.ndarray] | None = None) -> None:
-    """Each robot's path (an (T, 2) array in metres) with start (green) and end (blue) markers.
+               markers: bool = True, lw: float = 1.4, waypoints: Sequence[np.ndarray] | None = None,
+               view: View = (0, 1), colorbar=True) -> None:
+    """Each robot's path (an (T, d) array in metres) with start (green) and end (blue) markers, projected on ``view``.
 
     Above ``INDIVIDUAL_MAX`` robots: a density image and a highlighted sample of paths
-    (module docstring); waypoints only for the sample.
+    (module docstring); waypoints only for the sample; ``colorbar``: the density's colour
+    bar below ``ax`` (True), below another axes (an Axes) or none (False).
     """
     n = len(paths_world)
+    v = list(view)
+    paths_world = [np.asarray(p)[:, v] for p in paths_world]
+    if waypoints is not None:
+        waypoints = [np.asarray(w)[:, v] for w in waypoints]
+    if goal is not None:
+        goal = np.asarray(goal)[v]
     if n > INDIVIDUAL_MAX:
-        _draw_swarm(ax, grid, paths_world, lw, waypoints)
+        _draw_swarm(ax, grid, paths_world, lw, waypoints, view, colorbar)
     else:
         colors = _robot_colors(n)
         if n:
@@ -108,19 +178,24 @@ def draw_paths(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], goal:
 
 
 def _draw_swarm(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], lw: float,
-                waypoints: Sequence[np.ndarray] | None) -> None:
-    """Density of robot-samples per cell and a highlighted sample of paths in colour."""
+                waypoints: Sequence[np.ndarray] | None, view: View = (0, 1), colorbar=True) -> None:
+    """Density of robot-samples per cell (of the projection ``view``; paths already projected) and a
+    highlighted sample of paths in colour."""
     n = len(paths_world)
     pts = np.concatenate([np.asarray(p, dtype=float) for p in paths_world])
-    x0, x1, y0, y1 = grid.extent
-    W, H = grid.shape
-    hist, _, _ = np.histogram2d(pts[:, 0], pts[:, 1], bins=(W, H), range=((x0, x1), (y0, y1)))
+    a, b = view
+    lo, hi = grid.bounds
+    x0, x1, y0, y1 = lo[a], hi[a], lo[b], hi[b]
+    hist, _, _ = np.histogram2d(pts[:, 0], pts[:, 1], bins=(grid.shape[a], grid.shape[b]), range=((x0, x1), (y0, y1)))
     masked = np.ma.masked_equal(hist.T, 0)
     im = ax.imshow(masked, origin="lower", extent=(x0, x1, y0, y1), cmap="Purples", alpha=0.75,
                    interpolation="nearest", norm=_log_norm(1, max(2.0, float(hist.max()))),
                    zorder=1)
-    cb = ax.figure.colorbar(im, ax=ax, orientation="horizontal", fraction=0.04, pad=0.1, aspect=40)
-    cb.set_label(f"samples of the {n} robots per cell")
+    if colorbar is not False:
+        cb = ax.figure.colorbar(im, ax=ax if colorbar is True else colorbar, orientation="horizontal", fraction=0.04,
+                                pad=0.1, aspect=40)
+        cb.set_label(f"samples of the {n} robots per cell" if colorbar is True  # else beside: two lines
+                     else f"samples per cell\n({n} robots)")
     pick = highlighted(n)
     colors = _robot_colors(len(pick))
     _lines(ax, [paths_world[i] for i in pick], colors, lw=max(lw, 1.2), zorder=4)
@@ -132,14 +207,28 @@ def _draw_swarm(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], lw: 
 
 
 def plot_paths(path: Path, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], goal: np.ndarray | None = None,
-               title: str = "", waypoints: Sequence[np.ndarray] | None = None) -> Path:
-    """Paths over the map (the paper's Fig. 6 panels)."""
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6, 6), dpi=110)
-    draw_map(ax, grid)
-    draw_paths(ax, grid, paths_world, goal, waypoints=waypoints)
-    ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
-    ax.set_title(title)
+               title: str = "", waypoints: Sequence[np.ndarray] | None = None,
+               beneath: Sequence[np.ndarray] | None = None, title_size: float | None = None) -> Path:
+    """Paths over the map (the paper's Fig. 6 panels); a 3-D run's in three projections (:func:`view_figure`).
+
+    ``beneath``: other paths drawn first as grey dotted lines (the discrete paths under the
+    smooth ones).
+    """
+    fig, panels = view_figure(grid)
+    for k, (ax, view) in enumerate(panels):
+        draw_map(ax, grid, view)
+        if beneath is not None:
+            _lines(ax, [np.asarray(p)[:, list(view)] for p in beneath], "0.5", lw=0.8, ls=":")
+        draw_paths(ax, grid, paths_world, goal, waypoints=waypoints, view=view,
+                   colorbar=(k == 0) and (len(panels) == 1 or legend_axes(fig, panels)))
+    size = {} if title_size is None else {"fontsize": title_size}
+    if len(panels) == 1:
+        panels[0][0].legend(loc="upper left", fontsize=8, framealpha=0.9)
+        panels[0][0].set_title(title, **size)
+    else:
+        handles, labels = panels[0][0].get_legend_handles_labels()
+        legend_axes(fig, panels).legend(handles, labels, loc="center", fontsize=8, framealpha=0.9)
+        fig.suptitle(title, **size)
     fig.tight_layout()
     return save_figure(fig, path, dpi=110)
 
@@ -161,10 +250,11 @@ def plot_energy(path: Path, energies: dict[str, np.ndarray], title: str = "Swarm
 
 
 def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndarray, safety: float | None = None,
-                   xlabel: str = "time [s]", mean_pairs: int | None = None) -> Path:
+                   xlabel: str = "time [s]", mean_pairs: int | None = None, ylabel: str = "distance [m]") -> Path:
     """Minimum and average inter-robot distance over time (the paper's Fig. 7c).
 
     ``mean_pairs``: when the average is over a sample of pairs, how many (said in the legend).
+    ``ylabel``: which distance (the downwash-scaled one of a 3-D run says so).
     """
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 3.5), dpi=110)
@@ -173,7 +263,7 @@ def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndar
     if safety is not None:
         ax.axhline(safety, color="r", ls="--", lw=1, label=f"safety distance {safety:g} m")
     ax.set_xlabel(xlabel)
-    ax.set_ylabel("distance [m]")
+    ax.set_ylabel(ylabel)
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
@@ -182,17 +272,17 @@ def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndar
 
 
 def plot_xy(path: Path, t: np.ndarray, positions: np.ndarray) -> Path:
-    """Each robot's x and y over time (the paper's Fig. 7a); ``positions`` (S, N, 2).
+    """Each robot's x and y (and z in 3-D) over time (the paper's Fig. 7a); ``positions`` (S, N, d).
 
     Above ``INDIVIDUAL_MAX`` robots, all faint and a highlighted sample in colour.
     """
     plt = _plt()
-    fig, axes = plt.subplots(2, 1, figsize=(7, 5), dpi=110, sharex=True)
-    _time_lines(axes[0], t, positions[..., 0])
-    _time_lines(axes[1], t, positions[..., 1])
-    axes[0].set_ylabel("x [m]")
-    axes[1].set_ylabel("y [m]")
-    axes[1].set_xlabel("time [s]")
+    d = positions.shape[-1]
+    fig, axes = plt.subplots(d, 1, figsize=(7, 2.5 * d), dpi=110, sharex=True)
+    for k in range(d):
+        _time_lines(axes[k], t, positions[..., k])
+        axes[k].set_ylabel(f"{AXES[k]} [m]")
+    axes[-1].set_xlabel("time [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.tight_layout()
@@ -228,29 +318,39 @@ def plot_tracking(path: Path, t: np.ndarray, errors: np.ndarray) -> Path:
 
 def animate(path: Path, grid: OccupancyGrid, t: np.ndarray, positions: np.ndarray, goal: np.ndarray | None = None,
             fps: int = 10, trail_s: float = 3.0) -> Path:
-    """A GIF of the swarm flying: ``positions`` (S, N, 2) at times ``t`` (one frame each)."""
+    """A GIF of the swarm flying: ``positions`` (S, N, d) at times ``t`` (one frame each); a 3-D
+    run's in the three projections of :func:`view_figure`."""
     plt = _plt()
     from matplotlib.animation import FuncAnimation, PillowWriter
 
-    fig, ax = plt.subplots(figsize=(5, 5), dpi=80)
-    draw_map(ax, grid)
-    if goal is not None:
-        ax.plot(goal[0], goal[1], "*", ms=14, color="gold", mec="k")
+    fig, panels = view_figure(grid, width=5.0, dpi=80)
     n = positions.shape[1]
     colors = _robot_colors(n)
     size = 30 if n <= INDIVIDUAL_MAX else max(2.0, 30 * INDIVIDUAL_MAX / n)
-    dots = ax.scatter(positions[0, :, 0], positions[0, :, 1], s=size, c=colors,
-                      edgecolors="k" if n <= INDIVIDUAL_MAX else "none", zorder=5)
-    trails = _lines(ax, [positions[:1, i] for i in range(n)], colors, lw=1.0 if n <= INDIVIDUAL_MAX else 0.4,
-                    alpha=0.7)
-    title = ax.set_title("")
+    drawn = []
+    for ax, view in panels:
+        v = list(view)
+        draw_map(ax, grid, view)
+        if goal is not None:
+            ax.plot(goal[v[0]], goal[v[1]], "*", ms=14, color="gold", mec="k")
+        p = positions[..., v]
+        dots = ax.scatter(p[0, :, 0], p[0, :, 1], s=size, c=colors,
+                          edgecolors="k" if n <= INDIVIDUAL_MAX else "none", zorder=5)
+        trails = _lines(ax, [p[:1, i] for i in range(n)], colors, lw=1.0 if n <= INDIVIDUAL_MAX else 0.4, alpha=0.7)
+        drawn.append((p, dots, trails))
+    title = panels[0][0].set_title("") if len(panels) == 1 else fig.suptitle("")
+    if len(panels) > 1:
+        fig.tight_layout()
     span = max(1, int(round(trail_s * fps)))
 
     def frame(k: int):
-        dots.set_offsets(positions[k])
-        trails.set_segments(list(positions[max(0, k - span):k + 1].transpose(1, 0, 2)))
+        artists = [title]
+        for p, dots, trails in drawn:
+            dots.set_offsets(p[k])
+            trails.set_segments(list(p[max(0, k - span):k + 1].transpose(1, 0, 2)))
+            artists += [dots, trails]
         title.set_text(f"t = {t[k]:.1f} s")
-        return [dots, trails, title]
+        return artists
 
     anim = FuncAnimation(fig, frame, frames=len(t), blit=False)
     anim.save(str(path), writer=PillowWriter(fps=fps))

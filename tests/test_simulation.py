@@ -78,3 +78,86 @@ def test_flown_corridor_keeps_the_separation_within_the_bound():
     s = r.summary()["simulation"]
     assert s["max_tracking_error_m"] <= s["tracking_error_bound_m"]
     assert s["guaranteed_clearance_m"] == pytest.approx(radius - f.tracking_bound) and s["guaranteed_clearance_m"] > 0
+    assert set(s["max_tracking_error_axis_m"]) == set(s["rms_tracking_error_axis_m"]) == {"x", "y", "z"}
+    assert max(s["max_tracking_error_axis_m"].values()) <= s["max_tracking_error_m"]
+
+
+# --- 3-D: the trajectories' own z ----------------------------------------------------------------
+
+
+def test_flat_outputs_take_a_3d_trajectorys_z_and_a_2d_ones_altitude():
+    from mrfswarm.simulation import flat_outputs
+    from support.flight3d import window_flight
+
+    tr3 = window_flight(2, step_s=1.0).trajectories[1]
+    t = np.linspace(0.0, tr3.duration, 77)
+    x3 = flat_outputs(tr3, t, altitude=9.0)
+    assert x3.shape == (5, 77, 3)
+    for k in range(5):
+        assert np.array_equal(x3[k], tr3.evaluate(t, derivative=k))
+    assert np.ptp(x3[0, :, 2]) > 1.0  # a real z, not the altitude
+    tr2 = mrfswarm.trajectory.PiecewisePolynomial(tr3.durations, tr3.coefficients[..., :2])
+    x2 = flat_outputs(tr2, t, altitude=1.25)
+    assert np.array_equal(x2[:, :, :2], x3[:, :, :2])
+    assert np.all(x2[0, :, 2] == 1.25) and np.all(x2[1:, :, 2] == 0.0)
+
+
+def test_a_3d_trajectory_is_flown_in_3d_with_the_error_per_axis():
+    from mrfswarm.trajectory import max_derivative_norm
+    from support.flight3d import window_flight
+
+    tr = window_flight(5, step_s=1.0).trajectories[4]  # climbs 1.5 m to the window in its first 10 s
+    f = fly(tr, altitude=5.0, rate_hz=100.0, duration=12.0)
+    assert np.allclose(f.desired, tr.evaluate(f.times))  # the commanded z is the trajectory's (not 5 m)
+    assert np.ptp(f.positions[:, 2]) > 1.0 and np.abs(f.positions[:, 2] - 5.0).min() > 2.0
+    e = f.axis_error
+    assert e.shape == (len(f.times), 3) and np.allclose(np.linalg.norm(e, axis=1), f.tracking_error)
+    assert e[:, 2].max() > 1e-3  # z is flown, not copied
+    bound = tracking_bound(max_derivative_norm(tr, 3)[0], max_derivative_norm(tr, 1)[0])
+    assert f.tracking_error.max() <= bound
+    assert e[:, 2].max() < e[:, :2].max()  # thrust tracks z faster than the tilt tracks x and y (module docstring)
+
+
+def test_swarm_measures_report_the_error_per_axis():
+    from mrfswarm.maps import OccupancyGrid
+    from mrfswarm.simulation import Flight, _measure
+
+    t = np.arange(4) * 0.1
+    desired = np.zeros((4, 3))
+    flown = [desired + [[0.0, 0.0, 0.0], [0.1, 0.0, -0.02], [0.0, 0.05, 0.0], [0.0, 0.0, 0.0]],
+             desired + [3.0, 0.0, 0.0] + [[0.0, 0.0, 0.03], [0.0, 0.0, 0.0], [0.0, -0.2, 0.0], [0.0, 0.0, 0.0]]]
+    flights = [Flight(t, p, desired + [3.0 * i, 0.0, 0.0]) for i, p in enumerate(flown)]
+    s = _measure(flights, OccupancyGrid.from_occupied(np.zeros((8, 8), dtype=bool)), "crazyflie", None, None)
+    assert s.max_axis_error == pytest.approx((0.1, 0.2, 0.03))
+    err = np.concatenate([np.abs(p - f.desired) for p, f in zip(flown, flights)])
+    assert s.rms_axis_error == pytest.approx(tuple(np.sqrt((err**2).mean(axis=0))))
+    assert s.per_axis() == {"max_tracking_error_axis_m": {"x": pytest.approx(0.1), "y": pytest.approx(0.2),
+                                                          "z": pytest.approx(0.03)},
+                            "rms_tracking_error_axis_m": dict(zip("xyz", s.rms_axis_error))}
+    assert s.max_tracking_error == pytest.approx(0.2)
+
+
+def _metrics_take_voxels() -> bool:
+    from mrfswarm.metrics import obstacle_clearance
+
+    try:
+        occ = np.zeros((3, 3, 3), dtype=bool)
+        occ[2, 2, 2] = True
+        return obstacle_clearance(occ, np.zeros((1, 3))) == pytest.approx(np.sqrt(3) * 1.5)
+    except ValueError:
+        return False
+
+
+@pytest.mark.skipif(not _metrics_take_voxels(), reason="mrfswarm.metrics measures clearance in 2-D only on this "
+                                                       "branch (the discrete stage's branch makes it d-dimensional)")
+def test_a_flight_over_a_voxel_map_measures_clearance_in_3d():
+    from mrfswarm.maps import OccupancyGrid
+    from mrfswarm.simulation import Flight, _measure
+
+    occ = np.zeros((6, 6, 6), dtype=bool)
+    occ[3, 3, 0] = True  # a block on the floor, 1 m below the flight
+    grid = OccupancyGrid.from_occupied(occ)
+    t = np.arange(2) * 0.1
+    p = np.array([[3.0, 3.0, 2.0], [3.0, 3.0, 2.0]])
+    s = _measure([Flight(t, p, p)], grid, "crazyflie", None, None)
+    assert s.min_clearance == pytest.approx(1.5) and not s.in_obstacle  # above it: the 3-D distance, not 0

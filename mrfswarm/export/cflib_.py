@@ -8,30 +8,32 @@ sends.
 
 **Raw** (:class:`~cflib.crazyflie.mem.Poly4D`, what Crazyswarm2's ``upload_trajectory``
 writes): per piece, the 8 power-basis coefficients (local time) of x, y, z and yaw and the
-duration, all float32: 132 bytes a piece, so at most 31 pieces fit. The only change is the
+duration, all float32 (z: a 3-D trajectory's own polynomial, a 2-D one's constant altitude): 132 bytes a piece, so at most 31 pieces fit. The only change is the
 rounding of every coefficient to float32; the firmware evaluates each piece by Horner's
 rule in float32 (:func:`firmware_positions_raw` does the same).
 
 **Compressed** (:class:`~cflib.crazyflie.mem.CompressedStart` then one
 :class:`~cflib.crazyflie.mem.CompressedSegment` per piece, then a zero-duration segment
 that ends the trajectory): a start point, then per piece its duration in whole
-milliseconds and the Bezier control points 1..7 of x and y as int16 millimetres (control
-point 0 is the previous piece's end; z stays at the start's altitude and yaw at 0). A piece
-takes 31 bytes (header 3, x and y 2 x 7 x 2), the whole 11 + 31 M bytes: 131 pieces fit.
+milliseconds and the Bezier control points 1..7 of each moving axis as int16 millimetres
+(control point 0 is the previous piece's end; yaw stays at 0). A 2-D flight stores x and y,
+z staying at the start's altitude: a piece takes 31 bytes (header 3, 2 x 7 x 2), the whole
+11 + 31 M bytes, so 131 pieces fit. A 3-D flight stores z too: 45 bytes a piece, 90 fit.
 int16 millimetres hold +/-32.767 m, so the points are written relative to a frame origin
-(:func:`compress`: 0 when the flight fits around it, else the flight's centre; the
-Crazyflie must then fly in a world frame whose origin is that point). Two roundings:
+(:func:`compress`: per axis, 0 when the flight fits around it, else the flight's centre;
+the Crazyflie must then fly in a world frame whose origin is that point). Two roundings:
 
 - every control point to the nearest millimetre: at most 0.5 mm per axis, so, since a
   Bezier piece is a convex combination of its control points (non-negative weights summing
-  to one), every position of a piece moves by at most 0.5 sqrt(2) mm in the plane, for all t;
+  to one), every position of a piece moves by at most 0.5 sqrt(d) mm (d = 2 or 3 stored
+  axes), for all t;
 - every knot time (not every duration: the error does not accumulate) to the nearest
   millisecond: a piece of duration T then takes T' = T + e with |e| <= 1 ms, its knots
   within 0.5 ms of the planned ones; a point at time t is the planned point of a time
   within 0.5 ms of t (the map from the new piece's time to the old is affine between
   knots that moved by at most 0.5 ms), so it is at most v_max x 0.5 ms away.
 
-So the compressed flight is within ``0.5 sqrt(2) mm + v_max x 0.5 ms`` of the planned one
+So the compressed flight is within ``0.5 sqrt(d) mm + v_max x 0.5 ms`` of the planned one
 at every instant (:attr:`Compressed.position_error_bound`), in exact arithmetic. All robots
 share the same rounded knots, so the pieces of a step still share their interval and the
 continuous stage's certificate applies to the decoded flight as it stands
@@ -65,7 +67,8 @@ MEMORY_BYTES = 4096
 """The Crazyflie's trajectory memory."""
 RAW_PIECE_BYTES = 132
 COMPRESSED_START_BYTES = 8
-COMPRESSED_PIECE_BYTES = 31  # header byte, uint16 duration, 7 x and 7 y int16 control points
+COMPRESSED_PIECE_BYTES = 31  # header byte, uint16 duration, 7 x and 7 y int16 control points (a 2-D flight)
+COMPRESSED_AXIS_BYTES = 14  # 7 int16 control points of one more axis (z of a 3-D flight)
 COMPRESSED_END_BYTES = 3  # the zero-duration segment that ends a compressed trajectory
 INT16_MAX = 32767
 """The largest int16: a coordinate of the compressed format is within +/-32.767 m of its origin."""
@@ -101,7 +104,7 @@ def cflib_mem() -> Any:
 def raw_pieces(trajectory: PiecewisePolynomial, altitude: float) -> list[Any]:
     """One ``cflib`` :class:`~cflib.crazyflie.mem.Poly4D` per piece: the rows of the uav_trajectories CSV.
 
-    ``altitude`` is z of a planar trajectory. Degree above 7 or dimension above 4 is an
+    ``altitude`` is z of a planar trajectory (a 3-D one has its own). Degree above 7 or dimension above 4 is an
     :class:`~solvers.errors.InvalidProblem` (:func:`~mrfswarm.trajectory.uav_csv.to_rows`).
     """
     mem = cflib_mem()
@@ -189,10 +192,11 @@ class Compressed:
     knots_ms
         Per robot, (M + 1,) knot times in whole milliseconds (each planned knot rounded).
     points_mm
-        Per robot, (M, 8, 2) int Bezier control points of x and y, millimetres from the
-        origin; point 0 of a piece is point 7 of the one before.
+        Per robot, (M, 8, d) int Bezier control points of x, y (and z of a 3-D flight),
+        millimetres from the origin; point 0 of a piece is point 7 of the one before.
     z_mm
-        The altitude (int millimetres from the origin).
+        A 2-D flight's altitude (int millimetres from the origin); None for a 3-D flight,
+        whose z is in ``points_mm``.
     position_error_bound
         Proven bound (metres, exact arithmetic) on the distance between a compressed and
         the planned position at the same time (module docstring).
@@ -201,25 +205,40 @@ class Compressed:
     origin: np.ndarray
     knots_ms: list[np.ndarray]
     points_mm: list[np.ndarray]
-    z_mm: int
+    z_mm: int | None
     position_error_bound: float
+
+    @property
+    def dim(self) -> int:
+        """The stored axes: 2 (x, y at the altitude ``z_mm``) or 3."""
+        return int(self.points_mm[0].shape[-1])
+
+    @property
+    def piece_bytes(self) -> int:
+        """Bytes of one piece: 31 for a 2-D flight, 45 for a 3-D one."""
+        return COMPRESSED_PIECE_BYTES + COMPRESSED_AXIS_BYTES * (self.dim - 2)
 
     def n_bytes(self, robot: int) -> int:
         """Bytes of robot ``robot``'s compressed trajectory (start, pieces, end)."""
-        return COMPRESSED_START_BYTES + COMPRESSED_PIECE_BYTES * len(self.points_mm[robot]) + COMPRESSED_END_BYTES
+        return COMPRESSED_START_BYTES + self.piece_bytes * len(self.points_mm[robot]) + COMPRESSED_END_BYTES
+
+    def start_mm(self, robot: int) -> list[int]:
+        """Robot ``robot``'s start x, y, z in millimetres from the origin."""
+        p = [int(v) for v in self.points_mm[robot][0, 0]]
+        return p if self.z_mm is None else p + [self.z_mm]
 
 
 def compress(trajectories: Sequence[PiecewisePolynomial], altitude: float, v_max: float,
              regions: Regions | None = None, knot_times: np.ndarray | None = None,
              limits: tuple[float, float, float] | None = None) -> Compressed:
-    """Round every robot's planar flight to the compressed format (module docstring).
+    """Round every robot's flight to the compressed format (module docstring).
 
     Parameters
     ----------
     trajectories
-        2-D trajectories of degree <= 7 (the planner's), one per robot.
+        Trajectories of degree <= 7 (the planner's), one per robot, all 2-D or all 3-D.
     altitude
-        z of the flight (metres).
+        z of a 2-D flight (metres; a 3-D flight has its own).
     v_max
         An upper bound on every robot's speed (the plan's exact maximum): the timing part
         of :attr:`Compressed.position_error_bound`.
@@ -228,7 +247,7 @@ def compress(trajectories: Sequence[PiecewisePolynomial], altitude: float, v_max
         rounded to one of its (up to 4) neighbouring millimetre points such that the
         control points the certificate checks stay in their steps' regions
         (:func:`_round_inside`), nearest first; a point moves at most 1 mm per axis
-        instead of 0.5. Without them, or when the robots' pieces differ in their knots,
+        instead of 0.5. Their slabs have as many axes as the trajectories. Without them, or when the robots' pieces differ in their knots,
         to the nearest.
     knot_times
         (T + 1,) the plan's step times, where pieces span several steps
@@ -246,14 +265,17 @@ def compress(trajectories: Sequence[PiecewisePolynomial], altitude: float, v_max
         a piece shorter than 0.5 ms or longer than 65.535 s, a degree above 7.
     """
     trs = [tr.with_degree(DEGREE) if tr.degree < DEGREE else tr for tr in trajectories]
+    dim = trs[0].dim
     for i, tr in enumerate(trs):
-        if tr.degree > DEGREE or tr.dim != 2:
-            raise ExportError(f"robot {i}: the compressed format holds planar pieces of degree <= {DEGREE}, "
-                              f"got degree {tr.degree} in dimension {tr.dim}")
-    cps = [control_points(tr) for tr in trs]  # (M, 8, 2) each
-    flat = np.concatenate([p.reshape(-1, 2) for p in cps])
-    lo = np.append(flat.min(axis=0), altitude)
-    hi = np.append(flat.max(axis=0), altitude)
+        if tr.degree > DEGREE or tr.dim not in (2, 3) or tr.dim != dim:
+            raise ExportError(f"robot {i}: the compressed format holds pieces of degree <= {DEGREE} in 2 or 3 "
+                              f"dimensions, the same for every robot; got degree {tr.degree} in dimension {tr.dim} "
+                              f"(robot 0: {dim})")
+    cps = [control_points(tr) for tr in trs]  # (M, 8, d) each
+    flat = np.concatenate([p.reshape(-1, dim) for p in cps])
+    lo, hi = flat.min(axis=0), flat.max(axis=0)
+    if dim == 2:
+        lo, hi = np.append(lo, altitude), np.append(hi, altitude)
     reach = INT16_MAX / 1000.0
     origin = np.zeros(3)
     if np.any(np.maximum(-lo, hi) > reach):  # shift the frame: whole metres if that fits, else the centre
@@ -279,11 +301,11 @@ def compress(trajectories: Sequence[PiecewisePolynomial], altitude: float, v_max
         steps = trs[0].knots if knot_times is None else knot_times
         split = step_split(trs[0].knots, steps) if len(steps) == regions.steps + 1 else None
     if regions is not None and split is not None:
-        points = list(_round_inside(np.stack(cps), origin[:2], regions, split, np.diff(knots[0]), limits))
+        points = list(_round_inside(np.stack(cps), origin[:dim], regions, split, np.diff(knots[0]), limits))
     else:
-        points = [np.rint((p - origin[:2]) * 1000).astype(np.int64) for p in cps]
-    moved = max(float(np.linalg.norm(n / 1000 + origin[:2] - p, axis=-1).max()) for n, p in zip(points, cps))
-    z_mm = int(np.rint((altitude - origin[2]) * 1000))
+        points = [np.rint((p - origin[:dim]) * 1000).astype(np.int64) for p in cps]
+    moved = max(float(np.linalg.norm(n / 1000 + origin[:dim] - p, axis=-1).max()) for n, p in zip(points, cps))
+    z_mm = int(np.rint((altitude - origin[2]) * 1000)) if dim == 2 else None
     bound = moved + float(v_max) * 0.5e-3
     return Compressed(origin, knots, points, z_mm, float(bound))
 
@@ -291,7 +313,7 @@ def compress(trajectories: Sequence[PiecewisePolynomial], altitude: float, v_max
 def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tuple[np.ndarray, np.ndarray, np.ndarray],
                   durations: np.ndarray | None = None, limits: tuple[float, float, float] | None = None,
                   sweeps: int = 8) -> np.ndarray:
-    """Control points (N, M, 8, 2) in int mm from ``origin``, each at a neighbouring mm point, such that
+    """Control points (N, M, 8, d) in int mm from ``origin`` (d,), each at a neighbouring mm point, such that
     what the certificate checks still holds where such points can be found.
 
     Step k is flown by piece ``piece[k]`` over ``[u0[k], u1[k]]`` of its normalized time
@@ -303,7 +325,7 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
     shared (point 7 of piece j is point 0 of piece j + 1), so a robot's points are one
     chain, piece j its points 7j..7j+7.
 
-    Each point takes one of its 4 floor/ceil combinations: first the nearest; then, for
+    Each point takes one of its 2^d floor/ceil combinations: first the nearest; then, for
     the robots whose steps fail a check, coordinate descent over a few sweeps: every
     choice of :data:`WINDOW` consecutive points of the chain on one axis (across knots
     too), all robots and windows two pieces apart at once, keeping the one under which
@@ -320,9 +342,9 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
     from mrfswarm.continuous.formulation import LIMIT_PARTS
 
     piece, u0, u1 = split
-    N, M, K, _ = P.shape
+    N, M, K, d = P.shape
     S, D = len(piece), K - 1
-    chain_mm = (np.concatenate([P[:, :, :D].reshape(N, M * D, 2), P[:, -1:, D]], axis=1) - origin) * 1000  # (N, C, 2)
+    chain_mm = (np.concatenate([P[:, :, :D].reshape(N, M * D, d), P[:, -1:, D]], axis=1) - origin) * 1000  # (N, C, d)
     C = chain_mm.shape[1]
     floor = np.floor(chain_mm)
     frac = chain_mm - floor  # a point's bit b on an axis puts it at floor + b, |frac - b| mm away
@@ -336,7 +358,7 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
         h = (u1 - u0) * np.asarray(durations, dtype=float)[piece] / 1000.0  # (S,) the step's duration, ms -> s
         for r, lim in zip((1, 2, 3), limits):
             derivative.append(control_point_matrix(D, r, LIMIT_PARTS) @ to_tau / (h[:, None, None] ** r * lim * 1000.0))
-    ax = regions.axes.transpose(1, 0, 2, 3)  # (N, S, 2 slabs, 2)
+    ax = regions.axes.transpose(1, 0, 2, 3)  # (N, S, d slabs, d)
     shift = np.einsum("nsad,d->nsa", ax, origin * 1000)  # the slabs in mm from the origin
     lower = regions.lower.transpose(1, 0, 2) * 1000 - shift
     upper = regions.upper.transpose(1, 0, 2) * 1000 - shift
@@ -345,7 +367,7 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
 
     def failing(bits: np.ndarray, robots: np.ndarray) -> np.ndarray:
         """(n, M): per piece of ``robots``, how many of its steps' checks fail, plus (below 1) by how much."""
-        flying = (floor[robots] + bits)[:, at][:, piece]  # (n, S, K, 2)
+        flying = (floor[robots] + bits)[:, at][:, piece]  # (n, S, K, d)
         q = np.einsum("skl,nsld->nskd", W, flying)
         s = np.einsum("nsad,nskd->nska", ax[robots], q)
         excess = [np.maximum(np.maximum(lower[robots][:, :, None] - s, s - upper[robots][:, :, None]) + INSIDE_MM, 0.0)
@@ -356,7 +378,7 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
         count, total = (e > 0).sum(axis=-1) @ owner.T, e.sum(axis=-1) @ owner.T
         return count + total / (1.0 + total)
 
-    bits = (frac > 0.5).astype(float)  # (N, C, 2): the nearest first
+    bits = (frac > 0.5).astype(float)  # (N, C, d): the nearest first
     w = min(WINDOW, C)
     combos = ((np.arange(2 ** w)[:, None] >> np.arange(w)[None, :]) & 1).astype(float)  # (2^w, w)
     stride = 2 * D  # windows this far apart shape no piece in common (a window spans at most one knot)
@@ -374,7 +396,7 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
             shaped = np.zeros((M, len(starts)))
             for k in range(len(starts)):
                 shaped[first[k]:last[k] + 1, k] = 1.0
-            for axis in (0, 1):
+            for axis in range(d):
                 scores = np.empty((len(combos), len(robots), len(starts)))
                 near = np.abs(frac[robots][:, window, axis][None] - combos[:, None, None, :]).sum(axis=-1)
                 for o, combo in enumerate(combos):
@@ -404,10 +426,10 @@ def compressed_elements(c: Compressed, robot: int) -> list[Any]:
     """Robot ``robot``'s ``cflib`` elements: a CompressedStart, a CompressedSegment per piece, the end segment."""
     mem = cflib_mem()
     p, k = c.points_mm[robot], c.knots_ms[robot]
-    out = [mem.CompressedStart(_metres(int(p[0, 0, 0])), _metres(int(p[0, 0, 1])), _metres(c.z_mm), 0.0)]
+    out = [mem.CompressedStart(*(_metres(v) for v in c.start_mm(robot)), 0.0)]
     for j, d in enumerate(np.diff(k)):
-        out.append(mem.CompressedSegment(_metres(int(d)), [_metres(int(v)) for v in p[j, 1:, 0]],
-                                         [_metres(int(v)) for v in p[j, 1:, 1]], [], []))
+        axes = [[_metres(int(v)) for v in p[j, 1:, a]] for a in range(c.dim)] + [[]] * (3 - c.dim)
+        out.append(mem.CompressedSegment(_metres(int(d)), *axes, []))
     out.append(mem.CompressedSegment(0.0, [], [], [], []))
     return out
 
@@ -416,8 +438,9 @@ def pack_compressed(c: Compressed, robot: int) -> bytes:
     """Robot ``robot``'s compressed bytes, packed by ``cflib``; checked to decode to exactly the rounded values."""
     data = pack(compressed_elements(c, robot))
     start, segments = parse_compressed(data)
-    ok = (start[:3] == [*c.points_mm[robot][0, 0], c.z_mm] and len(segments) == len(c.points_mm[robot])
-          and all(ms == d and np.array_equal(np.array(pts[:2]).T, c.points_mm[robot][j, 1:])
+    ok = (start[:3] == c.start_mm(robot) and len(segments) == len(c.points_mm[robot])
+          and all(ms == d and np.array_equal(np.array(pts[:c.dim]).T, c.points_mm[robot][j, 1:])
+                  and not any(pts[c.dim:])
                   for j, ((ms, pts), d) in enumerate(zip(segments, np.diff(c.knots_ms[robot])))))
     if not ok:  # cflib's encoders changed: never upload what was not meant
         raise ExportError(f"robot {robot}: cflib's compressed packing does not hold the rounded control points")

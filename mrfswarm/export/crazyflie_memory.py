@@ -14,9 +14,9 @@ and limits: all robots share the rounded knots, so piece j of every robot still 
 same steps; a piece spanning several steps is split at their times moved with the
 piece's rounding (:func:`~mrfswarm.continuous.merge_pieces.step_times`: the same fractions
 of the piece as planned), and the proof holds step by step as it stands. A compressed flight that fails it is reported so,
-with the lower bounds it does have: per robot, clearance >= radius - sqrt(2) x (largest slab
-violation of its control points: a region is two orthonormal slabs, so a point that far
-outside both is sqrt(2) times as far from the region) and separation >= the exact distance
+with the lower bounds it does have: per robot, clearance >= radius - sqrt(d) x (largest slab
+violation of its control points: a region is d orthonormal slabs, so a point that far
+outside all of them is sqrt(d) times as far from the region) and separation >= the exact distance
 of its nearest relative hull. What is not proven: the firmware's float32 arithmetic,
 measured instead (``float32_deviation_m``, sampled, against the exact decoding).
 """
@@ -62,7 +62,7 @@ def memory_report(result: Result) -> tuple[dict[str, Any] | None, cflib_.Compres
         planned = tr.evaluate(tr.knots[:-1, None] + s.astype(float))
         robots.append({"robot": i, "pieces": tr.pieces, "bytes_raw": len(raw),
                        "fits_raw": len(raw) <= cflib_.MEMORY_BYTES,
-                       "raw_float32_error_m": float(np.linalg.norm(x[..., :2] - planned, axis=-1).max())})
+                       "raw_float32_error_m": float(np.linalg.norm(x[..., :tr.dim] - planned, axis=-1).max())})
     out: dict[str, Any] = {
         "memory_bytes": cflib_.MEMORY_BYTES,
         "max_pieces": max(r["pieces"] for r in robots),
@@ -100,7 +100,8 @@ def _compressed(result: Result, taus: np.ndarray,
     limits = (sm.v_max, sm.a_max, sm.j_max)
     comp = cflib_.compress(c.trajectories, cfg.scenario.altitude, c.v_max, c.regions, c.knot_times, limits)
     blobs = [cflib_.pack_compressed(comp, i) for i in range(len(robots))]
-    decoded = [cflib_.decode_compressed(b, comp.origin, dim=2) for b in blobs]
+    dim = comp.dim
+    decoded = [cflib_.decode_compressed(b, comp.origin, dim=dim) for b in blobs]
     # the steps' times within the rounded knots (pieces may span several steps)
     piece_steps = np.arange(len(c.knot_times)) if c.piece_steps is None else c.piece_steps
     steps = step_times(decoded[0].knots, c.knot_times, piece_steps) \
@@ -112,9 +113,9 @@ def _compressed(result: Result, taus: np.ndarray,
     deviation, error = np.zeros(len(robots)), np.zeros(len(robots))
     for i, (tr, dec) in enumerate(zip(c.trajectories, decoded)):
         t = dec.knots[:-1, None] + durations[i][:, None].astype(float) * taus[None, :]
-        xy = fw[i][..., :2].astype(float) + comp.origin[:2]
-        deviation[i] = np.linalg.norm(xy - dec.evaluate(t), axis=-1).max()
-        error[i] = np.linalg.norm(xy - tr.evaluate(t), axis=-1).max()
+        p = fw[i][..., :dim].astype(float) + comp.origin[:dim]
+        deviation[i] = np.linalg.norm(p - dec.evaluate(t), axis=-1).max()
+        error[i] = np.linalg.norm(p - tr.evaluate(t), axis=-1).max()
 
     # per robot: the certificate's checks, attributed
     split = step_pieces(decoded, steps)  # one piece per step, as the certificate checks them
@@ -126,7 +127,7 @@ def _compressed(result: Result, taus: np.ndarray,
         cps = control_point_stack(split)
         P = cps[0]
         slab = c.regions.violation(P.transpose(1, 0, 2, 3)).max(axis=0)  # (N,)
-        clearance = radius - np.sqrt(2) * slab
+        clearance = radius - np.sqrt(dim) * slab
         for r, lim in zip(cps[1:], limits):
             within &= np.linalg.norm(r, axis=-1).max(axis=(1, 2)) <= lim
         lo, hi = P.min(axis=2), P.max(axis=2)

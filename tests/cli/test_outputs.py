@@ -111,3 +111,80 @@ def test_check_output_dir_guards(tmp_path):
         outputs.check_output_dir(run_dir)
     outputs.check_output_dir(tmp_path / "nowhere")
 
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_discrete_csv_has_a_z_column_in_every_run(tmp_path, d):
+    """``step,robot,x,y,z``: a 3-D run's voxel centres as they are, a 2-D run's cells at the altitude."""
+    import numpy as np
+
+    rng = np.random.default_rng(d)
+    paths = rng.integers(-5, 30, size=(4, 3, d)) * 0.5  # (T + 1, N, d) metres
+    path = outputs.write_discrete_csv(tmp_path / "p.csv", paths, altitude=1.25)
+    assert path.read_text().splitlines()[0] == "step,robot,x,y,z"
+    data = np.loadtxt(path, delimiter=",", skiprows=1)
+    assert data.shape == (12, 5)
+    assert np.array_equal(data[:, 0], np.repeat(np.arange(4), 3)) and np.array_equal(data[:, 1], np.tile(np.arange(3), 4))
+    assert np.array_equal(data[:, 2:2 + d], paths.reshape(-1, d))
+    assert np.array_equal(data[:, 4], paths[..., 2].ravel() if d == 3 else np.full(12, 1.25))
+
+
+def _voxel_config(tmp_path: Path, smoothing: bool) -> Path:
+    """Three robots in a free 10 x 6 x 4 voxel room, 0.5 m voxels (z of a voxel centre: 0.5 k + 0.25)."""
+    p = tmp_path / "room3d.toml"
+    p.write_text("[scenario]\nmap = { kind = \"free\", size = [10, 6, 4], resolution = 0.5, origin = [0.25, 0.25, 0.25] }\n"
+                 "start = { positions = [[0.75, 0.75, 0.75], [0.75, 1.75, 1.25], [0.75, 2.75, 0.75]] }\n"
+                 "goal = [4.25, 1.75, 1.75]\ndownwash = 2.0\nrobot_radius = 0.1\n[interaction]\nk = 2\n"
+                 f"[mrf]\nmax_steps = 12\n[smoothing]\nenabled = {str(smoothing).lower()}\n")
+    return p
+
+
+def _voxel_configs_load(tmp_path_factory) -> bool:
+    from mrfswarm.config import load_config
+    from mrfswarm.errors import ConfigError
+
+    try:
+        load_config(_voxel_config(tmp_path_factory.mktemp("probe"), False))
+    except ConfigError:
+        return False
+    return True
+
+
+@pytest.mark.parametrize("smoothing", [False, True], ids=["discrete", "smoothed"])
+def test_a_3d_run_writes_z_projections_and_the_interactive_view(tmp_path, tmp_path_factory, smoothing):
+    """End to end on a voxel map: discrete_paths.csv with the voxel centres' z, the projected figures, the
+    self-contained scene.html and, smoothed and flown, the animation and the tracking error per axis."""
+    import csv
+
+    if not _voxel_configs_load(tmp_path_factory):
+        pytest.skip("3-D configs ([W, H, D] maps) are not loaded on this branch (the maps branch brings them)")
+    out = tmp_path / "out"
+    cfg = _voxel_config(tmp_path, smoothing)
+    assert main(["run", str(cfg), "--out", str(out), "--animate", "--workers", "1"]) == 0
+    rows = list(csv.DictReader(open(out / "discrete_paths.csv")))
+    assert list(rows[0]) == ["step", "robot", "x", "y", "z"]
+    z = {float(r["z"]) for r in rows}
+    assert {0.75, 1.25} <= z and all((v - 0.25) / 0.5 == round((v - 0.25) / 0.5) for v in z)  # voxel centres
+    html = (out / "figures" / "scene.html").read_text()
+    assert "Plotly.newPlot" in html and "<script src" not in html
+    from PIL import Image
+
+    w, h = Image.open(out / "figures" / "discrete_paths.png").size
+    assert w > h  # the three projections of a 5 x 3 x 2 m room side by side
+    res = json.loads((out / "result.json").read_text())
+    assert res["complete"] is True
+    if smoothing:
+        assert (out / "animation.gif").is_file() and (out / "figures" / "robot_xyz.png").is_file()
+        assert '"trajectories"' in html
+        sim = res["simulation"]
+        assert set(sim["max_tracking_error_axis_m"]) == {"x", "y", "z"}
+        assert max(sim["max_tracking_error_axis_m"].values()) <= sim["max_tracking_error_m"]
+        ys = yaml_robots(out)
+        assert {p[2] for p in ys} == {0.75, 1.25}  # initial_position z = the start's z
+
+
+def yaml_robots(out: Path) -> list:
+    import yaml
+
+    robots = yaml.safe_load((out / "crazyswarm2" / "crazyflies.yaml").read_text())["robots"]
+    return [r["initial_position"] for r in robots.values()]

@@ -34,10 +34,11 @@ def test_run_discrete_outputs(tmp_path):
     assert res["min_separation_discrete"] >= 1.0 - 1e-9
     assert len(res["swarm_energy"]) == res["mrf_steps"] + 1
     rows = list(csv.DictReader(open(out / "discrete_paths.csv")))
-    assert list(rows[0]) == ["step", "robot", "x", "y"]
+    assert list(rows[0]) == ["step", "robot", "x", "y", "z"]
     assert len(rows) == (res["mrf_steps"] + 1) * 5
     first = {int(r["robot"]): (float(r["x"]), float(r["y"])) for r in rows if r["step"] == "0"}
     assert first == {0: (4, 16), 1: (4, 18), 2: (4, 20), 3: (4, 22), 4: (4, 24)}
+    assert {float(r["z"]) for r in rows} == {res["config"]["scenario"]["altitude"]}  # a 2-D run flies at its altitude
     for f in ("discrete_paths.png", "swarm_energy.png", "pruned_paths.png"):
         assert (out / "figures" / f).stat().st_size > 5000
 
@@ -112,8 +113,9 @@ def test_discrete_paths_csv_matches_result(tmp_path):
     main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(out), "--set", "smoothing.enabled=false"])
     data = np.loadtxt(out / "discrete_paths.csv", delimiter=",", skiprows=1)
     res = json.loads((out / "result.json").read_text())
+    assert data.shape[1] == 5  # step, robot, x, y, z
     last = data[data[:, 0] == res["mrf_steps"]][:, 2:]
-    d = np.hypot(*(last[:, None] - last[None]).transpose(2, 0, 1))
+    d = np.linalg.norm(last[:, None] - last[None], axis=-1)
     np.fill_diagonal(d, np.inf)
     assert d.min() >= 1.0
 

@@ -210,3 +210,94 @@ def test_decoders_reject_bad_data():
         cflib_.decode_raw(b"\0" * 100)
     with pytest.raises(ExportError, match="end segment"):
         cflib_.parse_compressed(b"\0" * 8 + b"\x0f\x10\x00")
+
+
+# --- 3-D flights: z is a polynomial of its own -------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def flight3d():
+    from support.flight3d import window_flight
+
+    return window_flight(4, step_s=1.0)
+
+
+def test_raw_pieces_of_a_3d_trajectory_carry_its_z(flight3d):
+    from cflib.crazyflie.mem import Poly4D
+
+    for tr in flight3d.trajectories:
+        elements = cflib_.raw_pieces(tr, altitude=7.0)  # the altitude is for planar trajectories only
+        assert all(isinstance(e, Poly4D) for e in elements)
+        data = cflib_.pack_raw(tr, 7.0)
+        s, x = cflib_.firmware_positions_raw(data, TAUS)
+        planned = tr.evaluate(tr.knots[:-1, None] + s.astype(float))
+        assert np.linalg.norm(x - planned, axis=-1).max() < 1e-4
+        assert np.ptp(x[..., 2]) > 1.0  # z moves
+        dec = cflib_.decode_raw(data, dim=3)
+        assert np.array_equal(dec.coefficients, tr.coefficients.astype(np.float32).astype(float))
+
+
+def test_a_3d_flight_compresses_with_its_z_points_and_decodes_within_the_bound(flight3d):
+    from cflib.crazyflie.mem import CompressedStart
+
+    trs = flight3d.trajectories
+    v_max = max(float(np.linalg.norm(tr.evaluate(np.linspace(0, tr.duration, 4001), 1), axis=1).max()) for tr in trs)
+    comp = cflib_.compress(trs, altitude=7.0, v_max=v_max)
+    assert comp.dim == 3 and comp.z_mm is None and comp.origin.tolist() == [0.0, 0.0, 0.0]
+    assert comp.points_mm[0].shape == (trs[0].pieces, 8, 3)
+    blobs = [cflib_.pack_compressed(comp, i) for i in range(len(trs))]
+    durations, fw = cflib_.firmware_positions_compressed(blobs, TAUS)
+    for i, tr in enumerate(trs):
+        assert len(blobs[i]) == comp.n_bytes(i) == 8 + 45 * tr.pieces + 3
+        start = cflib_.compressed_elements(comp, i)[0]
+        assert isinstance(start, CompressedStart)
+        assert np.allclose([start.x, start.y, start.z], tr.evaluate(0.0), atol=1e-3)
+        head, segments = cflib_.parse_compressed(blobs[i])
+        assert all(len(pts[2]) == 7 and pts[3] == [] for _, pts in segments)  # z: 7 control points; yaw: none
+        dec = cflib_.decode_compressed(blobs[i], comp.origin, dim=3)
+        t = dec.knots[:-1, None] + durations[i][:, None].astype(float) * TAUS[None, :]
+        assert np.linalg.norm(dec.evaluate(t) - tr.evaluate(t), axis=-1).max() <= comp.position_error_bound
+        p = fw[i].astype(float) + comp.origin
+        assert np.linalg.norm(p - dec.evaluate(t), axis=-1).max() < 1e-3  # the firmware's float32 (measured 0.12 mm)
+        assert np.ptp(p[..., 2]) > 1.0
+    assert comp.position_error_bound <= 0.5e-3 * np.sqrt(3) + v_max * 0.5e-3 + 1e-12
+
+
+def test_a_3d_flight_too_high_moves_the_origin_in_z_and_too_tall_is_refused():
+    T = np.array([1.0])
+    high = [PiecewisePolynomial(T, np.array([[[1.0, 2.0, 40.0], [0.0, 0.0, 10.0]] + [[0.0, 0.0, 0.0]] * 6]))]
+    c = cflib_.compress(high, 1.0, 10.0)
+    assert c.origin.tolist() == [0.0, 0.0, 45.0] and np.abs(c.points_mm[0]).max() <= cflib_.INT16_MAX
+    dec = cflib_.decode_compressed(cflib_.pack_compressed(c, 0), c.origin, dim=3)
+    assert np.abs(dec.evaluate(np.linspace(0, 1, 11)) - high[0].evaluate(np.linspace(0, 1, 11))).max() < 2e-3
+    tall = [PiecewisePolynomial(T, np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, 70.0]] + [[0.0, 0.0, 0.0]] * 6]))]
+    with pytest.raises(ExportError, match=r"z up to 70\.000 m.*\+/-32\.767 m"):
+        cflib_.compress(tall, 1.0, 70.0)
+    mixed = [high[0], PiecewisePolynomial(T, high[0].coefficients[..., :2])]
+    with pytest.raises(ExportError, match=r"robot 1.*dimension 2 \(robot 0: 3\)"):
+        cflib_.compress(mixed, 1.0, 10.0)
+
+
+def test_rounding_keeps_a_3d_steps_control_points_in_their_regions():
+    """One 3-D piece over two steps whose split point lies on the z edge of the first step's region: nearest
+    rounding leaves it, the region-aware rounding (every axis) does not."""
+    from mrfswarm.continuous.regions import Regions
+
+    coef = np.zeros((1, 8, 3))
+    coef[0, 0] = [0.0003, 0.0004, 0.0006]
+    coef[0, 1] = [0.3, 0.2, 0.1]
+    coef[0, 2] = [0.1, -0.05, 0.02]
+    piece = PiecewisePolynomial(np.array([2.0]), coef)
+    knot_times = np.array([0.0, 0.8, 2.0])
+    mid = piece.evaluate(np.array([0.8]))[0]
+    lower = np.full((2, 1, 3), -1.0)
+    upper = np.ones((2, 1, 3))
+    upper[0, 0, 2] = mid[2] + 1e-9
+    regions = Regions(np.broadcast_to(np.eye(3), (2, 1, 3, 3)).copy(), lower, upper, np.zeros((2, 1), dtype=bool), 0.1)
+    t0 = np.linspace(0.0, 0.8, 81)  # step 0, its end included
+    top = {}
+    for name, reg in (("nearest", None), ("inside", regions)):
+        comp = cflib_.compress([piece], 1.0, 1.0, reg, knot_times, (10.0, 10.0, 10.0))
+        dec = cflib_.decode_compressed(cflib_.pack_compressed(comp, 0), comp.origin, 3)
+        top[name] = float(dec.evaluate(t0)[:, 2].max() - upper[0, 0, 2])
+    assert top["nearest"] > 1e-5 and top["inside"] <= 0.0

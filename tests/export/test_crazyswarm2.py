@@ -212,3 +212,54 @@ def test_cflib_upload_refuses_raw_pieces_that_do_not_fit(per_step_dir):
     with pytest.raises(SystemExit, match="4356 bytes do not fit.*--compressed"):
         script.upload(cf, elements[3], False)
     assert link.data is None  # nothing written
+
+
+# --- 3-D plans ---------------------------------------------------------------------------------------
+
+
+def test_a_3d_plans_robots_start_at_their_z_and_a_2d_ones_on_the_ground():
+    from mrfswarm.export.crazyswarm2 import crazyflies_config, starts_of
+    from support.flight3d import window_flight
+
+    trs = window_flight(3).trajectories
+    starts = starts_of(trs)
+    assert starts.shape == (3, 3) and np.array_equal(starts, [tr.evaluate(0.0) for tr in trs])
+    robots = crazyflies_config(starts)["robots"]
+    assert [r["initial_position"] for r in robots.values()] == starts.tolist()
+    assert len(set(s[2] for s in starts.tolist())) > 1  # different heights
+    flat = crazyflies_config(starts[:, :2])["robots"]
+    assert [r["initial_position"] for r in flat.values()] == [[*s[:2], 0.0] for s in starts.tolist()]
+
+
+def test_cflib_upload_flies_a_3d_compressed_plan(tmp_path):
+    """A 3-D plan's folder as a run writes it (crazyflies.yaml, compressed.json with z in the points): the script
+    uploads cflib's packing of the certified bytes, z control points included."""
+    import json
+
+    from cflib.crazyflie.mem import MemoryElement, TrajectoryMemory
+
+    from mrfswarm.export import cflib_
+    from mrfswarm.export.crazyswarm2 import starts_of, write_crazyswarm2
+    from mrfswarm.outputs import compressed_json
+    from support.flight3d import window_flight
+
+    trs = window_flight(3).trajectories
+    write_crazyswarm2(starts_of(trs), tmp_path)
+    comp = cflib_.compress(trs, altitude=1.0, v_max=3.0)
+    (tmp_path / "crazyflie" / "compressed.json").write_text(json.dumps(compressed_json(comp)))
+    script = load_script(tmp_path / "crazyflie" / "cflib_upload.py", "cflib_upload_3d")
+    assert script.compressed_plan(tmp_path).z_mm is None
+    elements, origin = script.pieces([2], True, tmp_path)
+    assert np.allclose(script.start_of(elements[2], True), trs[2].evaluate(0.0), atol=1e-3)
+    link = FakeLink()
+    memory = TrajectoryMemory(id=1, type=MemoryElement.TYPE_TRAJ, size=4096, mem_handler=link)
+    cf = types.SimpleNamespace(mem=types.SimpleNamespace(get_mems=lambda kind: [memory]), send_packet=lambda p: None,
+                               link_uri="radio://fake")
+    from cflib.crazyflie.high_level_commander import HighLevelCommander
+
+    cf.high_level_commander = HighLevelCommander(cf)
+    assert script.upload(cf, elements[2], True) == 8 + 45 * trs[2].pieces + 3
+    assert link.data == cflib_.pack_compressed(comp, 2)
+    dec = cflib_.decode_compressed(link.data, origin, dim=3)
+    t = np.linspace(0.0, dec.duration, 2001)
+    assert np.abs(dec.evaluate(t) - trs[2].evaluate(np.minimum(t, trs[2].duration))).max() < 3e-3

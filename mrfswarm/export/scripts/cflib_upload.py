@@ -61,7 +61,8 @@ def compressed_plan(plan: Path = PLAN) -> Any:
 
     d = json.loads((plan / "crazyflie" / "compressed.json").read_text())
     return cflib_.Compressed(np.array(d["origin_m"], dtype=float), [np.array(k, dtype=np.int64) for k in d["knots_ms"]],
-                             [np.array(p, dtype=np.int64) for p in d["points_mm"]], int(d["z_mm"]),
+                             [np.array(p, dtype=np.int64) for p in d["points_mm"]],
+                             None if d["z_mm"] is None else int(d["z_mm"]),  # None: a 3-D flight's z is in the points
                              float(d["position_error_bound_m"]))
 
 

@@ -2,11 +2,13 @@
 
 1. Check ``crazyflies.yaml`` beside this file: one robot ``cf<k>`` per planned robot (it
    flies ``../trajectories/robot_<k-1>.csv``), its radio ``uri`` and its
-   ``initial_position`` (the planned start, on the ground). Place each Crazyflie there.
+   ``initial_position`` (the planned start: on the ground for a 2-D plan; a 3-D plan's
+   start at its own height). Place each Crazyflie there (below it, on the ground, in 3-D).
 2. ``ros2 launch crazyflie launch.py crazyflies_yaml_file:=$PWD/crazyflies.yaml``
 3. ``python3 fly.py``: uploads every robot's trajectory (raw pieces: at most 31 fit a
    Crazyflie's memory; for longer plans use ``../crazyflie/cflib_upload.py --compressed``),
-   takes off to the plan's altitude, goes to each start, starts all trajectories at once
+   takes off to the plan's altitude (a 3-D plan's: its highest start), goes to each start
+   (a 3-D plan's own height), starts all trajectories at once
    (absolute positions: the plan's world frame is the motion-capture frame), lands.
 """
 

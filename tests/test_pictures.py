@@ -1,0 +1,240 @@
+"""A run's pictures in 2-D and 3-D: projections of voxel maps, the interactive HTML view, the animation.
+
+The 3-D data is a flight built without the planner (:mod:`support.flight3d`): a voxel map with a wall and a
+window, discrete paths on voxel centres and their min-snap trajectories.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from mrfswarm import plots
+from mrfswarm.figures import interactive
+from mrfswarm.maps import OccupancyGrid
+from support.flight3d import window_flight
+
+pytest.importorskip("plotly")
+
+
+@pytest.fixture(scope="module")
+def flight():
+    return window_flight(8)
+
+
+def exposed_faces(occ: np.ndarray) -> dict:
+    """Brute force: every exposed unit face as (axis, side) -> set of (plane, the other two corner indices)."""
+    out = {}
+    W, H, D = occ.shape
+    for a in range(3):
+        for side in (-1, 1):
+            faces = set()
+            for idx in np.argwhere(occ):
+                nb = idx.copy()
+                nb[a] += side
+                inside = all(0 <= nb[k] < occ.shape[k] for k in range(3))
+                if not inside or not occ[tuple(nb)]:
+                    corner = idx.copy()
+                    corner[a] += side > 0
+                    faces.add(tuple(int(v) for v in corner))
+            out[(a, side)] = faces
+    return out
+
+
+def raster(lo: np.ndarray, hi: np.ndarray, normal: np.ndarray) -> tuple[dict, int]:
+    """The unit faces the rectangles cover, per (axis, side), and how many unit faces they cover in all."""
+    out: dict = {}
+    total = 0
+    for l, h, n in zip(lo, hi, normal):
+        a, side = abs(int(n)) - 1, int(np.sign(n))
+        ranges = [range(l[k], h[k]) if k != a else [l[k]] for k in range(3)]
+        cells = {(x, y, z) for x in ranges[0] for y in ranges[1] for z in ranges[2]}
+        total += len(cells)
+        out.setdefault((a, side), set()).update(cells)
+    return out, total
+
+
+@settings(max_examples=60, deadline=None)
+@given(arrays(bool, st.tuples(st.integers(1, 6), st.integers(1, 6), st.integers(1, 5))))
+def test_voxel_faces_cover_exactly_the_exposed_faces_once(occ):
+    lo, hi, normal = interactive.voxel_faces(occ)
+    expected = exposed_faces(occ)
+    covered, total = raster(lo, hi, normal)
+    assert {k: v for k, v in covered.items() if v} == {k: v for k, v in expected.items() if v}
+    assert total == sum(len(v) for v in expected.values())  # no face twice: the rectangles do not overlap
+    assert np.all(lo <= hi) and np.all((hi - lo)[np.arange(len(lo)), np.abs(normal) - 1] == 0)
+
+
+def test_a_box_of_voxels_is_six_rectangles_and_the_map_surface_stays_small(flight):
+    occ = np.zeros((20, 10, 6), dtype=bool)
+    occ[3:11, 2:9, 1:5] = True
+    lo, hi, normal = interactive.voxel_faces(occ)
+    assert len(lo) == 6 and sorted(normal.tolist()) == [-3, -2, -1, 1, 2, 3]
+    assert interactive.voxel_faces(np.zeros((3, 3, 3), dtype=bool))[0].shape == (0, 3)
+    with pytest.raises(ValueError, match=r"\(W, H, D\)"):
+        interactive.voxel_faces(np.zeros((3, 3), dtype=bool))
+    # the window flight's map: a wall with a window (16 faces: 4 outer, 2 x 4 around the hole... merged) and a pillar
+    v, t = interactive.face_mesh(flight.grid)
+    assert len(t) == 2 * len(v) // 4 and len(v) // 4 <= 30
+
+
+def test_face_mesh_is_the_voxel_surface_in_world_coordinates(flight):
+    grid = flight.grid
+    v, t = interactive.face_mesh(grid)
+    corners = (v - np.asarray(grid.origin)) / grid.resolution + 0.5  # voxel-corner coordinates
+    assert np.allclose(corners, np.rint(corners))
+    tri = v[t]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    n_faces = sum(len(f) for f in exposed_faces(grid.occupied).values())
+    assert area == pytest.approx(n_faces * grid.resolution**2)
+    lo, hi = grid.bounds
+    assert np.all(v >= lo - 1e-12) and np.all(v <= hi + 1e-12)
+
+
+def test_scene_holds_the_map_the_paths_and_the_trajectories(flight):
+    t = np.linspace(0.0, flight.trajectories[0].duration, 101)
+    pos = flight.positions(t)
+    fig = interactive.scene(flight.grid, flight.discrete, pos, t, flight.goal, title="window")
+    traces = {tr.name: tr for tr in fig.data}
+    assert set(traces) == {"obstacles", "map bounds", "discrete paths", "trajectories", "start", "end", "goal"}
+    N = pos.shape[1]
+    traj = np.stack([np.asarray(traces["trajectories"][k], dtype=float) for k in "xyz"], axis=1)
+    assert traj.shape == (N * (len(t) + 1), 3)
+    assert np.array_equal(traj.reshape(N, len(t) + 1, 3)[:, :-1], pos.transpose(1, 0, 2))  # robot by robot
+    assert np.isnan(traj.reshape(N, len(t) + 1, 3)[:, -1]).all()  # a gap between robots
+    disc = np.stack([np.asarray(traces["discrete paths"][k], dtype=float) for k in "xyz"], axis=1)
+    assert np.array_equal(disc.reshape(N, -1, 3)[:, :-1], flight.discrete.transpose(1, 0, 2))
+    assert np.array_equal(np.stack([traces["end"][k] for k in "xyz"], axis=1), pos[-1])
+    assert list(traces["goal"].x) == [flight.goal[0]]
+    assert fig.layout.scene.aspectmode == "data"
+
+
+def test_many_samples_are_thinned_to_the_budget(flight, monkeypatch):
+    monkeypatch.setattr(interactive, "MAX_SAMPLES", 8 * 50)
+    t = np.linspace(0.0, flight.trajectories[0].duration, 1001)
+    pos = flight.positions(t)
+    fig = interactive.scene(flight.grid, flight.discrete, pos, t)
+    traj = next(tr for tr in fig.data if tr.name == "trajectories")
+    kept = len(traj.x) // 8 - 1
+    assert kept <= 51 and np.array_equal(np.asarray(traj.x[kept - 1], dtype=float), pos[-1, 0, 0])  # the end kept
+
+
+def test_a_2d_run_is_one_layer_at_its_altitude():
+    occ = np.zeros((10, 6), dtype=bool)
+    occ[4:6, 1:5] = True
+    grid = OccupancyGrid.from_occupied(occ)
+    paths = np.stack([np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 1.0]])] * 2, axis=1) + [0.0, 3.0] * np.arange(2)[:, None]
+    fig = interactive.scene(grid, paths, altitude=1.5)
+    mesh = next(tr for tr in fig.data if tr.name == "obstacles")
+    assert set(np.round(np.asarray(mesh.z, dtype=float), 9)) == {1.0, 2.0}  # one cell around 1.5 m
+    disc = next(tr for tr in fig.data if tr.name == "discrete paths")
+    z = np.asarray(disc.z, dtype=float)
+    assert np.all((z == 1.5) | np.isnan(z))
+
+
+def test_html_is_self_contained_and_small(flight, tmp_path):
+    t = np.linspace(0.0, flight.trajectories[0].duration, 157)
+    path = interactive.write_scene(tmp_path / "scene.html", flight.grid, flight.discrete, flight.positions(t), t,
+                                   flight.goal, title="window")
+    html = path.read_text()
+    assert not re.search(r"<script[^>]*\bsrc=", html)  # plotly.js inlined, nothing fetched
+    assert "Plotly.newPlot" in html and "trajectories" in html
+    assert path.stat().st_size < 6_000_000  # plotly.js (~4.7 MB) and the scene
+    # a bigger map with many boxes: the surface grows with the obstacles, not the volume
+    rng = np.random.default_rng(0)
+    occ = np.zeros((128, 64, 16), dtype=bool)
+    for x, y in rng.integers(0, 60, size=(40, 2)):
+        occ[2 * x:2 * x + 4, y:y + 3, :rng.integers(4, 16)] = True
+    big = OccupancyGrid.from_occupied(occ)
+    size = interactive.write_scene(tmp_path / "big.html", big, np.zeros((2, 1, 3))).stat().st_size
+    assert size - path.stat().st_size < 1_000_000
+
+
+# --- matplotlib projections ---------------------------------------------------------------------
+
+
+def test_views_and_layout(flight):
+    assert plots.views(2) == [(0, 1)] and plots.views(3) == [(0, 1), (0, 2), (2, 1)]
+    fig, panels = plots.view_figure(flight.grid)
+    assert [v for _, v in panels] == plots.views(3) and len(fig.axes) == 4
+    top, side_x, side_y = (ax for ax, _ in panels)
+    assert side_x.get_shared_x_axes().joined(top, side_x) and side_y.get_shared_y_axes().joined(top, side_y)
+    plots._plt().close(fig)
+
+
+@pytest.mark.parametrize("view", [(0, 1), (0, 2), (2, 1)])
+def test_projected_map_shades_by_the_occupied_fraction(flight, view):
+    plt = plots._plt()
+    fig, ax = plt.subplots()
+    plots.draw_map(ax, flight.grid, view)
+    image = np.asarray(ax.images[0].get_array())  # rows: the view's vertical axis
+    occ = flight.grid.occupied
+    drop = 3 - sum(view)
+    frac = occ.mean(axis=drop)
+    frac = frac if view[0] < view[1] else frac.T
+    assert np.allclose(image, 0.55 + 0.45 * (1 - frac.T))
+    lo, hi = flight.grid.bounds
+    assert ax.images[0].get_extent() == [lo[view[0]], hi[view[0]], lo[view[1]], hi[view[1]]]
+    assert ax.get_xlabel() == f"{'xyz'[view[0]]} [m]" and ax.get_ylabel() == f"{'xyz'[view[1]]} [m]"
+    plt.close(fig)
+
+
+def test_2d_map_is_the_plane_as_before():
+    plt = plots._plt()
+    occ = np.zeros((7, 4), dtype=bool)
+    occ[2:4, 1] = True
+    grid = OccupancyGrid.from_occupied(occ, 0.5, (1.0, -1.0))
+    fig, ax = plt.subplots()
+    plots.draw_map(ax, grid)
+    assert np.array_equal(np.asarray(ax.images[0].get_array()), np.where(occ, 0.55, 1.0).T)
+    assert tuple(ax.images[0].get_extent()) == grid.extent
+    plt.close(fig)
+
+
+def test_3d_figures_are_written(flight, tmp_path):
+    n = flight.discrete.shape[1]
+    t = np.linspace(0.0, flight.trajectories[0].duration, 60)
+    pos = flight.positions(t)
+    plots.plot_paths(tmp_path / "p.png", flight.grid, [pos[:, i] for i in range(n)], flight.goal, "smoothed",
+                     beneath=[flight.discrete[:, i] for i in range(n)])
+    plots.plot_xy(tmp_path / "xyz.png", t, pos)
+    from PIL import Image
+
+    w, h = Image.open(tmp_path / "p.png").size
+    assert w > h > 0.5 * w  # the three views of a 16 x 8 x 4 m map
+    w, h = Image.open(tmp_path / "xyz.png").size
+    assert h > w  # x, y and z over time: three rows
+
+
+def test_3d_animation_frames(flight, tmp_path):
+    from PIL import Image
+
+    t = np.linspace(0.0, flight.trajectories[0].duration, 6)
+    pos = flight.positions(t)
+    plots.animate(tmp_path / "a.gif", flight.grid, t, pos, flight.goal, fps=5)
+    gif = Image.open(tmp_path / "a.gif")
+    assert gif.n_frames == len(t)
+    first = np.asarray(gif.convert("RGB"))
+    gif.seek(len(t) - 1)
+    last = np.asarray(gif.convert("RGB"))
+    assert (first != last).any(axis=-1).sum() > 200  # the robots moved in the pictures
+
+
+def test_a_swarms_legend_and_colour_bar_go_to_the_fourth_cell(flight):
+    """Above INDIVIDUAL_MAX robots the density's colour bar is drawn beside the legend cell, and the legend cell is
+    still found after it (the colour bar is the figure's last axes)."""
+    rng = np.random.default_rng(1)
+    n = plots.INDIVIDUAL_MAX + 5
+    lo, hi = flight.grid.bounds
+    paths = [lo + (hi - lo) * rng.random((6, 3)) for _ in range(n)]
+    fig, panels = plots.view_figure(flight.grid)
+    cell = plots.legend_axes(fig, panels)
+    plots.draw_paths(panels[0][0], flight.grid, paths, view=(0, 1), colorbar=cell)
+    assert len(fig.axes) == 5 and plots.legend_axes(fig, panels) is cell and fig.axes[-1] is not cell
+    assert "40 robots" not in fig.axes[-1].get_xlabel() and f"({n} robots)" in fig.axes[-1].get_xlabel()
+    plots._plt().close(fig)
