@@ -13,13 +13,14 @@ the final approach are excluded). Each maximal slow interval counts once.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.sparse import csr_array
 from scipy.sparse.csgraph import dijkstra
 
-from mrfswarm.discrete.goal_distance import free_moves, graph_moves
-from mrfswarm.trajectory import PiecewisePolynomial
+if TYPE_CHECKING:
+    from mrfswarm.trajectory import PiecewisePolynomial
 
 #: Speed (m/s) under which a robot counts as stopped.
 STOP_SPEED = 0.05
@@ -29,6 +30,9 @@ STOP_RATE_HZ = 50.0
 
 def _graph(free: np.ndarray, resolution: float) -> csr_array:
     """The 8-connected free-cell graph without corner cutting (the goal field's search graph), edges in metres."""
+    # imported here: the benchmarks load this file beside older revisions of the package, for the stop count
+    from mrfswarm.discrete.goal_distance import free_moves, graph_moves
+
     W, H = free.shape
     src, dst, m = free_moves(free, 2)
     length = np.hypot(*graph_moves(2)[m].T) * resolution
@@ -94,6 +98,23 @@ class Stops:
         return float(self.per_robot.mean()) if self.per_robot.size else 0.0
 
 
+def stops_in_speeds(speeds: np.ndarray, speed: float = STOP_SPEED) -> np.ndarray:
+    """Stops per robot (N,) in sampled speeds (S, N): slow intervals strictly inside each robot's flight.
+
+    A robot's flight runs from the first sample at or above ``speed`` to the last; each maximal
+    run of samples below ``speed`` between them counts once (see the module docstring).
+    """
+    v = np.asarray(speeds, dtype=float)
+    fast = v >= speed
+    S = len(v)
+    first = np.argmax(fast, axis=0)
+    last = S - 1 - np.argmax(fast[::-1], axis=0)
+    rows = np.arange(S)[:, None]
+    inside = (rows >= first) & (rows <= last) & ~fast  # slow samples within the flight
+    entering = inside[1:] & ~inside[:-1]
+    return np.where(fast.any(axis=0), entering.sum(axis=0), 0).astype(np.int64)
+
+
 def count_stops(trajectories: list[PiecewisePolynomial], rate_hz: float = STOP_RATE_HZ,
                 speed: float = STOP_SPEED) -> Stops:
     """Stops of every robot, sampled at ``rate_hz`` (see the module docstring)."""
@@ -101,12 +122,7 @@ def count_stops(trajectories: list[PiecewisePolynomial], rate_hz: float = STOP_R
     for tr in trajectories:
         t = np.linspace(0.0, tr.duration, max(2, int(np.ceil(tr.duration * rate_hz)) + 1))
         v = np.linalg.norm(tr.evaluate(t, 1), axis=-1)
-        fast = np.flatnonzero(v >= speed)
-        n = 0
-        if fast.size:
-            inside = v[fast[0]:fast[-1] + 1] < speed
-            n = int(np.count_nonzero(np.diff(inside.astype(np.int8)) == 1))
-        stops.append(n)
+        stops.append(int(stops_in_speeds(v[:, None], speed)[0]))
         dt = t[1] - t[0]
         means.append(float(v.sum() * dt / tr.duration) if tr.duration > 0 else 0.0)
     return Stops(np.asarray(stops, dtype=np.int64), np.asarray(means))

@@ -54,8 +54,16 @@ VARIANTS = {
 #: before and now, so the table compares continuous stages only.
 PAPER_DISCRETE = {("goal_potential", "distance"): '"euclidean"', ("mrf", "contested"): '"nearest"',
                   ("mrf", "progress"): '"energy"'}
-#: Speed under which a robot counts as stopped (m/s).
-STOP_SPEED = 0.05
+
+
+def working_tree_flight_quality():
+    """The working tree's :mod:`mrfswarm.flight_quality` (one stop count for every variant, whichever code planned)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("fq", Path(__file__).resolve().parents[2] / "mrfswarm" / "flight_quality.py")
+    fq = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fq)
+    return fq
 
 
 def measure(trajectories, grid, v_max: float) -> dict:
@@ -73,11 +81,7 @@ def measure(trajectories, grid, v_max: float) -> dict:
     t = np.linspace(0.0, T, int(T * 200) + 1)
     pos = np.stack([tr.evaluate(t) for tr in trajectories], axis=1)
     speed = np.stack([np.linalg.norm(tr.evaluate(t, 1), axis=-1) for tr in trajectories], axis=1)
-    stops = []
-    for i in range(speed.shape[1]):
-        slow = (speed[:, i] < STOP_SPEED).astype(int)
-        starts, ends = np.flatnonzero(np.diff(slow) == 1), np.flatnonzero(np.diff(slow) == -1)
-        stops.append(int(sum(1 for s in starts if (ends > s).any())))
+    stops = working_tree_flight_quality().stops_in_speeds(speed).tolist()
     lengths = np.linalg.norm(np.diff(pos, axis=0), axis=-1).sum(axis=0)
     clr = obstacle_clearance(grid.occupied, (pos.reshape(-1, 2) - np.asarray(grid.origin)) / grid.resolution)
     return {

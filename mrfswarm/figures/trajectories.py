@@ -36,8 +36,6 @@ VARIANTS = ("paper", "default", "refined")
 PAPER_PACE = ("smoothing.speed=1.25",)
 #: Samples per second of flight for the time series.
 RATE_HZ = 20.0
-#: Speed (m/s) under which a robot counts as stopped.
-STOP_SPEED = 0.02
 #: Seeds of the formation census.
 CENSUS_SEEDS = 20
 
@@ -97,15 +95,11 @@ class TimeSeries:
         return np.linalg.norm(np.diff(self.positions, axis=0), axis=-1) / np.diff(self.t)[:, None]
 
     def stops(self) -> np.ndarray:
-        """Per robot, how many times it comes to rest and starts again (interior stops)."""
-        slow = self.speeds() < STOP_SPEED
-        out = np.zeros(slow.shape[1], dtype=int)
-        for i in range(slow.shape[1]):
-            s = slow[:, i].astype(int)
-            starts = np.flatnonzero(np.diff(s) == 1) + 1
-            ends = np.flatnonzero(np.diff(s) == -1) + 1
-            out[i] = int(np.sum([(a > 0) and np.any(ends > a) for a in starts]))
-        return out
+        """Per robot, how many times it comes to rest and starts again inside its flight
+        (:func:`mrfswarm.flight_quality.stops_in_speeds`, the benchmarks' count)."""
+        from mrfswarm.flight_quality import stops_in_speeds
+
+        return stops_in_speeds(self.speeds())
 
 
 def time_series(name: str, rate_hz: float = RATE_HZ, smoothing: str | None = None,
