@@ -6,8 +6,9 @@ Crazyswarm2 (``crazyflie`` ROS 2 package) reads ``crazyflies.yaml`` with
 (firmware parameters for every robot: the high-level commander on). Robot ``i`` of the plan
 is ``cf<i+1>``, on ``radio://0/80/2M/E7E7E7E7<i+1 in hex>`` (four hex digits past 255
 robots; Crazyswarm2 itself identifies a robot by the URI's last byte, so keep a flight
-below 256 robots or edit the addresses), at its planned start: on the ground below it in a
-2-D plan (z = 0, the flight takes off to the altitude), at the start's own z in a 3-D plan.
+below 256 robots or edit the addresses), on the ground below its planned start (z = 0: that is
+where the robot sits when motion capture first finds it; the flight takes off and goes to the
+start, at the altitude in a 2-D plan and at the start's own height in a 3-D one).
 """
 
 from __future__ import annotations
@@ -34,13 +35,12 @@ def robot_name(i: int) -> str:
 def crazyflies_config(starts: np.ndarray, uri: str | None = None) -> dict:
     """The content of ``crazyflies.yaml``: one enabled robot per start, (N, d) metres.
 
-    ``initial_position`` is the start's x, y and, for a 3-D plan (d = 3), its z; a 2-D
-    plan's robots start on the ground (z = 0).
+    ``initial_position`` is the start's x, y on the ground (z = 0), in a 2-D or 3-D plan.
     """
     starts = np.asarray(starts, dtype=float)
     uri = uri or (URI if len(starts) <= 255 else URI_WIDE)
     robots = {robot_name(i): {"enabled": True, "uri": uri.format(id=i + 1),
-                              "initial_position": [float(s[0]), float(s[1]), float(s[2]) if len(s) == 3 else 0.0],
+                              "initial_position": [float(s[0]), float(s[1]), 0.0],
                               "type": ROBOT_TYPE}
               for i, s in enumerate(starts)}
     return {

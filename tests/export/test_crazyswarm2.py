@@ -217,7 +217,8 @@ def test_cflib_upload_refuses_raw_pieces_that_do_not_fit(per_step_dir):
 # --- 3-D plans ---------------------------------------------------------------------------------------
 
 
-def test_a_3d_plans_robots_start_at_their_z_and_a_2d_ones_on_the_ground():
+def test_every_plans_robots_sit_on_the_ground_below_their_start():
+    """Motion capture finds a robot where it sits before take-off: below its start, in 3-D too."""
     from mrfswarm.export.crazyswarm2 import crazyflies_config, starts_of
     from support.flight3d import window_flight
 
@@ -225,8 +226,8 @@ def test_a_3d_plans_robots_start_at_their_z_and_a_2d_ones_on_the_ground():
     starts = starts_of(trs)
     assert starts.shape == (3, 3) and np.array_equal(starts, [tr.evaluate(0.0) for tr in trs])
     robots = crazyflies_config(starts)["robots"]
-    assert [r["initial_position"] for r in robots.values()] == starts.tolist()
-    assert len(set(s[2] for s in starts.tolist())) > 1  # different heights
+    assert [r["initial_position"] for r in robots.values()] == [[*s[:2], 0.0] for s in starts.tolist()]
+    assert len(set(s[2] for s in starts.tolist())) > 1  # different heights, all flown from the ground
     flat = crazyflies_config(starts[:, :2])["robots"]
     assert [r["initial_position"] for r in flat.values()] == [[*s[:2], 0.0] for s in starts.tolist()]
 

@@ -2,8 +2,7 @@
 
 1. Check ``crazyflies.yaml`` beside this file: one robot ``cf<k>`` per planned robot (it
    flies ``../trajectories/robot_<k-1>.csv``), its radio ``uri`` and its
-   ``initial_position`` (the planned start: on the ground for a 2-D plan; a 3-D plan's
-   start at its own height). Place each Crazyflie there (below it, on the ground, in 3-D).
+   ``initial_position`` (on the ground below the planned start). Place each Crazyflie there.
 2. ``ros2 launch crazyflie launch.py crazyflies_yaml_file:=$PWD/crazyflies.yaml``
 3. ``python3 fly.py``: uploads every robot's trajectory (raw pieces: at most 31 fit a
    Crazyflie's memory; for longer plans use ``../crazyflie/cflib_upload.py --compressed``),
