@@ -1,13 +1,17 @@
 """Label sets X_i^t: the cells each robot may move to in one MRF step.
 
-X_i^t = cells with (x_i - x)^2 + (y_i - y)^2 <= n (the n-th order neighbourhood), with the
+X_i^t = cells with |x_i - x|^2 <= n (the n-th order neighbourhood; in 3-D squared distance
+over three axes, so n = 3 is the 26-neighbourhood), with the
 paper's heuristics: (a) cells occupied by obstacles or by other robots removed, (b) a cell
 wanted by several robots given to one only (X_i ∩ X_j = ∅); optionally (c) the half
 pointing away from the goal trimmed.
 
 We add one rule the paper leaves implicit: the straight move must keep half a cell from
 every occupied cell (:mod:`mrfswarm.discrete.motion`), so no move cuts a wall's corner or jumps a
-wall. Label 0 is always "stay", which is always in X_i.
+wall. Label 0 is always "stay", which is always in X_i. Cells are (N, d), d = 2 or 3, by the
+same lines; the downwash (3-D) is a rule of the step's hard conflicts
+(:mod:`mrfswarm.discrete.step_mrf`), not of the label sets: a robot may aim at the voxel
+above a robot that leaves it in the same step.
 
 A contested cell goes to the robot nearest to it (so each robot's cells lie in its own
 Voronoi cell, and moves of different robots rarely conflict). The paper does not say who
@@ -33,7 +37,7 @@ from functools import cached_property
 import numpy as np
 
 from mrfswarm.config import CONTESTED_RULES
-from mrfswarm.discrete.motion import moves_clear, stencil
+from mrfswarm.discrete.motion import cell_values, clip_cells, moves_clear, stencil
 
 
 @dataclass(frozen=True)
@@ -47,7 +51,7 @@ class LabelSets:
     count
         (N,) number of valid labels per robot (label 0 = stay is always valid).
     starts
-        (N, 2) current cells.
+        (N, d) current cells.
     order
         The neighbourhood order n.
     """
@@ -57,14 +61,19 @@ class LabelSets:
     starts: np.ndarray
     order: int
 
+    @property
+    def ndim(self) -> int:
+        """d, the grid's number of axes (2 or 3)."""
+        return int(self.starts.shape[1])
+
     @cached_property
     def offsets(self) -> np.ndarray:
-        """(N, L, 2) int cell offset of each label; padding is (0, 0)."""
-        return _read_only(stencil(self.order)[self.index])
+        """(N, L, d) int cell offset of each label; padding is (0, ..., 0)."""
+        return _read_only(stencil(self.order, self.ndim)[self.index])
 
     @cached_property
     def cells(self) -> np.ndarray:
-        """(N, L, 2) the cell each label moves to."""
+        """(N, L, d) the cell each label moves to."""
         return _read_only(self.starts[:, None, :] + self.offsets)
 
     @cached_property
@@ -86,9 +95,9 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     Parameters
     ----------
     free
-        (W, H) bool grid, True where free.
+        (W, H) or (W, H, D) bool grid, True where free.
     starts
-        (N, 2) current cells, distinct and free.
+        (N, d) current cells, distinct and free (d = ``free.ndim``).
     order
         n, the neighbourhood order.
     goal_cell
@@ -99,11 +108,11 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
         is given, a larger distance to the goal along free paths (the straight direction
         would cut the way around a wall).
     static
-        (W, H) the static field rho_S; needed by ``contested = "downhill"``.
+        The static field rho_S over the grid; needed by ``contested = "downhill"``.
     contested
         Who gets a contested cell: a name in :data:`CONTESTED_RULES`.
     goal_distance
-        (W, H) the goal field's distance to the goal (:mod:`mrfswarm.discrete.goal_distance`),
+        The goal field's distance to the goal (:mod:`mrfswarm.discrete.goal_distance`),
         for ``trim_backward``; None: trim by direction.
     follow
         Keep cells where another robot stands now as candidates (rule (a) off for them):
@@ -121,34 +130,32 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
         raise ValueError('contested = "downhill" needs the static field')
     starts = np.asarray(starts, dtype=np.intp)
     N = len(starts)
-    off = stencil(order)
+    off = stencil(order, free.ndim)
     S = len(off)
-    W, H = free.shape
-    cand = starts[:, None, :] + off[None, :, :]  # (N, S, 2)
+    cand = starts[:, None, :] + off[None, :, :]  # (N, S, d)
     ok = moves_clear(free, starts, np.broadcast_to(np.arange(S), (N, S)), order)
     # (a) cells where another robot stands now
-    robot_at = np.full((W, H), -1, dtype=np.intp)
-    robot_at[starts[:, 0], starts[:, 1]] = np.arange(N)
-    cx = np.clip(cand[..., 0], 0, W - 1)
-    cy = np.clip(cand[..., 1], 0, H - 1)
-    other = robot_at[cx, cy]
+    robot_at = np.full(free.shape, -1, dtype=np.intp)
+    robot_at[tuple(starts.T)] = np.arange(N)
+    clipped = clip_cells(cand, free.shape)
+    other = cell_values(robot_at, clipped)
     if not follow:
         ok &= (other == -1) | (other == np.arange(N)[:, None])
     # (c) the half that points away from the goal
     if trim_backward and goal_cell is not None:
         if goal_distance is None:
-            to_goal = np.asarray(goal_cell)[None, :] - starts  # (N, 2)
+            to_goal = np.asarray(goal_cell)[None, :] - starts  # (N, d)
             ok &= (off[None, :, :] * to_goal[:, None, :]).sum(-1) >= 0
         else:
-            ok &= goal_distance[cx, cy] <= goal_distance[starts[:, 0], starts[:, 1]][:, None]
+            ok &= cell_values(goal_distance, clipped) <= cell_values(goal_distance, starts)[:, None]
     ok[:, 0] = True  # staying is always allowed (the cell is free and one's own)
     # (b) X_i ∩ X_j = ∅: a contested cell goes to one robot (the first in the sort below)
     r, s = np.nonzero(ok)
-    cell_id = cand[r, s, 0] * H + cand[r, s, 1]
+    cell_id = np.ravel_multi_index(tuple(cand[r, s].T), free.shape)  # (in 2-D, x H + y)
     dist2 = (off[s] ** 2).sum(axis=1)
     if contested == "downhill":
         assert static is not None  # checked above
-        rise = static[cand[r, s, 0], cand[r, s, 1]] - static[starts[r, 0], starts[r, 1]]
+        rise = cell_values(static, cand[r, s]) - cell_values(static, starts[r])
         order_idx = np.lexsort((r, rise, dist2, cell_id))
     else:
         order_idx = np.lexsort((r, dist2, cell_id))
