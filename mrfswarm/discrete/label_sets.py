@@ -9,9 +9,12 @@ pointing away from the goal trimmed.
 We add one rule the paper leaves implicit: the straight move must keep half a cell from
 every occupied cell (:mod:`mrfswarm.discrete.motion`), so no move cuts a wall's corner or jumps a
 wall. Label 0 is always "stay", which is always in X_i. Cells are (N, d), d = 2 or 3, by the
-same lines; the downwash (3-D) is a rule of the step's hard conflicts
-(:mod:`mrfswarm.discrete.step_mrf`), not of the label sets: a robot may aim at the voxel
-above a robot that leaves it in the same step.
+same lines. Rule (a) reads "the cells closer than one cell to another robot" in the
+downwash-scaled metric (:func:`mrfswarm.geometry.downwash_scale`): in the plane (or with
+c = 1) that is the robot's own cell, as in the paper; in 3-D with c > 1 also the voxels
+within c - 1 above and below it (its downwash shadow), where no robot may end the step
+while that robot stays. With ``follow`` both are kept, and the step's hard conflicts
+(:mod:`mrfswarm.discrete.step_mrf`) decide, as they do for every move.
 
 A contested cell goes to the robot nearest to it (so each robot's cells lie in its own
 Voronoi cell, and moves of different robots rarely conflict). The paper does not say who
@@ -37,7 +40,7 @@ from functools import cached_property
 import numpy as np
 
 from mrfswarm.config import CONTESTED_RULES
-from mrfswarm.discrete.motion import cell_values, clip_cells, moves_clear, stencil
+from mrfswarm.discrete.motion import MIN_SEPARATION, cell_values, clip_cells, in_grid, moves_clear, scaled, stencil
 
 
 @dataclass(frozen=True)
@@ -87,9 +90,24 @@ def _read_only(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def shadow_offsets(ndim: int, downwash: float = 1.0) -> np.ndarray:
+    """(K, d) nonzero integer offsets closer than one cell in the downwash-scaled metric.
+
+    None in the plane or with c = 1; in 3-D (0, 0, +-k) for 0 < k < c.
+    """
+    m = int(np.ceil(downwash)) if ndim == 3 else 0
+    z = np.arange(-m, m + 1)
+    off = np.zeros((len(z), ndim), dtype=np.intp)
+    if ndim == 3:
+        off[:, 2] = z
+    close = (z != 0) & (np.linalg.norm(scaled(off, downwash), axis=1) < MIN_SEPARATION - 1e-9)
+    return off[close]
+
+
 def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.ndarray | None = None,
                trim_backward: bool = False, static: np.ndarray | None = None,
-               contested: str = "nearest", goal_distance: np.ndarray | None = None, follow: bool = False) -> LabelSets:
+               contested: str = "nearest", goal_distance: np.ndarray | None = None, follow: bool = False,
+               downwash: float = 1.0) -> LabelSets:
     """Build X_i^t for every robot.
 
     Parameters
@@ -123,6 +141,9 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
         moves in one step as a whole instead of one robot per step. Staying still is
         always feasible (everybody staying breaks no conflict), so every optimizer's
         starting point and :func:`solvers.mrf.problem.repair` are unchanged.
+    downwash
+        c >= 1: rule (a) also removes the cells within c - 1 voxels right above or below
+        another robot (3-D; see the module docstring).
     """
     if contested not in CONTESTED_RULES:
         raise ValueError(f"contested = {contested!r}: must be one of {', '.join(CONTESTED_RULES)}")
@@ -141,6 +162,10 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     other = cell_values(robot_at, clipped)
     if not follow:
         ok &= (other == -1) | (other == np.arange(N)[:, None])
+        for o in shadow_offsets(free.ndim, downwash):
+            near = cand + o
+            by = np.where(in_grid(near, free.shape), cell_values(robot_at, clip_cells(near, free.shape)), -1)
+            ok &= (by == -1) | (by == np.arange(N)[:, None])
     # (c) the half that points away from the goal
     if trim_backward and goal_cell is not None:
         if goal_distance is None:

@@ -92,6 +92,25 @@ def swept_cells(order: int, ndim: int = 2) -> tuple[np.ndarray, np.ndarray]:
     return cells, counts
 
 
+@lru_cache(maxsize=32)
+def _swept_union(order: int, ndim: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """The cells any move of the stencil needs, once each, and every move's needs as indices into them.
+
+    Returns
+    -------
+    union
+        (U, ndim) relative cells (in 3-D at n = 3: the 27 of the 3 x 3 x 3 block).
+    need
+        (S, K) index into ``union`` of each entry of :func:`swept_cells` (padding included).
+    """
+    cells, _ = swept_cells(order, ndim)
+    union, need = np.unique(cells.reshape(-1, ndim), axis=0, return_inverse=True)
+    need = need.reshape(cells.shape[:2])
+    union.setflags(write=False)
+    need.setflags(write=False)
+    return union, need
+
+
 def cell_values(grid: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """``grid`` at integer cells (..., d): ``grid[cells[..., 0], ..., cells[..., d - 1]]``."""
     return grid[tuple(np.moveaxis(np.asarray(cells), -1, 0))]
@@ -123,9 +142,14 @@ def moves_clear(free: np.ndarray, starts: np.ndarray, offsets: np.ndarray, order
     -------
     (N, S) bool; cells off the map count as occupied.
     """
-    cells, _ = swept_cells(order, free.ndim)
-    req = starts[:, None, None, :] + cells[offsets]  # (N, S, K, d)
-    return np.all(in_grid(req, free.shape) & cell_values(free, clip_cells(req, free.shape)), axis=-1)
+    # each cell around a robot is looked up once (U of them), and each move's K needs are
+    # gathered from those: one grid lookup per cell, not one per move and cell
+    union, need = _swept_union(order, free.ndim)
+    N = len(starts)
+    req = starts[:, None, :] + union  # (N, U, d)
+    clear = in_grid(req, free.shape) & cell_values(free, clip_cells(req, free.shape))
+    idx = need[offsets].reshape(N, -1)  # (N, S * K)
+    return np.take_along_axis(clear, idx, axis=1).reshape(N, offsets.shape[1], need.shape[1]).all(axis=-1)
 
 
 @lru_cache(maxsize=4096)

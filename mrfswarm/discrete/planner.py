@@ -235,7 +235,7 @@ def step_model(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueW
 def problem_label_sets(problem: DiscreteProblem, positions: np.ndarray) -> LabelSets:
     """X^t for the robots at ``positions`` under the problem's label-set rules."""
     return label_sets(problem.free, positions, problem.order, problem.goal, problem.trim_backward, problem.static,
-                      problem.contested, problem.goal_distance, problem.follow)
+                      problem.contested, problem.goal_distance, problem.follow, problem.downwash)
 
 
 def _static_sum(problem: DiscreteProblem, positions: np.ndarray) -> float:

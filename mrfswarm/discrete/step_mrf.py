@@ -133,9 +133,12 @@ def conflict_tables(labels: LabelSets, downwash: float = 1.0) -> tuple[np.ndarra
         pairs, g = pairs[hit], g[hit]
     if len(pairs) == 0:
         return pairs, np.zeros((0, L, L), dtype=bool)
+    S = table.shape[1]
     ia = labels.index[pairs[:, 0]]  # (C, L)
     ib = labels.index[pairs[:, 1]]
-    mask = table[g[:, None, None], ia[:, :, None], ib[:, None, :]]
+    row = (g * S)[:, None] + ia  # (C, L): flat row (g, a) of the table
+    mask = table.reshape(-1, S).take(row, axis=0)  # (C, L, S)
+    mask = np.take_along_axis(mask, np.broadcast_to(ib[:, None, :], mask.shape[:2] + ib.shape[1:]), axis=2)
     valid = labels.valid
     mask &= valid[pairs[:, 0]][:, :, None] & valid[pairs[:, 1]][:, None, :]
     keep = mask.reshape(len(pairs), -1).any(axis=1)
@@ -171,21 +174,22 @@ _CHUNK = 256
 
 @lru_cache(maxsize=8)
 def _morse_box(morse: Morse, resolution: float, order: int, ndim: int = 2) -> tuple[np.ndarray, np.ndarray, int, int]:
-    """rho_I over a box of cell offsets, and the code of each stencil move pair in it.
+    """rho_I over a box of cell offsets, and the flat code of each stencil move in it.
 
     With R = ``_OFFSET_RADIUS`` and r = floor(sqrt(order)), the robots' offset at the end
     of a step, d = d0 + o_a - o_b, lies in the box |d_k| <= R + 2r whenever the start
     offset d0 lies in |d_k| <= R (every axis k). Its flat index in the box (row-major,
-    side 2B + 1, B = R + 2r) is ``G(d0) + code[a * S + b]``, G(d0) the flat index of
-    d0 + B (in 2-D, (dx0 + B) (2B + 1) + (dy0 + B)), so one edge's (L, L) table is two
-    small gathers, whatever its label sets.
+    side 2B + 1, B = R + 2r) is linear in d: ``G(d0) + code[a] - code[b]``, G(d0) the
+    flat index of d0 + B (in 2-D, (dx0 + B) (2B + 1) + (dy0 + B)) and code[s] the strides
+    times move s, so one edge's (L, L) table is one subtraction and one gather, whatever
+    its label sets.
 
     Returns
     -------
     table
         ((2B + 1)^d,) rho_I of each offset of the box (read-only).
     code
-        (S * S,) int32 flat offset o_a - o_b of each move pair.
+        (S,) int32 flat offset of each stencil move.
     R, B
         The start offset radius and the box radius.
     """
@@ -195,9 +199,7 @@ def _morse_box(morse: Morse, resolution: float, order: int, ndim: int = 2) -> tu
     width = 2 * B + 1
     axes = np.meshgrid(*([np.arange(-B, B + 1)] * ndim), indexing="ij")
     table = _morse_table(morse, resolution)(np.sum([x * x for x in axes], axis=0).ravel())
-    v = off[:, None, :] - off[None, :, :]
-    strides = width ** np.arange(ndim - 1, -1, -1)
-    code = (v @ strides).astype(np.int32).ravel()
+    code = (off @ (width ** np.arange(ndim - 1, -1, -1))).astype(np.int32)
     table.setflags(write=False)
     code.setflags(write=False)
     return table, code, R, B
@@ -217,22 +219,21 @@ def pairwise_tables(labels: LabelSets, edges: np.ndarray, weights: np.ndarray, m
     if not len(edges):
         return np.zeros((0, L, L))
     ndim = labels.ndim
-    S = len(stencil(labels.order, ndim))
     table, code, R, B = _morse_box(morse, resolution, labels.order, ndim)
     ia, ib = labels.index[edges[:, 0]], labels.index[edges[:, 1]]
     d0 = labels.starts[edges[:, 0]] - labels.starts[edges[:, 1]]
     far = np.flatnonzero(np.any(np.abs(d0) > R, axis=1))
     dc = np.clip(d0, -R, R)  # far edges gather a placeholder, replaced below
     g = ((dc + B) @ ((2 * B + 1) ** np.arange(ndim - 1, -1, -1))).astype(np.int32)
-    ia32, ib32 = (ia * S).astype(np.int32), ib.astype(np.int32)
+    first = code.take(ia)
+    first += g[:, None]  # (E, L): G(d0) + code[a]
+    second = code.take(ib)  # (E, L): code[b]
     out = np.empty((len(edges), L, L))
     # in chunks: small temporaries are reused by the allocator instead of being mapped
     # (and page-faulted) afresh every step
     for a in range(0, len(edges), _CHUNK):
         b = a + _CHUNK
-        flat = code.take(ia32[a:b, :, None] + ib32[a:b, None, :])
-        flat += g[a:b, None, None]
-        table.take(flat, out=out[a:b])
+        table.take(first[a:b, :, None] - second[a:b, None, :], out=out[a:b])
     if len(far):
         off = stencil(labels.order, ndim)
         d = d0[far][:, None, None, :] + off[ia[far]][:, :, None, :] - off[ib[far]][:, None, :, :]
