@@ -87,28 +87,32 @@ def segment_box_distance(p: np.ndarray, q: np.ndarray, center: np.ndarray, half:
     the segment or at a corner of the square (both are convex polygons). In space the
     closest points may also be a point inside the segment and a point inside an edge of
     the cube, so the distance to each of the cube's 12 edges (segment-segment) is taken
-    too: the minimum over the box is attained on its boundary, and a segment meeting no
-    face's interior at its closest point meets a face's boundary, an edge, or a corner
-    (an edge's end).
+    too (which covers the corners, the edges' ends): the minimum over the box is attained
+    on its boundary; where the closest box point lies inside a face, the segment there is
+    parallel to the face or ends, so sliding along it reaches an end or a face edge at
+    the same distance.
     """
     p, q, center = np.asarray(p, float), np.asarray(q, float), np.asarray(center, float)
     ndim = p.shape[-1]
     lo, hi = center - half, center + half
     hit = _segment_hits_box(p, q, lo, hi)
     best = np.minimum(point_box_distance(p, center, half), point_box_distance(q, center, half))
-    for c in box_corners(half, ndim):
-        best = np.minimum(best, point_segment_distance(center + c, p, q))
-    if ndim == 3:
-        for a, b in _cube_edges(half):
-            best = np.minimum(best, segment_segment_distance(p, q, center + a, center + b))
+    if ndim == 2:
+        for c in box_corners(half, ndim):
+            best = np.minimum(best, point_segment_distance(center + c, p, q))
+    else:  # every corner is an end of an edge: the edges cover the corners
+        a, b = _cube_edges(half)  # (12, 3) each
+        shape = (12,) + (1,) * (np.ndim(best)) + (3,)
+        d = segment_segment_distance(p, q, center + a.reshape(shape), center + b.reshape(shape))
+        best = np.minimum(best, d.min(axis=0))
     return np.where(hit, 0.0, best)
 
 
-def _cube_edges(half: float) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The 12 edges of the cube of half-width ``half`` at the origin, as (end, end) pairs."""
+def _cube_edges(half: float) -> tuple[np.ndarray, np.ndarray]:
+    """The 12 edges of the cube of half-width ``half`` at the origin: their ends, (12, 3) and (12, 3)."""
     corners = box_corners(half, 3)
-    return [(corners[i], corners[j]) for i in range(8) for j in range(i + 1, 8)
-            if np.count_nonzero(corners[i] != corners[j]) == 1]
+    pairs = [(i, j) for i in range(8) for j in range(i + 1, 8) if np.count_nonzero(corners[i] != corners[j]) == 1]
+    return corners[[i for i, _ in pairs]], corners[[j for _, j in pairs]]
 
 
 def segment_segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray) -> np.ndarray:

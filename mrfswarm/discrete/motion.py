@@ -149,7 +149,7 @@ def moves_clear(free: np.ndarray, starts: np.ndarray, offsets: np.ndarray, order
     req = starts[:, None, :] + union  # (N, U, d)
     clear = in_grid(req, free.shape) & cell_values(free, clip_cells(req, free.shape))
     idx = need[offsets].reshape(N, -1)  # (N, S * K)
-    return np.take_along_axis(clear, idx, axis=1).reshape(N, offsets.shape[1], need.shape[1]).all(axis=-1)
+    return np.asarray(np.take_along_axis(clear, idx, axis=1).reshape(N, offsets.shape[1], need.shape[1]).all(axis=-1))
 
 
 @lru_cache(maxsize=4096)
