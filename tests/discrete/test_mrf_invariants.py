@@ -28,9 +28,9 @@ from mrfswarm.discrete.label_sets import LabelSets
 from mrfswarm.discrete.motion import moves_clear, stencil
 from mrfswarm.discrete.planner import DiscreteProblem, graph_weights, plan_discrete
 from mrfswarm.discrete.potentials import Morse, static_field
-from mrfswarm.geometry import downwash_scale, norm
 from mrfswarm.discrete.safety import discrete_violations
 from mrfswarm.discrete.step_mrf import step_mrf
+from mrfswarm.geometry import downwash_scale, norm
 from solvers import mrf
 from solvers.mrf.exact import MAX_LABELLINGS
 from solvers.mrf.synthetic import random_mrf, swarm_mrf
