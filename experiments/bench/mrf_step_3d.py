@@ -3,7 +3,8 @@
 For N robots (default 1000) a Gaussian swarm on a free map pulled toward a goal across
 it: in 2-D on a (2s x s) grid, in 3-D on a (2s x s x s/2) voxel grid with the robots at
 least one cell apart in the downwash-scaled metric (c = ``--downwash``, default 2: no
-two robots in one column closer than c voxels). Both swarms take the same number of
+two robots in one column closer than c voxels). Both Gaussians have the same peak
+density, 0.25 robots per cell (the 2-D one of ``mrf_step.py``, sigma = 0.8 sqrt(N)). Both swarms take the same number of
 planner steps from their start; each step is timed whole (interaction graph, cliques,
 label sets, energy tables, optimizer), the two dimensions interleaved, and the table
 gives the median per stage and in total, and the ratio 3-D / 2-D. The target of issue 20
@@ -44,7 +45,8 @@ def swarm(n: int, ndim: int, order: int, downwash: float, seed: int = 0) -> Disc
     else:
         side = max(20, int(4 * n ** (1 / 3)))
         shape = (2 * side, side, max(8, side // 2))
-        sigma = max(2.0, 0.8 * n ** (1 / 3))
+        # the 2-D swarm's peak density, N / (2 pi sigma^2) = 0.25 robots per cell, per voxel
+        sigma = max(2.0, (0.25 * (2 * math.pi) ** 1.5) ** (-1 / 3) * n ** (1 / 3))
     centre = np.array([side // 2, side // 2] + ([shape[2] // 2] if ndim == 3 else []))
     cells: list[np.ndarray] = []
     taken: set[tuple[int, ...]] = set()

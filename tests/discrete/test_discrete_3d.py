@@ -115,6 +115,11 @@ def check_label_sets(ls, free, starts, order, downwash, follow=False):
                     near = [j for j in range(len(starts)) if j != i
                             and scaled_norm(np.array(c) - starts[j], downwash) < 1 - 1e-9]
                     assert c not in others and not near, (i, c, near)
+    # rule (b) in the scaled metric: no two moves of different robots end closer than one cell
+    moves = [(i, ls.cells[i, l]) for i in range(len(starts)) for l in range(1, ls.count[i])]
+    for (i, a), (j, b) in itertools.combinations(moves, 2):
+        if i != j:
+            assert scaled_norm(a - b, downwash) >= 1 - 1e-9, (i, a, j, b)
 
 
 @pytest.mark.parametrize("seed", range(4))
