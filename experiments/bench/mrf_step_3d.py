@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
-from mrfswarm.discrete.planner import STAGES, DiscreteProblem, graph_weights, mrf_step
+from mrfswarm.discrete.planner import STAGES, DiscreteProblem, graph_weights, mrf_step, problem_label_sets
 from mrfswarm.discrete.potentials import Morse, static_field
 
 RESULTS = Path(__file__).parent / "results"
@@ -98,20 +98,29 @@ def main() -> None:
         cases = {"2-D n=2": swarm(n, 2, 2, 1.0), "3-D n=2": swarm(n, 3, 2, args.downwash),
                  "3-D n=3": swarm(n, 3, 3, args.downwash)}
         times: dict[str, list[dict[str, float]]] = {name: [] for name in cases}
+        label_counts = {name: problem_label_sets(p, p.start).count for name, p in cases.items()}
         for _ in range(args.repeats):  # interleaved, so that load on the machine hits every case alike
             for name, problem in cases.items():
                 times[name] += step_times(problem, args.steps, args.method)
         base = statistics.median(t["total"] for t in times["2-D n=2"])
+        base_min = min(t["total"] for t in times["2-D n=2"])
         for name, ts in times.items():
             row = {"n_robots": n, "case": name, "downwash": cases[name].downwash,
-                   **{s: statistics.median(t[s] for t in ts) for s in (*STAGES, "total")}}
+                   "labels_max": int(label_counts[name].max()), "labels_mean": float(label_counts[name].mean()),
+                   **{s: statistics.median(t[s] for t in ts) for s in (*STAGES, "total")},
+                   "total_min": min(t["total"] for t in ts)}
             row["ratio_to_2d"] = row["total"] / base
+            row["ratio_min_to_2d"] = row["total_min"] / base_min
             rows.append(row)
-    header = ["n_robots", "case", "downwash", *STAGES, "total", "ratio_to_2d"]
-    print(f"{'N':>6} {'case':>9} {'c':>4} " + " ".join(f"{s:>9}" for s in (*STAGES, "total")) + "  3-D/2-D")
+    header = ["n_robots", "case", "downwash", "labels_max", "labels_mean", *STAGES, "total", "total_min",
+              "ratio_to_2d", "ratio_min_to_2d"]
+    print("median seconds per stage and step; min: the fastest step (least disturbed by other load)")
+    print(f"{'N':>6} {'case':>9} {'c':>4} {'L':>3} " + " ".join(f"{s:>9}" for s in (*STAGES, "total", "min"))
+          + "  3-D/2-D (median, min)")
     for r in rows:
-        print(f"{r['n_robots']:>6} {r['case']:>9} {r['downwash']:>4g} "
-              + " ".join(f"{1e3 * r[s]:>7.2f}ms" for s in (*STAGES, "total")) + f"  {r['ratio_to_2d']:.2f}")
+        print(f"{r['n_robots']:>6} {r['case']:>9} {r['downwash']:>4g} {r['labels_max']:>3} "
+              + " ".join(f"{1e3 * r[s]:>7.2f}ms" for s in (*STAGES, "total", "total_min"))
+              + f"  {r['ratio_to_2d']:.2f}, {r['ratio_min_to_2d']:.2f}")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with open(args.out, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=header)
