@@ -172,10 +172,13 @@ def swarm_problems(draw, max_robots: int) -> DiscreteProblem:
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(data=st.data())
 def test_every_method_keeps_the_invariants_on_random_maps(method, data):
-    problem = data.draw(swarm_problems(max_robots=3 if method in TINY_ONLY else 10))
+    check_a_short_plan(data.draw(swarm_problems(max_robots=3 if method in TINY_ONLY else 10)), method)
+
+
+def check_a_short_plan(problem: DiscreteProblem, method: str) -> None:
     plan = plan_discrete(problem, method=method, max_steps=4, options=mrf.Options(seed=0))
     assert plan.paths.shape[1:] == problem.start.shape and np.array_equal(plan.paths[0], problem.start)
-    check_paths(plan.paths, problem.free)
+    check_paths(plan.paths, problem.free, problem.downwash)
     if not problem.follow:  # label sets are disjoint: nothing to repair (following shares the cells robots hold)
         assert all(s["repaired"] == 0 for s in plan.steps)
 
@@ -230,10 +233,7 @@ def voxel_swarm_problems(draw, max_robots: int) -> DiscreteProblem:
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(data=st.data())
 def test_every_method_keeps_the_invariants_on_random_voxel_maps(method, data):
-    problem = data.draw(voxel_swarm_problems(max_robots=3 if method in TINY_ONLY else 10))
-    plan = plan_discrete(problem, method=method, max_steps=4, options=mrf.Options(seed=0))
-    assert plan.paths.shape[1:] == problem.start.shape and np.array_equal(plan.paths[0], problem.start)
-    check_paths(plan.paths, problem.free, problem.downwash)
+    check_a_short_plan(data.draw(voxel_swarm_problems(max_robots=3 if method in TINY_ONLY else 10)), method)
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -284,19 +284,24 @@ def dense_swarms(draw, max_robots: int):
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(data=st.data())
 def test_every_method_is_safe_on_step_mrfs_with_overlapping_label_sets(method, data):
-    tiny = method in TINY_ONLY
-    free, static, pos, k, order = data.draw(dense_swarms(max_robots=3 if tiny else 10))
+    free, static, pos, k, order = data.draw(dense_swarms(max_robots=3 if method in TINY_ONLY else 10))
+    check_full_stencil_steps(method, free, static, pos, k, order, 1.0)
+
+
+def check_full_stencil_steps(method: str, free: np.ndarray, static: np.ndarray, pos: np.ndarray, k: int, order: int,
+                             downwash: float) -> None:
+    """Three steps with every clear move a label: the method's own labelling is feasible and safe."""
     paths = [pos]
     for _ in range(3):
         labels = full_stencil_labels(free, pos, order)
-        m = step_mrf(labels, graph_weights(pos, k), static, Morse(), 1.0)
-        if tiny:
+        m = step_mrf(labels, graph_weights(pos, k), static, Morse(), 1.0, downwash)
+        if method in TINY_ONLY:
             assume(np.prod(m.n_labels.astype(float)) <= MAX_LABELLINGS / 20)
         res = raw_result(m, method, mrf.Options(seed=0, max_iter=50))
         assert m.is_feasible(res.labels), f"{method} returned a labelling that breaks a conflict"
         pos = pos + labels.offsets[np.arange(len(pos)), res.labels]
         paths.append(pos)
-    check_paths(np.stack(paths), free)
+    check_paths(np.stack(paths), free, downwash)
 
 
 @st.composite
@@ -317,19 +322,8 @@ def dense_voxel_swarms(draw, max_robots: int):
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(data=st.data())
 def test_every_method_is_safe_on_voxel_step_mrfs_with_overlapping_label_sets(method, data):
-    tiny = method in TINY_ONLY
-    free, static, pos, k, order, downwash = data.draw(dense_voxel_swarms(max_robots=3 if tiny else 10))
-    paths = [pos]
-    for _ in range(3):
-        labels = full_stencil_labels(free, pos, order)
-        m = step_mrf(labels, graph_weights(pos, k), static, Morse(), 1.0, downwash)
-        if tiny:
-            assume(np.prod(m.n_labels.astype(float)) <= MAX_LABELLINGS / 20)
-        res = raw_result(m, method, mrf.Options(seed=0, max_iter=50))
-        assert m.is_feasible(res.labels), f"{method} returned a labelling that breaks a conflict"
-        pos = pos + labels.offsets[np.arange(len(pos)), res.labels]
-        paths.append(pos)
-    check_paths(np.stack(paths), free, downwash)
+    free, static, pos, k, order, downwash = data.draw(dense_voxel_swarms(max_robots=3 if method in TINY_ONLY else 10))
+    check_full_stencil_steps(method, free, static, pos, k, order, downwash)
 
 
 @pytest.mark.parametrize("order", ORDERS)
