@@ -231,14 +231,15 @@ def pairwise_tables(labels: LabelSets, edges: np.ndarray, weights: np.ndarray, m
     out = np.empty((len(edges), L, L))
     # in chunks: small temporaries are reused by the allocator instead of being mapped
     # (and page-faulted) afresh every step
+    w = weights.astype(float)[:, None, None]
     for a in range(0, len(edges), _CHUNK):
         b = a + _CHUNK
         table.take(first[a:b, :, None] - second[a:b, None, :], out=out[a:b])
+        out[a:b] *= w[a:b]  # while the chunk is in cache
     if len(far):
         off = stencil(labels.order, ndim)
         d = d0[far][:, None, None, :] + off[ia[far]][:, :, None, :] - off[ib[far]][:, None, :, :]
-        out[far] = _morse_table(morse, resolution)((d ** 2).sum(axis=-1))
-    out *= weights[:, None, None]
+        out[far] = _morse_table(morse, resolution)((d ** 2).sum(axis=-1)) * w[far]
     return out
 
 
