@@ -13,15 +13,14 @@ the final approach are excluded). Each maximal slow interval counts once.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.sparse import csr_array
 from scipy.sparse.csgraph import dijkstra
 
-from mrfswarm.discrete.goal_distance import free_moves, graph_moves
-from mrfswarm.discrete.motion import cell_values
-from mrfswarm.geometry import norm
-from mrfswarm.trajectory import PiecewisePolynomial
+if TYPE_CHECKING:
+    from mrfswarm.trajectory import PiecewisePolynomial
 
 #: Speed (m/s) under which a robot counts as stopped.
 STOP_SPEED = 0.05
@@ -32,9 +31,12 @@ STOP_RATE_HZ = 50.0
 def _graph(free: np.ndarray, resolution: float) -> csr_array:
     """The 8- (voxels: 26-) connected free-cell graph without corner cutting (the goal field's search graph of
     order d), edges in metres."""
+    # imported here: the benchmarks load this file beside older revisions of the package, for the stop count
+    from mrfswarm.discrete.goal_distance import free_moves, graph_moves
+
     order = free.ndim  # the whole 3^d - 1 neighbourhood
     src, dst, m = free_moves(free, order)
-    length = norm(graph_moves(order, free.ndim)[m]) * resolution
+    length = np.sqrt((graph_moves(order, free.ndim)[m] ** 2).sum(axis=1)) * resolution
     n = free.size
     return csr_array((length, (_flat(src, free.shape), _flat(dst, free.shape))), shape=(n, n))
 
@@ -61,7 +63,7 @@ def free_path_lengths(free: np.ndarray, starts: np.ndarray, ends: np.ndarray, re
     out[same] = 0.0
     todo = np.flatnonzero(~same)
     if via is not None:
-        upper = cell_values(via, starts[todo]) + cell_values(via, ends[todo])
+        upper = via[tuple(starts[todo].T)] + via[tuple(ends[todo].T)]
         todo = todo[np.argsort(-upper, kind="stable")]
         upper = np.sort(upper)[::-1]
     best = 0.0
