@@ -2,8 +2,8 @@
 
 The lower bound of a flight is the time the slowest robot needs at best: the longest,
 over robots, of the shortest free path from its start cell to its final cell (the
-8-connected grid graph without corner cutting, the moves the discrete stage can make),
-flown at ``v_max``. No plan that moves robots between those cells can end sooner.
+8-connected grid graph without corner cutting, the moves the discrete stage can make; on
+voxels the 26-connected graph without edge or corner cutting), flown at ``v_max``. No plan that moves robots between those cells can end sooner.
 
 A **stop** is a robot slower than :data:`STOP_SPEED` somewhere strictly inside its own
 flight: after it first exceeds that speed and before it last does (the departure and
@@ -29,44 +29,49 @@ STOP_RATE_HZ = 50.0
 
 
 def _graph(free: np.ndarray, resolution: float) -> csr_array:
-    """The 8-connected free-cell graph without corner cutting (the goal field's search graph), edges in metres."""
+    """The 8- (voxels: 26-) connected free-cell graph without corner cutting (the goal field's search graph of
+    order d), edges in metres."""
     # imported here: the benchmarks load this file beside older revisions of the package, for the stop count
     from mrfswarm.discrete.goal_distance import free_moves, graph_moves
 
-    W, H = free.shape
-    src, dst, m = free_moves(free, 2)
-    length = np.hypot(*graph_moves(2)[m].T) * resolution
-    return csr_array((length, (src[:, 0] * H + src[:, 1], dst[:, 0] * H + dst[:, 1])), shape=(W * H, W * H))
+    order = free.ndim  # the whole 3^d - 1 neighbourhood
+    src, dst, m = free_moves(free, order)
+    length = np.sqrt((graph_moves(order, free.ndim)[m] ** 2).sum(axis=1)) * resolution
+    n = free.size
+    return csr_array((length, (_flat(src, free.shape), _flat(dst, free.shape))), shape=(n, n))
+
+
+def _flat(cells: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    return np.ravel_multi_index(tuple(np.asarray(cells).T), shape)
 
 
 def free_path_lengths(free: np.ndarray, starts: np.ndarray, ends: np.ndarray, resolution: float = 1.0,
                       via: np.ndarray | None = None) -> np.ndarray:
     """(N,) shortest free-path length (metres) from each ``starts[i]`` to ``ends[i]`` (cells).
 
-    With ``via`` ((W, H) free-path distance to one common cell, e.g. the goal), only the
-    robots that can hold the maximum are searched exactly: ``via[s] + via[e]`` bounds a
+    Cells are (N, d) on a grid ``free`` of d axes. With ``via`` (the free-path distance to
+    one common cell over the grid, e.g. to the goal), only the robots that can hold the maximum are searched exactly: ``via[s] + via[e]`` bounds a
     robot's length from above (the way through that cell), so robots are searched in
     decreasing order of that bound until it falls below the longest exact length found;
     the others get NaN. Without ``via`` every robot is searched.
     """
     free = np.asarray(free, dtype=bool)
     starts, ends = np.asarray(starts, dtype=np.intp), np.asarray(ends, dtype=np.intp)
-    H = free.shape[1]
     graph = _graph(free, resolution)
     out = np.full(len(starts), np.nan)
     same = np.all(starts == ends, axis=1)
     out[same] = 0.0
     todo = np.flatnonzero(~same)
     if via is not None:
-        upper = via[starts[todo, 0], starts[todo, 1]] + via[ends[todo, 0], ends[todo, 1]]
+        upper = via[tuple(starts[todo].T)] + via[tuple(ends[todo].T)]
         todo = todo[np.argsort(-upper, kind="stable")]
         upper = np.sort(upper)[::-1]
     best = 0.0
     for n, i in enumerate(todo):
         if via is not None and upper[n] <= best:
             break
-        d = dijkstra(graph, directed=True, indices=int(ends[i, 0] * H + ends[i, 1]), limit=np.inf)
-        out[i] = d[starts[i, 0] * H + starts[i, 1]]
+        d = dijkstra(graph, directed=True, indices=int(_flat(ends[i], free.shape)), limit=np.inf)
+        out[i] = d[_flat(starts[i], free.shape)]
         best = max(best, float(out[i]))
     return out
 

@@ -11,6 +11,12 @@ of that many pairs (the same pairs at every sample, so the curve is smooth; its
 relative standard error is about (std / mean) / sqrt(MEAN_PAIRS), well under 1 %), at
 every sample while that takes at most ``MEAN_WORK`` distances and otherwise at evenly
 spaced samples, linearly interpolated in between (thousands of samples either way).
+
+Paths are (T + 1, N, d) cells, d = 2 or 3 (voxels), by the same lines. The minimum
+separation of discrete paths is measured in the downwash-scaled metric
+(:func:`mrfswarm.geometry.downwash_scale`; the plain distance in 2-D or with c = 1), the
+one the discrete stage keeps >= 1 cell; obstacle clearance is to the occupied squares or
+voxel cubes; path lengths count every axis.
 """
 
 from __future__ import annotations
@@ -20,8 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from mrfswarm.discrete.motion import step_min_separation
-from mrfswarm.geometry import point_box_distance
+from mrfswarm.discrete.motion import in_grid, scaled, step_min_separation
+from mrfswarm.geometry import norm, point_box_distance
 
 #: Samples per step when measuring obstacle clearance along straight moves.
 _CLEARANCE_SAMPLES = 16
@@ -52,13 +58,13 @@ class DiscreteMetrics:
     mean_distance_pairs: int | None = None
 
 
-def min_separation(paths: np.ndarray) -> float:
-    """Smallest distance (cells) between two robots over all steps, during moves included."""
+def min_separation(paths: np.ndarray, downwash: float = 1.0) -> float:
+    """Smallest distance (cells, downwash-scaled metric) between two robots over all steps, during moves included."""
     if paths.shape[1] < 2:
         return float("inf")
     if len(paths) == 1:
-        return float(min_pair_distances(paths[:1].astype(float))[0][0])
-    return min(step_min_separation(paths[t], paths[t + 1])[0] for t in range(len(paths) - 1))
+        return float(min_pair_distances(scaled(paths[:1], downwash))[0][0])
+    return min(step_min_separation(paths[t], paths[t + 1], downwash)[0] for t in range(len(paths) - 1))
 
 
 def min_pair_distances(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -154,7 +160,7 @@ class DistanceSeries:
 
 
 def distance_series(points: np.ndarray, max_pairs: int = MEAN_PAIRS, max_work: int = MEAN_WORK) -> DistanceSeries:
-    """Minimum and mean inter-robot distance at each sample of ``points`` (S, N, 2); see the module docstring."""
+    """Minimum and mean inter-robot distance at each sample of ``points`` (S, N, d); see the module docstring."""
     points = np.asarray(points, dtype=float)
     S, N, _ = points.shape
     if N < 2:
@@ -170,7 +176,7 @@ def distance_series(points: np.ndarray, max_pairs: int = MEAN_PAIRS, max_work: i
     for a in range(0, len(at), step):
         sel = at[a:a + step]
         d = points[sel][:, pairs[:, 0]] - points[sel][:, pairs[:, 1]]
-        mean[a:a + step] = np.hypot(d[..., 0], d[..., 1]).mean(axis=1)
+        mean[a:a + step] = norm(d).mean(axis=1)
     if len(at) < S:
         mean = np.interp(np.arange(S), at, mean)
     return DistanceSeries(dmin, mean, exact, len(pairs))
@@ -182,7 +188,7 @@ class ObstacleIndex:
     Parameters
     ----------
     occupied
-        (W, H) bool, True where occupied.
+        (W, H) or (W, H, D) bool, True where occupied.
     """
 
     def __init__(self, occupied: np.ndarray) -> None:
@@ -190,15 +196,16 @@ class ObstacleIndex:
         self.tree = cKDTree(self.cells) if len(self.cells) else None
 
     def clearance(self, points: np.ndarray) -> float | None:
-        """Smallest distance (cells) from any point (..., 2), in cell coordinates, to an occupied square.
+        """Smallest distance (cells) from any point (..., d), in cell coordinates, to an occupied square (cube).
 
-        None when the map has no obstacle. Exact: the nearest squares are among the nearest
-        occupied cell centres.
+        None when the map has no obstacle. Exact: the nearest squares (cubes) are among the
+        2^d nearest occupied cell centres (the cells around the point's nearest box point).
         """
         if self.tree is None:
             return None
-        pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        k = min(8, len(self.cells))
+        ndim = self.cells.shape[1]
+        pts = np.asarray(points, dtype=float).reshape(-1, ndim)
+        k = min(8 if ndim == 2 else 27, len(self.cells))
         _, idx = self.tree.query(pts, k)
         idx = np.asarray(idx).reshape(len(pts), k)
         d = point_box_distance(pts[:, None, :], self.cells[idx].astype(float))
@@ -206,7 +213,7 @@ class ObstacleIndex:
 
 
 def obstacle_clearance(occupied: np.ndarray, points: np.ndarray) -> float | None:
-    """Smallest distance (cells) from any point (..., 2), in cell coordinates, to an occupied square.
+    """Smallest distance (cells) from any point (..., d), in cell coordinates, to an occupied square (cube).
 
     None when the map has no obstacle. Builds an :class:`ObstacleIndex`; keep one per map
     when asking many times.
@@ -215,13 +222,13 @@ def obstacle_clearance(occupied: np.ndarray, points: np.ndarray) -> float | None
 
 
 def densify(paths: np.ndarray, samples: int = _CLEARANCE_SAMPLES) -> np.ndarray:
-    """Points along the straight moves of ``paths`` (T + 1, N, 2), ``samples`` per step."""
+    """Points along the straight moves of ``paths`` (T + 1, N, d), ``samples`` per step."""
     if len(paths) == 1:
         return paths.astype(float)
     s = np.linspace(0.0, 1.0, samples, endpoint=False)[:, None, None, None]
     a = paths[:-1].astype(float)[None]
     b = paths[1:].astype(float)[None]
-    pts = (a + s * (b - a)).transpose(1, 0, 2, 3).reshape(-1, paths.shape[1], 2)
+    pts = (a + s * (b - a)).transpose(1, 0, 2, 3).reshape(-1, paths.shape[1], paths.shape[2])
     return np.concatenate([pts, paths[-1:].astype(float)])
 
 
@@ -230,8 +237,8 @@ def path_clearance(paths: np.ndarray, occupied: np.ndarray, samples: int = _CLEA
 
     Equal to measuring every densified point, without densifying every move: the
     positions themselves (points of the densified set) give an upper bound U, and a move
-    from cell p of length L has every point at least edt(p) - L - sqrt(2)/2 from an
-    occupied square (edt: the distance from p's centre to the nearest occupied cell
+    from cell p of length L has every point at least edt(p) - L - sqrt(d)/2 from an
+    occupied square or cube (edt: the distance from p's centre to the nearest occupied cell
     centre), so only the moves whose bound is below U are densified.
     """
     if not occupied.any():
@@ -245,13 +252,13 @@ def path_clearance(paths: np.ndarray, occupied: np.ndarray, samples: int = _CLEA
         return upper
     from scipy.ndimage import distance_transform_edt
 
-    W, H = occupied.shape
+    ndim = occupied.ndim
     edt = distance_transform_edt(~occupied)
-    p, q = paths[:-1].reshape(-1, 2), paths[1:].reshape(-1, 2)
-    inb = (p[:, 0] >= 0) & (p[:, 0] < W) & (p[:, 1] >= 0) & (p[:, 1] < H)
+    p, q = paths[:-1].reshape(-1, ndim), paths[1:].reshape(-1, ndim)
+    inb = in_grid(p, occupied.shape)
     e = np.zeros(len(p))
-    e[inb] = edt[p[inb, 0], p[inb, 1]]
-    bound = e - np.hypot(*(q - p).T) - np.sqrt(0.5)
+    e[inb] = edt[tuple(p[inb].T)]
+    bound = e - norm(q - p) - np.sqrt(ndim / 4)
     near = np.flatnonzero(bound < upper)
     if not len(near):
         return upper
@@ -262,24 +269,25 @@ def path_clearance(paths: np.ndarray, occupied: np.ndarray, samples: int = _CLEA
 
 
 def discrete_metrics(paths: np.ndarray, occupied: np.ndarray, resolution: float = 1.0,
-                     goal: np.ndarray | None = None, goal_radius: float | None = None) -> DiscreteMetrics:
-    """All metrics of discrete paths (T + 1, N, 2) in cells, reported in metres.
+                     goal: np.ndarray | None = None, goal_radius: float | None = None,
+                     downwash: float = 1.0) -> DiscreteMetrics:
+    """All metrics of discrete paths (T + 1, N, d) in cells, reported in metres.
 
     ``reached_goal``: the swarm's centroid at the end within ``goal_radius`` metres of the
-    goal (None without a goal).
+    goal (None without a goal). ``downwash``: c of the separation's scaled metric.
     """
     ds = distance_series(paths) if paths.shape[1] > 1 else None
     mean_d = ds.mean if ds is not None else np.full(len(paths), np.nan)
     min_d = ds.min if ds is not None else np.full(len(paths), np.nan)
     clearance = path_clearance(paths, occupied)
     steps = np.diff(paths.astype(float), axis=0)
-    lengths = np.hypot(steps[..., 0], steps[..., 1]).sum(axis=0) * resolution if len(steps) else np.zeros(paths.shape[1])
+    lengths = norm(steps).sum(axis=0) * resolution if len(steps) else np.zeros(paths.shape[1])
     reached = dist = None
     if goal is not None:
-        dist = float(np.hypot(*(paths[-1].mean(axis=0) - goal))) * resolution
+        dist = float(norm(paths[-1].mean(axis=0) - goal)) * resolution
         reached = bool(goal_radius is not None and dist <= goal_radius)
     return DiscreteMetrics(
-        min_separation=min_separation(paths) * resolution,
+        min_separation=min_separation(paths, downwash) * resolution,
         mean_distance=mean_d * resolution,
         min_distance=min_d * resolution,
         min_obstacle_clearance=None if clearance is None else clearance * resolution,

@@ -34,3 +34,40 @@ def test_discrete_metrics_summary():
     assert m.min_obstacle_clearance == pytest.approx((10 - 2 - 0.5) * 0.5)
     assert m.final_goal_distance == pytest.approx(np.hypot(0, 0.5) * 0.5)
     assert m.reached_goal is True
+
+
+# ---------------------------------------------------------------- voxels and downwash
+
+
+def test_min_separation_is_in_the_downwash_scaled_metric_within_steps():
+    # robot 0 slides under robot 1 (one voxel above the middle of its move)
+    paths = np.array([[[0, 0, 0], [1, 0, 1]], [[2, 0, 0], [1, 0, 1]]])
+    assert min_separation(paths) == pytest.approx(1.0)
+    assert min_separation(paths, downwash=2.0) == pytest.approx(0.5)
+    assert min_separation(paths[:1], downwash=2.0) == pytest.approx(np.hypot(1.0, 0.5))
+
+
+def test_obstacle_clearance_in_3d_matches_brute_force():
+    rng = np.random.default_rng(0)
+    occupied = rng.random((8, 7, 6)) < 0.1
+    pts = rng.uniform(-1, 8, (300, 3))
+    cells = np.argwhere(occupied).astype(float)
+    g = np.maximum(np.abs(pts[:, None] - cells[None]) - 0.5, 0.0)
+    assert obstacle_clearance(occupied, pts) == pytest.approx(np.linalg.norm(g, axis=-1).min())
+
+
+def test_path_clearance_and_lengths_in_3d():
+    occupied = np.zeros((6, 6, 6), bool)
+    occupied[3, 3, 3] = True
+    paths = np.array([[[0, 0, 0], [5, 5, 0]], [[1, 1, 1], [5, 5, 1]], [[2, 2, 2], [5, 5, 3]]])
+    m = discrete_metrics(paths, occupied, resolution=0.5, goal=np.array([3.0, 3.0, 2.0]), goal_radius=2.0,
+                         downwash=2.0)
+    assert np.allclose(m.path_lengths, [2 * np.sqrt(3) * 0.5, 3 * 0.5])
+    # robot 0 passes (2, 2, 2), whose nearest point to the voxel (3, 3, 3) is sqrt(3) * 0.5 cells away
+    s = np.linspace(0, 1, 2001)[:, None]
+    pts = np.concatenate([paths[0, 0] + s * (paths[1, 0] - paths[0, 0]), paths[1, 0] + s * (paths[2, 0] - paths[1, 0])])
+    brute = np.linalg.norm(np.maximum(np.abs(pts - 3.0) - 0.5, 0), axis=1).min()
+    assert m.min_obstacle_clearance == pytest.approx(brute * 0.5, abs=1e-3)
+    # robots 5 apart in x and y: the z scaling does not matter here
+    assert m.min_separation == pytest.approx(min_separation(paths, 2.0) * 0.5)
+    assert m.reached_goal is not None

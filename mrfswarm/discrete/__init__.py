@@ -1,5 +1,10 @@
 """The discrete stage: the swarm moves over the grid, one MRF optimization per step.
 
+The grid has d = 2 or 3 axes (voxels); cells are integer arrays of shape (..., d) and
+every module works on either by the same lines. On voxels, ``downwash`` = c keeps every
+pair of robots one cell apart in the scaled metric of
+:func:`mrfswarm.geometry.downwash_scale` (at steps and along moves).
+
 Modules, in the order data flows through them:
 
 - :mod:`~mrfswarm.discrete.start`: the start cells (explicit, or sampled as the paper does);

@@ -6,8 +6,11 @@ where ICM, a local method, stops. Here the distance is measured along free paths
 shortest-path search (``scipy.sparse.csgraph.dijkstra``) from the goal over a graph whose
 vertices are the free cells and whose edges are the moves a robot can make in one MRF
 step: the 8 neighbours for search order n >= 2 (4 for n = 1), a diagonal move only when
-both cells beside it are free (the motion rule of :mod:`mrfswarm.discrete.motion`). Two distances
-come out of it:
+both cells beside it are free (the motion rule of :mod:`mrfswarm.discrete.motion`). On voxels
+(d = 3) the same rule, one axis more: the moves of the order min(n, 3) stencil, 6, 18 or
+26 neighbours (all of them labels of order n), a face-diagonal move only when the two
+voxels beside the edge it passes are free, a space-diagonal one when the whole 2 x 2 x 2
+block is (no edge or corner cut). Two distances come out of it:
 
 - :attr:`GoalDistance.path`: the length (metres) of the shortest free path, with 8
   (or 4) move directions, so it exceeds the true Euclidean path length by up to 8.2 %
@@ -52,15 +55,16 @@ import numpy as np
 from scipy.sparse import csr_array
 from scipy.sparse.csgraph import dijkstra
 
-from mrfswarm.discrete.motion import moves_clear, stencil
+from mrfswarm.discrete.motion import cell_values, moves_clear, stencil
+from mrfswarm.geometry import norm
 
-#: Label-set order whose moves form the search graph for orders >= 2 (the 8 neighbours).
-_GRAPH_ORDER = 2
+#: Label-set order whose moves form the search graph for orders >= d (all 3^d - 1 neighbours).
+_GRAPH_ORDER = {2: 2, 3: 3}
 
 
 @dataclass(frozen=True)
 class GoalDistance:
-    """Distances from every cell to the goal over free paths, (W, H) each, metres.
+    """Distances from every cell to the goal over free paths, (W, H) or (W, H, D) each, metres.
 
     Attributes
     ----------
@@ -72,7 +76,7 @@ class GoalDistance:
         on the way, in units of goal distance (equal to ``path`` when no climb weight is
         given); ``inf`` where ``path`` is.
     next_cell
-        (W, H, 2) the next cell on each cell's ``field``-shortest path (itself for the goal,
+        (W, H, 2) or (W, H, D, 3) the next cell on each cell's ``field``-shortest path (itself for the goal,
         -1 where unreachable): the move that lowers the static field.
     """
 
@@ -82,27 +86,32 @@ class GoalDistance:
 
     @property
     def reachable(self) -> np.ndarray:
-        """(W, H) bool: free cells with a free path to the goal (the goal included)."""
+        """The grid's shape, bool: free cells with a free path to the goal (the goal included)."""
         return np.isfinite(self.path)
 
 
-def graph_moves(order: int) -> np.ndarray:
-    """The moves (S, 2) that are edges of the search graph for label-set order ``order``.
+def graph_order(order: int, ndim: int = 2) -> int:
+    """The stencil order of the search graph: min(n, d) (the whole 3^d block from n = d on)."""
+    return min(order, _GRAPH_ORDER[ndim])
 
-    The 4 neighbours for n = 1, the 8 neighbours for n >= 2; every one is a label of
-    that order, so the next cell toward the goal is always one move away.
+
+def graph_moves(order: int, ndim: int = 2) -> np.ndarray:
+    """The moves (S, d) that are edges of the search graph for label-set order ``order``.
+
+    In the plane the 4 neighbours for n = 1, the 8 neighbours for n >= 2; on voxels 6,
+    18 or 26 for n = 1, 2, >= 3. Every one is a label of that order, so the next cell
+    toward the goal is always one move away.
     """
-    off = stencil(min(order, _GRAPH_ORDER))
+    off = stencil(graph_order(order, ndim), ndim)
     return off[1:]  # without "stay"
 
 
 def free_moves(free: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Directed edges (from p, to q, move index) of the clear one-step moves between free cells."""
-    W, H = free.shape
+    """Directed edges (from p, to q, move index) of the clear one-step moves between free cells (d = ``free.ndim``)."""
     cells = np.argwhere(free)
-    moves = graph_moves(order)
+    moves = graph_moves(order, free.ndim)
     S = len(moves) + 1  # moves_clear takes stencil indices; index 0 is "stay"
-    ok = moves_clear(free, cells, np.broadcast_to(np.arange(1, S), (len(cells), S - 1)), min(order, _GRAPH_ORDER))
+    ok = moves_clear(free, cells, np.broadcast_to(np.arange(1, S), (len(cells), S - 1)), graph_order(order, free.ndim))
     p_idx, m_idx = np.nonzero(ok)
     src = cells[p_idx]
     dst = src + moves[m_idx]
@@ -116,15 +125,16 @@ def goal_distance(free: np.ndarray, goal_cell: np.ndarray, resolution: float = 1
     Parameters
     ----------
     free
-        (W, H) bool, True where free.
+        (W, H) or (W, H, D) bool, True where free.
     goal_cell
-        (2,) a free cell.
+        (d,) a free cell.
     resolution
         Metres per cell.
     order
-        The label-set order n (n = 1: 4-connected search graph, n >= 2: 8-connected).
+        The label-set order n (n = 1: 4-connected search graph, n >= 2: 8-connected; on
+        voxels 6-, 18-, 26-connected for n = 1, 2, >= 3).
     obstacle
-        (W, H) the obstacle potential rho_O, needed when ``climb_weight > 0``.
+        The obstacle potential over the grid rho_O, needed when ``climb_weight > 0``.
     climb_weight
         Metres of goal distance per unit of obstacle potential climbed (k_G / a_G makes
         rho_G + rho_O free of local minima; 0 gives ``field == path``).
@@ -134,37 +144,38 @@ def goal_distance(free: np.ndarray, goal_cell: np.ndarray, resolution: float = 1
     GoalDistance
     """
     free = np.asarray(free, dtype=bool)
-    W, H = free.shape
+    shape = free.shape
     g = np.asarray(goal_cell, dtype=np.intp)
-    if not (0 <= g[0] < W and 0 <= g[1] < H and free[g[0], g[1]]):
-        raise ValueError(f"goal cell {tuple(int(v) for v in g)} is not a free cell of the {W} x {H} grid")
+    if not (g.shape == (free.ndim,) and np.all((g >= 0) & (g < shape)) and free[tuple(g)]):
+        raise ValueError(f"goal cell {tuple(int(v) for v in g)} is not a free cell of the "
+                         f"{' x '.join(str(n) for n in shape)} grid")
     if climb_weight < 0 or not math.isfinite(climb_weight):
         raise ValueError(f"climb_weight must be finite and >= 0, got {climb_weight!r}")
     if climb_weight > 0 and obstacle is None:
         raise ValueError("climb_weight > 0 needs the obstacle potential")
     src, dst, m_idx = free_moves(free, order)
-    length = np.hypot(*graph_moves(order)[m_idx].T) * resolution
-    n = W * H
+    length = norm(graph_moves(order, free.ndim)[m_idx]) * resolution
+    n = free.size
     # Edges point from q (nearer the goal) to p so that one search from the goal follows
     # them: the cost of moving p -> q sits on the edge q -> p.
-    a = dst[:, 0] * H + dst[:, 1]
-    b = src[:, 0] * H + src[:, 1]
-    gi = int(g[0] * H + g[1])
-    path = _search(a, b, length, n, gi)[0].reshape(W, H)
+    a = np.ravel_multi_index(tuple(dst.T), shape)
+    b = np.ravel_multi_index(tuple(src.T), shape)
+    gi = int(np.ravel_multi_index(tuple(g), shape))
+    path = _search(a, b, length, n, gi)[0].reshape(shape)
     if climb_weight > 0:
         if obstacle is None:
             raise ValueError("climb_weight > 0 needs the obstacle field")
-        rise = np.maximum(0.0, obstacle[dst[:, 0], dst[:, 1]] - obstacle[src[:, 0], src[:, 1]])
+        rise = np.maximum(0.0, cell_values(obstacle, dst) - cell_values(obstacle, src))
         field, pred = _search(a, b, length + climb_weight * rise, n, gi)
-        field = field.reshape(W, H)
+        field = field.reshape(shape)
     else:
         field, pred = _search(a, b, length, n, gi)
-        field = field.reshape(W, H)
-    nxt = np.full((n, 2), -1, dtype=np.intp)
+        field = field.reshape(shape)
+    nxt = np.full((n, free.ndim), -1, dtype=np.intp)
     has = pred >= 0
-    nxt[has] = np.stack([pred[has] // H, pred[has] % H], axis=1)
+    nxt[has] = np.stack(np.unravel_index(pred[has], shape), axis=1)
     nxt[gi] = g
-    return GoalDistance(path=path, field=field, next_cell=nxt.reshape(W, H, 2))
+    return GoalDistance(path=path, field=field, next_cell=nxt.reshape(*shape, free.ndim))
 
 
 def _search(a: np.ndarray, b: np.ndarray, cost: np.ndarray, n: int, source: int) -> tuple[np.ndarray, np.ndarray]:

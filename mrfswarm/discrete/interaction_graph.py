@@ -51,7 +51,9 @@ def knn_edges(points: np.ndarray, k: int) -> np.ndarray:
     Parameters
     ----------
     points
-        (N, 2) robot positions.
+        (N, d) robot positions (d = 2 or 3; Euclidean distance, not the downwash-scaled
+        one: the graph couples the Morse interaction, which is Euclidean; safety is kept
+        over all pairs by the step's hard conflicts, whatever the graph).
     k
         Neighbours per robot, 1 <= k < N. Ties in distance are broken by robot index
         (deterministic).
@@ -387,8 +389,8 @@ def swarm_energy_from_cliques(cliques: list[np.ndarray], positions: np.ndarray, 
     total = 0.0
     for c in cliques:
         cells = positions[c]
-        total += float(static[cells[:, 0], cells[:, 1]].sum())
+        total += float(static[tuple(cells.T)].sum())
         for a in range(len(c)):
             for b in range(a + 1, len(c)):
-                total += float(rho_d(np.hypot(*(cells[a] - cells[b])) * resolution))
+                total += float(rho_d(np.linalg.norm(cells[a] - cells[b]) * resolution))
     return total

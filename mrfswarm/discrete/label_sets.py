@@ -1,13 +1,25 @@
 """Label sets X_i^t: the cells each robot may move to in one MRF step.
 
-X_i^t = cells with (x_i - x)^2 + (y_i - y)^2 <= n (the n-th order neighbourhood), with the
+X_i^t = cells with |x_i - x|^2 <= n (the n-th order neighbourhood; in 3-D squared distance
+over three axes, so n = 3 is the 26-neighbourhood), with the
 paper's heuristics: (a) cells occupied by obstacles or by other robots removed, (b) a cell
 wanted by several robots given to one only (X_i ∩ X_j = ∅); optionally (c) the half
 pointing away from the goal trimmed.
 
 We add one rule the paper leaves implicit: the straight move must keep half a cell from
 every occupied cell (:mod:`mrfswarm.discrete.motion`), so no move cuts a wall's corner or jumps a
-wall. Label 0 is always "stay", which is always in X_i.
+wall. Label 0 is always "stay", which is always in X_i. Cells are (N, d), d = 2 or 3, by the
+same lines. Rule (a) reads "the cells closer than one cell to another robot" in the
+downwash-scaled metric (:func:`mrfswarm.geometry.downwash_scale`): in the plane (or with
+c = 1) that is the robot's own cell, as in the paper; in 3-D with c > 1 also the voxels
+within c - 1 above and below it (its downwash shadow), where no robot may end the step
+while that robot stays. With ``follow`` both are kept, and the step's hard conflicts
+(:mod:`mrfswarm.discrete.step_mrf`) decide, as they do for every move. Rule (b) too:
+besides X_i ∩ X_j = ∅, no move of X_i ends within the shadow of a move of X_j (two robots
+taking them would end closer than one cell); of two such moves the one first in the
+contested rule's order stays (:func:`_shadowed`). In the plane nothing changes. Without it
+a 3-D swarm with c = 2 has ~2 conflict pairs per robot in every step (targets stacked
+one voxel apart), with it a few per hundred robots.
 
 A contested cell goes to the robot nearest to it (so each robot's cells lie in its own
 Voronoi cell, and moves of different robots rarely conflict). The paper does not say who
@@ -33,7 +45,7 @@ from functools import cached_property
 import numpy as np
 
 from mrfswarm.config import CONTESTED_RULES
-from mrfswarm.discrete.motion import moves_clear, stencil
+from mrfswarm.discrete.motion import MIN_SEPARATION, cell_values, clip_cells, in_grid, moves_clear, scaled, stencil
 
 
 @dataclass(frozen=True)
@@ -47,7 +59,7 @@ class LabelSets:
     count
         (N,) number of valid labels per robot (label 0 = stay is always valid).
     starts
-        (N, 2) current cells.
+        (N, d) current cells.
     order
         The neighbourhood order n.
     """
@@ -57,14 +69,19 @@ class LabelSets:
     starts: np.ndarray
     order: int
 
+    @property
+    def ndim(self) -> int:
+        """d, the grid's number of axes (2 or 3)."""
+        return int(self.starts.shape[1])
+
     @cached_property
     def offsets(self) -> np.ndarray:
-        """(N, L, 2) int cell offset of each label; padding is (0, 0)."""
-        return _read_only(stencil(self.order)[self.index])
+        """(N, L, d) int cell offset of each label; padding is (0, ..., 0)."""
+        return _read_only(stencil(self.order, self.ndim)[self.index])
 
     @cached_property
     def cells(self) -> np.ndarray:
-        """(N, L, 2) the cell each label moves to."""
+        """(N, L, d) the cell each label moves to."""
         return _read_only(self.starts[:, None, :] + self.offsets)
 
     @cached_property
@@ -78,17 +95,59 @@ def _read_only(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def shadow_offsets(ndim: int, downwash: float = 1.0) -> np.ndarray:
+    """(K, d) nonzero integer offsets closer than one cell in the downwash-scaled metric.
+
+    None in the plane or with c = 1; in 3-D (0, 0, +-k) for 0 < k < c.
+    """
+    m = int(np.ceil(downwash)) if ndim == 3 else 0
+    z = np.arange(-m, m + 1)
+    off = np.zeros((len(z), ndim), dtype=np.intp)
+    if ndim == 3:
+        off[:, 2] = z
+    close = (z != 0) & (np.linalg.norm(scaled(off, downwash), axis=1) < MIN_SEPARATION - 1e-9)
+    return off[close]
+
+
+def _shadowed(cell_id: np.ndarray, moving: np.ndarray, priority: np.ndarray, robot: np.ndarray,
+              shadows: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """(C,) bool: candidate moves in the downwash shadow of a better one of another robot.
+
+    Rule (b) in the scaled metric: after each cell has one claimant, a move to a voxel
+    within c - 1 above or below another robot's move target loses to it when that one
+    comes first in ``priority`` (the contested rule's order, without the cell). Only
+    ``moving`` candidates (kept, not "stay") take part; stays are never dropped.
+    """
+    C = len(cell_id)
+    rank = np.empty(C, dtype=np.intp)
+    rank[priority] = np.arange(C)
+    who = np.full(int(np.prod(shape)), -1, dtype=np.intp)
+    at = np.flatnonzero(moving)
+    who[cell_id[at]] = at
+    cells = np.stack(np.unravel_index(cell_id[at], shape), axis=1)
+    lose = np.zeros(C, dtype=bool)
+    for o in shadows:
+        nb = cells + o
+        inside = in_grid(nb, shape)
+        rival = np.full(len(at), -1, dtype=np.intp)
+        rival[inside] = who[np.ravel_multi_index(tuple(nb[inside].T), shape)]
+        beaten = (rival >= 0) & (robot[np.maximum(rival, 0)] != robot[at]) & (rank[np.maximum(rival, 0)] < rank[at])
+        lose[at[beaten]] = True
+    return lose
+
+
 def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.ndarray | None = None,
                trim_backward: bool = False, static: np.ndarray | None = None,
-               contested: str = "nearest", goal_distance: np.ndarray | None = None, follow: bool = False) -> LabelSets:
+               contested: str = "nearest", goal_distance: np.ndarray | None = None, follow: bool = False,
+               downwash: float = 1.0) -> LabelSets:
     """Build X_i^t for every robot.
 
     Parameters
     ----------
     free
-        (W, H) bool grid, True where free.
+        (W, H) or (W, H, D) bool grid, True where free.
     starts
-        (N, 2) current cells, distinct and free.
+        (N, d) current cells, distinct and free (d = ``free.ndim``).
     order
         n, the neighbourhood order.
     goal_cell
@@ -99,11 +158,11 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
         is given, a larger distance to the goal along free paths (the straight direction
         would cut the way around a wall).
     static
-        (W, H) the static field rho_S; needed by ``contested = "downhill"``.
+        The static field rho_S over the grid; needed by ``contested = "downhill"``.
     contested
         Who gets a contested cell: a name in :data:`CONTESTED_RULES`.
     goal_distance
-        (W, H) the goal field's distance to the goal (:mod:`mrfswarm.discrete.goal_distance`),
+        The goal field's distance to the goal (:mod:`mrfswarm.discrete.goal_distance`),
         for ``trim_backward``; None: trim by direction.
     follow
         Keep cells where another robot stands now as candidates (rule (a) off for them):
@@ -114,6 +173,9 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
         moves in one step as a whole instead of one robot per step. Staying still is
         always feasible (everybody staying breaks no conflict), so every optimizer's
         starting point and :func:`solvers.mrf.problem.repair` are unchanged.
+    downwash
+        c >= 1: rule (a) also removes the cells within c - 1 voxels right above or below
+        another robot (3-D; see the module docstring).
     """
     if contested not in CONTESTED_RULES:
         raise ValueError(f"contested = {contested!r}: must be one of {', '.join(CONTESTED_RULES)}")
@@ -121,37 +183,44 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
         raise ValueError('contested = "downhill" needs the static field')
     starts = np.asarray(starts, dtype=np.intp)
     N = len(starts)
-    off = stencil(order)
+    off = stencil(order, free.ndim)
     S = len(off)
-    W, H = free.shape
-    cand = starts[:, None, :] + off[None, :, :]  # (N, S, 2)
+    cand = starts[:, None, :] + off[None, :, :]  # (N, S, d)
     ok = moves_clear(free, starts, np.broadcast_to(np.arange(S), (N, S)), order)
-    # (a) cells where another robot stands now
-    robot_at = np.full((W, H), -1, dtype=np.intp)
-    robot_at[starts[:, 0], starts[:, 1]] = np.arange(N)
-    cx = np.clip(cand[..., 0], 0, W - 1)
-    cy = np.clip(cand[..., 1], 0, H - 1)
-    other = robot_at[cx, cy]
+    # (a) cells closer than one cell (scaled) to another robot: the cell it stands on and, on
+    # voxels with downwash, its shadow; each marked with the robot it is near (-2: several)
+    clipped = clip_cells(cand, free.shape)
     if not follow:
+        near = starts[:, None, :] + np.concatenate([np.zeros((1, free.ndim), np.intp),
+                                                    shadow_offsets(free.ndim, downwash)])[None]  # (N, 1 + K, d)
+        owner = np.broadcast_to(np.arange(N)[:, None], near.shape[:2])
+        inside = in_grid(near, free.shape)
+        flat = np.ravel_multi_index(tuple(near[inside].T), free.shape)
+        robot_near = np.full(free.size, -1, dtype=np.intp)
+        robot_near[flat] = owner[inside]
+        if near.shape[1] > 1:  # shadows can overlap (robots c apart in z share the voxels between)
+            srt = np.sort(flat)
+            robot_near[srt[1:][srt[1:] == srt[:-1]]] = -2
+        other = cell_values(robot_near.reshape(free.shape), clipped)
         ok &= (other == -1) | (other == np.arange(N)[:, None])
     # (c) the half that points away from the goal
     if trim_backward and goal_cell is not None:
         if goal_distance is None:
-            to_goal = np.asarray(goal_cell)[None, :] - starts  # (N, 2)
+            to_goal = np.asarray(goal_cell)[None, :] - starts  # (N, d)
             ok &= (off[None, :, :] * to_goal[:, None, :]).sum(-1) >= 0
         else:
-            ok &= goal_distance[cx, cy] <= goal_distance[starts[:, 0], starts[:, 1]][:, None]
+            ok &= cell_values(goal_distance, clipped) <= cell_values(goal_distance, starts)[:, None]
     ok[:, 0] = True  # staying is always allowed (the cell is free and one's own)
     # (b) X_i ∩ X_j = ∅: a contested cell goes to one robot (the first in the sort below)
     r, s = np.nonzero(ok)
-    cell_id = cand[r, s, 0] * H + cand[r, s, 1]
+    cell_id = np.ravel_multi_index(tuple(cand[r, s].T), free.shape)  # (in 2-D, x H + y)
     dist2 = (off[s] ** 2).sum(axis=1)
+    keys: tuple[np.ndarray, ...] = (r, dist2)
     if contested == "downhill":
         assert static is not None  # checked above
-        rise = static[cand[r, s, 0], cand[r, s, 1]] - static[starts[r, 0], starts[r, 1]]
-        order_idx = np.lexsort((r, rise, dist2, cell_id))
-    else:
-        order_idx = np.lexsort((r, dist2, cell_id))
+        rise = cell_values(static, cand[r, s]) - cell_values(static, starts[r])
+        keys = (r, rise, dist2)
+    order_idx = np.lexsort((*keys, cell_id))
     if follow:  # the occupant keeps its cell (its stay); the others compete for it as for any cell
         stay = s == 0
         order_idx = np.concatenate([order_idx[stay[order_idx]], order_idx[~stay[order_idx]]])
@@ -165,6 +234,10 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
         first[1:] = cell_id[order_idx][1:] != cell_id[order_idx][:-1]
         keep = np.zeros(len(r), dtype=bool)
         keep[order_idx[first]] = True
+    shadows = shadow_offsets(free.ndim, downwash)
+    if len(shadows):
+        keep &= ~_shadowed(cell_id, keep & (s != 0), np.lexsort(keys), r, shadows,
+                           free.shape)
     ok[:] = False
     ok[r[keep], s[keep]] = True
     # compact: valid labels first, in stencil order (stay first)

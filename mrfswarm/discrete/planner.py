@@ -17,6 +17,12 @@ neighbour beyond 1.5 d_min).
 
 ``energy[t]`` is the swarm energy of configuration x^t on its own interaction graph
 G(x^t): the quantity the paper plots in its convergence figure.
+
+Cells are (N, d), d = 2 or 3 (voxel grids), by the same lines. In 3-D every pair of
+robots keeps at least one cell in the downwash-scaled metric (``downwash``; a hard
+conflict of each step, checked on every plan); the interaction graph and the Morse
+potential use the plain Euclidean distance: they shape the swarm, while the downwash is
+a safety rule, which holds for all pairs, neighbours or not.
 """
 
 from __future__ import annotations
@@ -32,10 +38,12 @@ from scipy.spatial import cKDTree
 from mrfswarm.config import PROGRESS_RULES
 from mrfswarm.discrete.interaction_graph import CliqueWeights, clique_weights_of_graph, knn_edges, update_clique_weights
 from mrfswarm.discrete.label_sets import LabelSets, label_sets
+from mrfswarm.discrete.motion import MIN_SEPARATION, cell_values, step_min_separation
 from mrfswarm.discrete.potentials import Morse
 from mrfswarm.discrete.safety import discrete_violations
 from mrfswarm.discrete.step_mrf import step_mrf
 from mrfswarm.errors import ScenarioError
+from mrfswarm.geometry import norm
 from solvers import mrf as mrf_solvers
 from solvers.mrf import PairwiseMRF
 
@@ -56,13 +64,13 @@ class DiscreteProblem:
     Attributes
     ----------
     free
-        (W, H) bool, True where free.
+        (W, H) or (W, H, D) bool, True where free.
     static
-        (W, H) the static field rho_S = rho_G + rho_O.
+        The static field rho_S = rho_G + rho_O over the grid.
     start
-        (N, 2) distinct free start cells.
+        (N, d) distinct free start cells, d = ``free.ndim``.
     goal
-        Goal cell (2,) or None (no goal potential).
+        Goal cell (d,) or None (no goal potential).
     morse
         The interaction potential rho_D.
     resolution
@@ -72,16 +80,19 @@ class DiscreteProblem:
     trim_backward, contested, follow
         Label-set rules (:func:`mrfswarm.discrete.label_sets.label_sets`).
     goal_distance
-        (W, H) the distance the goal field uses when it is not the straight line (the
+        The distance the goal field uses when it is not the straight line (the
         geodesic one); ``trim_backward`` then drops moves that increase it.
     goal_path
-        (W, H) length (metres) of the shortest free path from each cell to the goal
+        Length (metres) of the shortest free path from each cell to the goal
         (``inf`` without one), or None: then any fixed point of the energy counts as
         converged.
     goal_region_radius
         A robot with ``goal_path <= goal_region_radius`` is at the goal. A run whose
         energy stops decreasing with a robot that could reach the goal region outside it
         ends as ``"trapped"``, not ``"converged"``.
+    downwash
+        c = ``scenario.downwash`` >= 1: robots keep one cell apart in the metric of
+        :func:`mrfswarm.geometry.downwash_scale` (z / c in 3-D; no effect in 2-D).
     """
 
     free: np.ndarray
@@ -124,7 +135,7 @@ class DiscretePlan:
     Attributes
     ----------
     paths
-        (T + 1, N, 2) cells, x^0 .. x^T.
+        (T + 1, N, d) cells, x^0 .. x^T.
     energy
         (T + 1,) swarm energy of each configuration on its own graph.
     converged
@@ -177,7 +188,7 @@ def graph_weights(positions: np.ndarray, k: int, timings: dict[str, float] | Non
 def mrf_step(problem: DiscreteProblem, positions: np.ndarray, method: str = "icm",
              options: mrf_solvers.Options | None = None, weights: CliqueWeights | None = None,
              graph_timings: dict[str, float] | None = None) -> StepOutcome:
-    """Run one MRF step from ``positions`` (N, 2) cells.
+    """Run one MRF step from ``positions`` (N, d) cells.
 
     ``weights`` (with the ``graph_timings`` it took) may be passed when G(positions) is
     already known.
@@ -204,7 +215,7 @@ def mrf_step(problem: DiscreteProblem, positions: np.ndarray, method: str = "icm
 
 def step_model(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueWeights,
                timings: dict[str, float] | None = None) -> tuple[LabelSets, PairwiseMRF]:
-    """The MRF of one step from ``positions`` (N, 2) cells on the graph ``weights`` = G(positions).
+    """The MRF of one step from ``positions`` (N, d) cells on the graph ``weights`` = G(positions).
 
     The label sets X^t (:func:`problem_label_sets`) and the step's pairwise MRF over them
     (:func:`~mrfswarm.discrete.step_mrf.step_mrf`: unary and pairwise terms of the clique
@@ -214,7 +225,7 @@ def step_model(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueW
     t0 = time.perf_counter()
     labels = problem_label_sets(problem, positions)
     t1 = time.perf_counter()
-    model = step_mrf(labels, weights, problem.static, problem.morse, problem.resolution)
+    model = step_mrf(labels, weights, problem.static, problem.morse, problem.resolution, problem.downwash)
     if timings is not None:
         timings["labels"] = t1 - t0
         timings["energy"] = time.perf_counter() - t1
@@ -224,11 +235,11 @@ def step_model(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueW
 def problem_label_sets(problem: DiscreteProblem, positions: np.ndarray) -> LabelSets:
     """X^t for the robots at ``positions`` under the problem's label-set rules."""
     return label_sets(problem.free, positions, problem.order, problem.goal, problem.trim_backward, problem.static,
-                      problem.contested, problem.goal_distance, problem.follow)
+                      problem.contested, problem.goal_distance, problem.follow, problem.downwash)
 
 
 def _static_sum(problem: DiscreteProblem, positions: np.ndarray) -> float:
-    return float(problem.static[positions[:, 0], positions[:, 1]].sum())
+    return float(cell_values(problem.static, positions).sum())
 
 
 def separation_cells(problem: DiscreteProblem) -> float:
@@ -245,20 +256,30 @@ def nearest_neighbour_cells(positions: np.ndarray) -> np.ndarray:
 
 
 def _check_start(problem: DiscreteProblem, start: np.ndarray) -> None:
-    cut = ~np.isfinite(problem.static[start[:, 0], start[:, 1]])
+    if start.ndim != 2 or start.shape[1] != problem.free.ndim:
+        raise ScenarioError(f"start cells have shape {start.shape}, the grid has {problem.free.ndim} axes")
+    cut = ~np.isfinite(cell_values(problem.static, start))
     if cut.any():
         i = int(np.flatnonzero(cut)[0])
-        raise ScenarioError(f"robot {i} at cell ({start[i, 0]}, {start[i, 1]}) has no free path to the goal "
+        raise ScenarioError(f"robot {i} at cell {tuple(int(v) for v in start[i])} has no free path to the goal "
                             f"({int(cut.sum())} robot(s) cut off)")
+    # staying must be feasible for everybody (every step starts from it): the start keeps
+    # every pair one cell apart in the downwash-scaled metric
+    d, pair = step_min_separation(start, start, problem.downwash)
+    if d < MIN_SEPARATION - 1e-9 and pair is not None:
+        i, j = pair
+        raise ScenarioError(f"robots {i} and {j} start at cells {tuple(int(v) for v in start[i])} and "
+                            f"{tuple(int(v) for v in start[j])}, {d:.3g} cells apart in the downwash-scaled metric "
+                            f"(scenario.downwash = {problem.downwash:g}); they must be at least 1 apart")
 
 
 def swarm_energy(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueWeights | None = None) -> float:
     """eps(x) on the interaction graph of x (pairwise reduction)."""
     w = weights if weights is not None else graph_weights(positions, problem.k)
     cells = positions
-    e = float((w.node * problem.static[cells[:, 0], cells[:, 1]]).sum())
+    e = float((w.node * cell_values(problem.static, cells)).sum())
     if len(w.edges):
-        d = np.hypot(*(cells[w.edges[:, 0]] - cells[w.edges[:, 1]]).T) * problem.resolution
+        d = norm(cells[w.edges[:, 0]] - cells[w.edges[:, 1]]) * problem.resolution
         e += float((w.edge * problem.morse(d)).sum())
     return e
 
@@ -295,7 +316,7 @@ def _short_of_goal(problem: DiscreteProblem, cells: np.ndarray) -> bool:
     """Some robot that has a free path to the goal is outside the goal region (never without a goal)."""
     if problem.goal_path is None:
         return False
-    d = problem.goal_path[cells[:, 0], cells[:, 1]]
+    d = cell_values(problem.goal_path, cells)
     return bool((np.isfinite(d) & ~(d <= problem.goal_region_radius)).any())
 
 
@@ -399,7 +420,7 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         converged, reason = False, "trapped"
     log.info("discrete stage: %d steps, %s", len(paths) - 1, reason)
     stacked = np.stack(paths)
-    bad = discrete_violations(stacked, problem.free)
+    bad = discrete_violations(stacked, problem.free, downwash=problem.downwash)
     if bad:  # a bug in the planner or an optimizer, never something to return
         raise AssertionError("discrete safety invariant violated: " + "; ".join(bad))
     return DiscretePlan(

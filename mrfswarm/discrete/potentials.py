@@ -12,6 +12,9 @@
   sigma_hat cells.
 - Static field rho_S = rho_G + rho_O: one array over the grid, computed once per scenario.
 
+Grids are (W, H) or voxel grids (W, H, D): every field here is computed on the grid's own
+shape (the blur is an n-D Gaussian, distances count all axes), by the same lines.
+
 Units. The potentials' length parameters are in CELLS: the Morse lengths k_a and k_r
 (``interaction.k_a``, ``interaction.k_r``), the goal length k_G (``goal_potential.k``) and
 the blur sigma_hat (``obstacle_potential.sigma``). The paper's table gives them for its
@@ -35,6 +38,7 @@ from scipy import ndimage
 from mrfswarm.config import GoalPotentialConfig, InteractionConfig, ObstaclePotentialConfig
 from mrfswarm.discrete.goal_distance import GoalDistance, goal_distance
 from mrfswarm.errors import ConfigError, ScenarioError
+from mrfswarm.geometry import norm
 
 #: zeta = ZETA_MARGIN * |rho'_I(d_min)| when the config leaves zeta unset.
 ZETA_MARGIN = 1.01
@@ -118,11 +122,17 @@ class Morse:
 MAX_EXPONENT = 700.0
 
 
-def goal_field(shape: tuple[int, int], goal_cell: np.ndarray | None, resolution: float,
-               cfg: GoalPotentialConfig, distance: np.ndarray | None = None) -> np.ndarray:
-    """rho_G over every cell, shape (W, H); zeros when there is no goal.
+def straight_distance(shape: tuple[int, ...], goal_cell: np.ndarray, resolution: float) -> np.ndarray:
+    """|p - p_g| (metres) from every cell of a grid of ``shape`` to ``goal_cell``."""
+    axes = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij")
+    return norm(np.stack([x - g for x, g in zip(axes, goal_cell)], axis=-1)) * resolution
 
-    rho_G(p) = a_G exp(d(p) / k_G), d in metres: ``distance`` (W, H) if given (``inf``
+
+def goal_field(shape: tuple[int, ...], goal_cell: np.ndarray | None, resolution: float,
+               cfg: GoalPotentialConfig, distance: np.ndarray | None = None) -> np.ndarray:
+    """rho_G over every cell, of the grid's ``shape`` ((W, H) or (W, H, D)); zeros when there is no goal.
+
+    rho_G(p) = a_G exp(d(p) / k_G), d in metres: ``distance`` (of ``shape``) if given (``inf``
     gives ``inf``), else the straight-line distance |p - p_g|; k_G = ``cfg.k`` cells of
     ``resolution`` metres.
 
@@ -134,8 +144,7 @@ def goal_field(shape: tuple[int, int], goal_cell: np.ndarray | None, resolution:
     if goal_cell is None:
         return np.zeros(shape)
     if distance is None:
-        ix, iy = np.meshgrid(np.arange(shape[0]), np.arange(shape[1]), indexing="ij")
-        distance = np.hypot(ix - goal_cell[0], iy - goal_cell[1]) * resolution
+        distance = straight_distance(shape, goal_cell, resolution)
     finite = distance[np.isfinite(distance)]
     far = float(finite.max(initial=0.0)) / resolution  # cells
     if far / cfg.k > MAX_EXPONENT:
@@ -146,7 +155,7 @@ def goal_field(shape: tuple[int, int], goal_cell: np.ndarray | None, resolution:
 
 
 def obstacle_field(prob: np.ndarray, cfg: ObstaclePotentialConfig) -> np.ndarray:
-    """rho_O = (Gamma * [P(occupied) >= 0.5]) convolved with a Gaussian of sigma cells, shape (W, H)."""
+    """rho_O = (Gamma * [P(occupied) >= 0.5]) convolved with a Gaussian of sigma cells, on ``prob``'s shape (any d)."""
     m_hat = np.where(prob >= 0.5, cfg.gamma, 0.0)
     if cfg.sigma == 0:
         return m_hat
@@ -167,15 +176,13 @@ def goal_distances(prob: np.ndarray, goal_cell: np.ndarray, resolution: float, g
         return goal_distance(free, goal_cell, resolution, order, obstacle_field(prob, obstacle_cfg),
                              climb_weight=goal_cfg.k * resolution / goal_cfg.a)
     d = goal_distance(free, goal_cell, resolution, order)
-    ix, iy = np.meshgrid(np.arange(prob.shape[0]), np.arange(prob.shape[1]), indexing="ij")
-    straight = np.hypot(ix - goal_cell[0], iy - goal_cell[1]) * resolution
-    return GoalDistance(path=d.path, field=straight, next_cell=d.next_cell)
+    return GoalDistance(path=d.path, field=straight_distance(prob.shape, goal_cell, resolution), next_cell=d.next_cell)
 
 
 def static_field(prob: np.ndarray, goal_cell: np.ndarray | None, resolution: float,
                  goal_cfg: GoalPotentialConfig, obstacle_cfg: ObstaclePotentialConfig, order: int = 2,
                  distances: GoalDistance | None = None) -> np.ndarray:
-    """rho_S = rho_G + rho_O over the grid, shape (W, H), computed once per scenario.
+    """rho_S = rho_G + rho_O over the grid, shape (W, H) or (W, H, D), computed once per scenario.
 
     The goal term uses ``goal_cfg.distance`` (``distances`` if already computed by
     :func:`goal_distances`; ``order`` is the label-set order n, which sets the search

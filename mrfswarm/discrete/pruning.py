@@ -34,7 +34,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mrfswarm.discrete.motion import WALL_CLEARANCE, segments_clear
-from mrfswarm.geometry import segment_clear, segment_segment_distance
+from mrfswarm.geometry import norm, segment_clear, segment_segment_distance
 
 _TOUCH = 1e-9
 #: Slack on the k-d tree search radius (the exact distance test decides).
@@ -56,8 +56,9 @@ def _window_segments(paths: np.ndarray, robots: np.ndarray, a: int, b: int) -> t
     if b == a:  # a one-point window: the robots' positions
         p = paths[a, robots].astype(float)
         return p, p, robots
-    p = paths[a:b, robots].reshape(-1, 2).astype(float)
-    q = paths[a + 1:b + 1, robots].reshape(-1, 2).astype(float)
+    d = paths.shape[-1]
+    p = paths[a:b, robots].reshape(-1, d).astype(float)
+    q = paths[a + 1:b + 1, robots].reshape(-1, d).astype(float)
     return p, q, np.tile(robots, b - a)
 
 
@@ -77,7 +78,7 @@ def _crosses_others(paths: np.ndarray, robot: int, a: int, b: int, p: np.ndarray
 def _near_robots(paths: np.ndarray, robot: int, a: int, b: int) -> np.ndarray:
     """Robots whose positions over steps a..b have a bounding box within touching distance of ``robot``'s."""
     w = paths[a:b + 1].astype(float)
-    lo, hi = w.min(axis=0), w.max(axis=0)  # (N, 2)
+    lo, hi = w.min(axis=0), w.max(axis=0)  # (N, d)
     gap = np.maximum(lo - hi[robot], lo[robot] - hi).max(axis=1)
     near = np.flatnonzero(gap < _TOUCH + _SLACK)
     return near[near != robot]
@@ -110,13 +111,13 @@ class _WindowMoves:
 
     def __init__(self, paths: np.ndarray, a: int, b: int) -> None:
         self.p, self.q, self.owner = _window_segments(paths, np.arange(paths.shape[1]), a, b)
-        self.mid, self.half = (self.p + self.q) / 2, np.hypot(*(self.q - self.p).T) / 2
+        self.mid, self.half = (self.p + self.q) / 2, norm(self.q - self.p) / 2
         self.tree = cKDTree(self.mid)
         self.reach = float(self.half.max()) + _TOUCH + _SLACK
 
     def touched(self, cp: np.ndarray, cq: np.ndarray, owner: np.ndarray) -> np.ndarray:
         """(C,) bool: does chord c (ends ``cp``, ``cq``, of robot ``owner[c]``) touch another robot's move?"""
-        c_mid, c_half = (cp + cq) / 2, np.hypot(*(cq - cp).T) / 2
+        c_mid, c_half = (cp + cq) / 2, norm(cq - cp) / 2
         sp, sq = self.p, self.q
         ci_parts, si_parts = [], []
         # chords queried in groups of like length, each with its own reach: one global reach set by
@@ -149,22 +150,25 @@ def _through_others_cells(paths: np.ndarray, a: int, b: int, cp: np.ndarray, cq:
     the converse need not hold (a chord can cross a move between cells), so a chord
     without such a cell still needs the exact test. The chord ``cp``..``cq`` between
     integer cells passes through the lattice points ``cp + t (cq - cp) / g``,
-    ``t = 0..g``, ``g = gcd(|dx|, |dy|)``; the cells are looked up among the window's
-    visited cells, each with the one robot visiting it (or a mark for several).
+    ``t = 0..g``, ``g`` the gcd of the offset's components; the cells are looked up among
+    the window's visited cells, each with the one robot visiting it (or a mark for
+    several).
     """
-    N = paths.shape[1]
-    w = paths[a:b + 1].reshape(-1, 2).astype(np.int64)
+    N, ndim = paths.shape[1], paths.shape[2]
+    w = paths[a:b + 1].reshape(-1, ndim).astype(np.int64)
     lo = w.min(axis=0)
-    span = int(w[:, 1].max() - lo[1]) + 1
+    # row-major keys over the window's bounding box (a chord's lattice points lie in it)
+    dims = w.max(axis=0) - lo + 1
+    strides = np.append(np.cumprod(dims[:0:-1])[::-1], 1)
 
     def key(c: np.ndarray) -> np.ndarray:
-        return (c[:, 0] - lo[0]) * span + (c[:, 1] - lo[1])
+        return (c - lo) @ strides
 
     visits = np.unique(key(w) * N + np.tile(np.arange(N), b - a + 1))  # (cell, robot), sorted by cell then robot
     cells, first, count = np.unique(visits // N, return_index=True, return_counts=True)
     visitor = np.where(count > 1, -1, visits[first] % N)  # the one robot visiting a cell, -1 if several
     d = cq - cp
-    g = np.gcd(np.abs(d[:, 0]), np.abs(d[:, 1]))  # 0 for a chord of zero length: its one point
+    g = np.gcd.reduce(np.abs(d), axis=1)  # 0 for a chord of zero length: its one point
     step = d // np.maximum(g, 1)[:, None]
     chord = np.repeat(np.arange(len(cp)), g + 1)
     t = np.arange(len(chord)) - np.repeat(np.cumsum(g + 1) - (g + 1), g + 1)
@@ -205,9 +209,9 @@ def prune_paths(paths: np.ndarray, free: np.ndarray, horizon: int) -> list[np.nd
     Parameters
     ----------
     paths
-        (T + 1, N, 2) discrete paths in cells.
+        (T + 1, N, d) discrete paths in cells.
     free
-        (W, H) bool grid.
+        (W, H) or (W, H, D) bool grid.
     horizon
         H, steps per planning horizon.
 

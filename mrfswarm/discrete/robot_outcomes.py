@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mrfswarm.discrete.motion import moves_clear, stencil
+from mrfswarm.discrete.motion import cell_values, clip_cells, moves_clear, stencil
 from mrfswarm.discrete.planner import nearest_neighbour_cells
 
 #: Free cells per robot in the goal region (besides scenario.goal_radius).
@@ -100,31 +100,29 @@ class RobotOutcome:
 
 
 def descent_ends(free: np.ndarray, static: np.ndarray, order: int) -> np.ndarray:
-    """(W, H, 2) the cell where steepest descent of ``static`` from each cell stops.
+    """(W, H, 2) or (W, H, D, 3): the cell where steepest descent of ``static`` from each cell stops.
 
     From each free cell, the clear move of the order-n stencil to the lowest cell (if it
     is lower), repeated until no move lowers ``static``: a local minimum of the static
     field. Other robots are ignored: this asks where the field itself leads. Vectorized
-    by pointer doubling (log2(W H) rounds over all cells); occupied cells map to
-    themselves.
+    by pointer doubling (log2(number of cells) rounds over all cells); occupied cells map
+    to themselves.
     """
-    W, H = free.shape
-    off = stencil(order)
+    shape = free.shape
+    off = stencil(order, free.ndim)
     S = len(off)
     cells = np.argwhere(free)
     ok = moves_clear(free, cells, np.broadcast_to(np.arange(S), (len(cells), S)), order)
-    to = cells[:, None, :] + off[None]
-    x = np.clip(to[..., 0], 0, W - 1)
-    y = np.clip(to[..., 1], 0, H - 1)
-    value = np.where(ok, static[x, y], np.inf)
-    value[:, 0] = static[cells[:, 0], cells[:, 1]]  # stay: the move must lower rho_S strictly
+    to = clip_cells(cells[:, None, :] + off[None], shape)
+    value = np.where(ok, cell_values(static, to), np.inf)
+    value[:, 0] = cell_values(static, cells)  # stay: the move must lower rho_S strictly
     best = np.argmin(value, axis=1)  # ties keep the earlier index, "stay" first
-    nxt = np.arange(W * H)
-    here = cells[:, 0] * H + cells[:, 1]
-    nxt[here] = x[np.arange(len(cells)), best] * H + y[np.arange(len(cells)), best]
-    for _ in range(int(np.ceil(np.log2(max(2, W * H)))) + 1):
+    nxt = np.arange(free.size)
+    here = np.ravel_multi_index(tuple(cells.T), shape)
+    nxt[here] = np.ravel_multi_index(tuple(to[np.arange(len(cells)), best].T), shape)
+    for _ in range(int(np.ceil(np.log2(max(2, free.size)))) + 1):
         nxt = nxt[nxt]
-    return np.stack([nxt // H, nxt % H], axis=-1).reshape(W, H, 2)
+    return np.stack(np.unravel_index(nxt, shape), axis=-1).reshape(*shape, free.ndim)
 
 
 def robot_outcomes(final: np.ndarray, free: np.ndarray, static: np.ndarray, order: int, resolution: float,
@@ -135,9 +133,9 @@ def robot_outcomes(final: np.ndarray, free: np.ndarray, static: np.ndarray, orde
     Parameters
     ----------
     final
-        (N, 2) final cells.
+        (N, d) final cells.
     free, static
-        (W, H) the free cells and rho_S.
+        The free cells and rho_S over the grid ((W, H) or (W, H, D)).
     order
         Label-set order n (which moves a robot has).
     resolution
@@ -153,9 +151,9 @@ def robot_outcomes(final: np.ndarray, free: np.ndarray, static: np.ndarray, orde
     final = np.asarray(final, dtype=np.intp)
     nn = nearest_neighbour_cells(final) * resolution
     if goal_path is not None:
-        d = goal_path[final[:, 0], final[:, 1]]
-        end = descent_ends(free, static, order)[final[:, 0], final[:, 1]]
-        field_leads_home = goal_path[end[:, 0], end[:, 1]] <= region_radius
+        d = cell_values(goal_path, final)
+        end = cell_values(descent_ends(free, static, order), final)
+        field_leads_home = cell_values(goal_path, end) <= region_radius
     out = []
     for i, cell in enumerate(final):
         reason = None

@@ -18,6 +18,6 @@ def random_map_static(free: np.ndarray, goal: np.ndarray | None, start: np.ndarr
     """
     prob = (~free).astype(float)
     s = static_field(prob, goal, 1.0, GoalPotentialConfig(distance=distance), ObstaclePotentialConfig(), order)
-    if np.isfinite(s[start[:, 0], start[:, 1]]).all():
+    if np.isfinite(s[tuple(np.asarray(start).T)]).all():
         return s
     return static_field(prob, goal, 1.0, GoalPotentialConfig(distance="euclidean"), ObstaclePotentialConfig(), order)
