@@ -137,7 +137,7 @@ def run_case(args: tuple) -> tuple[dict, np.ndarray | None]:
         "mrf_steps": plan.n_steps, "stop_reason": plan.stop_reason,
         "trapped": reasons.count("trapped"), "stalled": reasons.count("stalled") + reasons.count("max_steps"),
         "separated": sum(r.separated for r in robots),
-        "min_separation_m": round(min_separation(plan.paths) * scn.grid.resolution, 4),
+        "min_separation_m": round(min_separation(plan.paths, scn.downwash) * scn.grid.resolution, 4),
         "max_nearest_neighbour_m": round(max_nn, 3), "planning_s": round(t2 - t0, 4), "field_s": round(t1 - t0, 4),
         "goal_region_m": round(scn.goal_region_radius, 3),
     }

@@ -270,11 +270,13 @@ def path_clearance(paths: np.ndarray, occupied: np.ndarray, samples: int = _CLEA
 
 def discrete_metrics(paths: np.ndarray, occupied: np.ndarray, resolution: float = 1.0,
                      goal: np.ndarray | None = None, goal_radius: float | None = None,
-                     downwash: float = 1.0) -> DiscreteMetrics:
+                     downwash: float = 1.0, arrived: bool = False) -> DiscreteMetrics:
     """All metrics of discrete paths (T + 1, N, d) in cells, reported in metres.
 
     ``reached_goal``: the swarm's centroid at the end within ``goal_radius`` metres of the
-    goal (None without a goal). ``downwash``: c of the separation's scaled metric.
+    goal, or every robot in the goal region (``arrived``: the plan ended by the arrival rule,
+    ``mrf.arrival``; a large swarm fills a region wider than ``goal_radius``, and its centroid
+    can sit off it); None without a goal. ``downwash``: c of the separation's scaled metric.
     """
     ds = distance_series(paths) if paths.shape[1] > 1 else None
     mean_d = ds.mean if ds is not None else np.full(len(paths), np.nan)
@@ -285,7 +287,7 @@ def discrete_metrics(paths: np.ndarray, occupied: np.ndarray, resolution: float 
     reached = dist = None
     if goal is not None:
         dist = float(norm(paths[-1].mean(axis=0) - goal)) * resolution
-        reached = bool(goal_radius is not None and dist <= goal_radius)
+        reached = bool(arrived or (goal_radius is not None and dist <= goal_radius))
     return DiscreteMetrics(
         min_separation=min_separation(paths, downwash) * resolution,
         mean_distance=mean_d * resolution,

@@ -358,7 +358,8 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
                                arrival=cfg.mrf.arrival)
         timings["discrete"] = time.perf_counter() - t0
     metrics = discrete_metrics(plan_d.paths, scn.grid.occupied, scn.grid.resolution, scn.goal,
-                               scn.goal_radius)
+                               scn.goal_radius, downwash=cfg.scenario.downwash,
+                               arrived=plan_d.stop_reason == "arrived")
     result = Result(config=cfg, scenario=scn, discrete=plan_d, metrics=metrics, pruned=[], timings_s=timings)
     try:
         if plan_d.n_steps == 0 and metrics.reached_goal is False:

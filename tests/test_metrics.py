@@ -34,6 +34,23 @@ def test_discrete_metrics_summary():
     assert m.min_obstacle_clearance == pytest.approx((10 - 2 - 0.5) * 0.5)
     assert m.final_goal_distance == pytest.approx(np.hypot(0, 0.5) * 0.5)
     assert m.reached_goal is True
+    far = discrete_metrics(paths, occ, resolution=0.5, goal=np.array([8, 1]), goal_radius=1.0)
+    assert far.reached_goal is False  # centroid 3 m away
+    # ... unless the plan ended by the arrival rule (every robot in the goal region)
+    assert discrete_metrics(paths, occ, 0.5, np.array([8, 1]), 1.0, arrived=True).reached_goal is True
+
+
+def test_a_big_swarm_that_arrived_reached_the_goal():
+    """swarm100 ends by the arrival rule with its centroid off goal_radius; result.json says reached."""
+    from mrfswarm.config import load_config
+    from mrfswarm.pipeline import plan
+    from support.repository import EXPERIMENTS
+
+    r = plan(load_config(EXPERIMENTS / "swarm100.toml", ["smoothing.enabled=false"]), progress=False)
+    s = r.summary()
+    assert r.discrete.stop_reason == "arrived" and s["robots_at_goal"] == s["n_robots"] == 100
+    assert r.metrics.final_goal_distance > r.scenario.goal_radius  # the centroid alone would say no
+    assert s["reached_goal"] is True
 
 
 # ---------------------------------------------------------------- voxels and downwash
