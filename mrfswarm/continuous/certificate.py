@@ -144,7 +144,7 @@ def _hull_bound(points: np.ndarray) -> np.ndarray:
         w = foot - A
         d00, d01, d11 = (e0 * e0).sum(-1), (e0 * e1).sum(-1), (e1 * e1).sum(-1)
         d20, d21 = (w * e0).sum(-1), (w * e1).sum(-1)
-        den = np.where(flat, 1.0, d00 * d11 - d01 * d01)
+        den = np.where(flat, 1.0, nn)  # d00 d11 - d01^2 = |e0 x e1|^2, without the cancellation
         v, u = (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den
         inside = ~flat & (v >= 0) & (u >= 0) & (u + v <= 1)
         cand.append(np.where(inside[..., None], foot, points[:, :1]))  # else a point already a candidate
