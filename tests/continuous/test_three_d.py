@@ -410,3 +410,18 @@ def test_every_pair_of_faces_is_looked_at():
     assert hull_distance_from_origin(tri[None])[0] == pytest.approx(3.0)
     for perm in itertools.permutations(range(3)):
         assert hull_distance_from_origin(tri[list(perm)][None])[0] == pytest.approx(3.0)
+
+
+def test_the_pipeline_threads_the_downwash_and_the_plane_ignores_it():
+    """scenario.downwash reaches the continuous stage; in the plane it changes nothing, bit for bit."""
+    import mrfswarm
+    from mrfswarm.pipeline import plan
+    from support.repository import EXPERIMENTS
+
+    base = ["simulation.enabled=false"]
+    one = plan(mrfswarm.load_config(EXPERIMENTS / "free5.toml", base)).continuous
+    two = plan(mrfswarm.load_config(EXPERIMENTS / "free5.toml", base + ["scenario.downwash=2"])).continuous
+    assert one.downwash == 1.0 and two.downwash == 2.0
+    for a, b in zip(one.trajectories, two.trajectories):
+        assert np.array_equal(a.coefficients, b.coefficients) and np.array_equal(a.durations, b.durations)
+    assert one.min_separation == two.min_separation
