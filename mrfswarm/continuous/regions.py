@@ -288,11 +288,16 @@ def region_clearance(regions: Regions, grid: OccupancyGrid, reach: float) -> np.
         if d == 2:
             poly = np.broadcast_to(corners[ti, ni][:, None], cells.shape[:2] + (4, 2))
             dist = np.where(valid, polygon_box_distance(poly, centers, 0.5 * res), np.inf)
-        else:  # only the occupied voxels: the exact box-cube distance looks at 200 features of each pair
+        else:  # only the occupied voxels; a box's distance is the gap axis by axis, an oriented box's the
+            # exact box-cube distance (200 features of each pair)
             dist = np.full(valid.shape, np.inf)
             r, k = np.nonzero(valid)
-            dist[r, k] = box_cube_distance(regions.axes[ti[r], ni[r]], regions.lower[ti[r], ni[r]],
-                                           regions.upper[ti[r], ni[r]], centers[r, k], 0.5 * res)
+            rt, rn, c = ti[r], ni[r], centers[r, k]
+            lo, hi = regions.lower[rt, rn], regions.upper[rt, rn]
+            val = norms(np.maximum(0.0, np.maximum(lo - c - 0.5 * res, c - 0.5 * res - hi)))
+            o = regions.oriented[rt, rn]
+            val[o] = box_cube_distance(regions.axes[rt[o], rn[o]], lo[o], hi[o], c[o], 0.5 * res)
+            dist[r, k] = val
         out[ti, ni] = np.minimum(out[ti, ni], dist.min(axis=1))
     return out
 

@@ -161,6 +161,13 @@ def test_three_d_regions_are_boxes_shrunk_by_the_radius_and_clear_of_voxels():
     assert reg.axes.shape[2:] == (3, 3) and reg.corners().shape[2:] == (8, 3)
     clr = region_clearance(reg, grid, 2 * RADIUS)
     assert clr.min() >= RADIUS - 1e-12
+    # against every voxel, off-map ones (a wall around the map) included
+    occ = np.pad(grid.occupied, 2, constant_values=True)
+    cells = np.argwhere(occ) - 2
+    gap = np.maximum(0, np.maximum(reg.lower[..., None, :] - cells - 0.5, cells - 0.5 - reg.upper[..., None, :]))
+    brute = np.minimum(np.linalg.norm(gap, axis=-1).min(axis=-1), 2 * RADIUS)
+    np.testing.assert_allclose(clr, brute, atol=1e-12)
+    assert (clr < 2 * RADIUS).any()  # the window's regions come near the wall
     # the steps through the window: a box a voxel wide, shrunk by the radius on each side
     P = grid.cell_to_world(window_paths())
     X = reg.lower <= P[:-1] + 1e-12
