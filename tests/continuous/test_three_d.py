@@ -491,3 +491,13 @@ def test_random_voxel_swarms_with_downwash(seed):
     assert c.regions.violation(cps).max() == 0.0
     for r, lim in zip((1, 2, 3), (cfg.v_max, cfg.a_max, cfg.j_max)):
         assert max_derivative_norms(c.trajectories, r).max() <= lim
+
+
+def test_pieces_spanning_several_steps_in_space():
+    """smoothing.max_pieces in 3-D: fewer polynomial pieces than steps, split at the steps for the certificate."""
+    cfg = SmoothingConfig(horizon=8, execution=0.5, max_pieces=5)
+    c = RecedingHorizon(window_paths(), window_wall(), cfg, RADIUS, workers=1, downwash=DOWNWASH).run()
+    assert c.certificate.ok and c.pieces_fit
+    assert max(c.pieces_per_robot) < len(c.knot_times) - 1
+    dense = brute_check(c.trajectories, window_wall(), downwash_scale(3, DOWNWASH))
+    assert dense["separation"] >= 2 * RADIUS and dense["clearance"] >= RADIUS and not dense["off_map"]
