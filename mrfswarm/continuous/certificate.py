@@ -139,7 +139,9 @@ def _hull_bound(points: np.ndarray) -> np.ndarray:
         e0, e1 = B - A, C - A
         n = np.cross(e0, e1)
         nn = (n * n).sum(-1)
-        flat = nn <= 1e-24 * np.maximum((e0 * e0).sum(-1) * (e1 * e1).sum(-1), 1e-300)
+        # slivers (sin^2 of their angle below 1e-12) are left to their edges, which come within 1e-6 of them:
+        # the foot of a sliver's plane is rounding noise (the plane through a near-line turns freely about it)
+        flat = nn <= 1e-12 * np.maximum((e0 * e0).sum(-1) * (e1 * e1).sum(-1), 1e-300)
         foot = n * ((n * A).sum(-1) / np.where(flat, 1.0, nn))[..., None]  # the origin's projection on the plane
         w = foot - A
         d00, d01, d11 = (e0 * e0).sum(-1), (e0 * e1).sum(-1), (e1 * e1).sum(-1)
@@ -148,13 +150,16 @@ def _hull_bound(points: np.ndarray) -> np.ndarray:
         v, u = (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den
         inside = ~flat & (v >= 0) & (u >= 0) & (u + v <= 1)
         cand.append(np.where(inside[..., None], foot, points[:, :1]))  # else a point already a candidate
-    cand_all = np.concatenate(cand, axis=1)
-    r = norms(cand_all)
-    x = cand_all[np.arange(P), np.argmin(r, axis=1)]  # (P, d)
-    nx = norms(x)
-    u = x / np.where(nx > 0, nx, 1.0)[:, None]
-    bound = (points * u[:, None, :]).sum(-1).min(axis=1)
-    return np.where(nx > 0, np.maximum(bound, 0.0), 0.0)
+    # two directions, each a valid bound: the nearest candidate's, and the nearest point or segment's
+    # (robust: clamped projections), in case rounding put a triangle's foot nearer than the hull is
+    out = np.zeros(P)
+    for c in (np.concatenate(cand, axis=1), np.concatenate(cand[:2], axis=1)):
+        x = c[np.arange(P), np.argmin(norms(c), axis=1)]  # (P, d)
+        nx = norms(x)
+        u = x / np.where(nx > 0, nx, 1.0)[:, None]
+        bound = (points * u[:, None, :]).sum(-1).min(axis=1)
+        out = np.maximum(out, np.where(nx > 0, bound, 0.0))
+    return out
 
 
 def certify_pieces(cps: list[np.ndarray], regions: Regions, distance: float,

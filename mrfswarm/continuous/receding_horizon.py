@@ -390,7 +390,7 @@ class RecedingHorizon:
         self.limits = (cfg.v_max, cfg.a_max, cfg.j_max)
         self.X = grid.cell_to_world(self.paths)
         self.index = ObstacleIndex(grid)
-        self.regions = build_regions(self.paths, grid, self.radius, cfg.region_growth, self.index)
+        self.regions = build_regions(self.paths, grid, self.radius, cfg.region_growth, self.index, self.scale)
         clearance = region_clearance(self.regions, grid, 2 * self.radius)
         if self.T and clearance.min() < self.radius:
             j, i = np.unravel_index(int(np.argmin(clearance)), clearance.shape)

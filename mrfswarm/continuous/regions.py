@@ -161,7 +161,7 @@ class Regions:
 
 
 def build_regions(paths: np.ndarray, grid: OccupancyGrid, radius: float, growth: float = 0.5,
-                  index: ObstacleIndex | None = None) -> Regions:
+                  index: ObstacleIndex | None = None, scale: np.ndarray | None = None) -> Regions:
     """The obstacle-free region of every robot in every step of the discrete ``paths``.
 
     Parameters
@@ -177,6 +177,12 @@ def build_regions(paths: np.ndarray, grid: OccupancyGrid, radius: float, growth:
         (a fraction of a cell reaches into the next row of cells only if it is free).
     index
         The grid's obstacle index (built here if not given).
+    scale
+        (d,) the downwash factors (``geometry.downwash_scale``; default ones): the growth is
+        measured in the scaled metric, ``growth * scale[k]`` cells along axis k (along z
+        growth / c). Two robots stacked at the discrete minimum (2 voxels apart with c = 2,
+        one scaled cell) then get regions as far apart as two neighbours in the plane, and
+        need no corridor between them unless they move towards each other.
 
     Raises
     ------
@@ -193,18 +199,22 @@ def build_regions(paths: np.ndarray, grid: OccupancyGrid, radius: float, growth:
     box = index.occupied_count(lo, hi) == 0
     lo, hi = lo.copy(), hi.copy()
     ext_lo, ext_hi = np.zeros(lo.shape), np.zeros(hi.shape)  # fractional growth (cells) past lo, hi
-    whole, frac = int(np.floor(growth)), float(growth - np.floor(growth))
     d = paths.shape[-1]
-    for rnd in range(whole + (frac > 0)):
-        amount = 1.0 if rnd < whole else frac
+    grow = growth * (np.ones(d) if scale is None else np.asarray(scale, dtype=float))  # cells per axis
+    whole, frac = np.floor(grow).astype(int), grow - np.floor(grow)
+    for rnd in range(int((whole + (frac > 0)).max())):
         for axis in range(d):
+            if rnd > whole[axis] or (rnd == whole[axis] and not frac[axis] > 0):
+                continue  # this axis has grown all it may
+            amount = 1.0 if rnd < whole[axis] else float(frac[axis])
             for side in (-1, 1):
                 s_lo, s_hi = lo.copy(), hi.copy()
-                if amount < 1.0:  # a fractional strip also spans the fractions grown on the other axes
-                    for other in range(d):
-                        if other != axis:
-                            s_lo[..., other] -= ext_lo[..., other] > 0
-                            s_hi[..., other] += ext_hi[..., other] > 0
+                # a strip also spans the fractions grown on the other axes (none yet with equal growth per axis:
+                # then fractions come last; with growth per axis a whole row may follow another axis' fraction)
+                for other in range(d):
+                    if other != axis:
+                        s_lo[..., other] -= ext_lo[..., other] > 0
+                        s_hi[..., other] += ext_hi[..., other] > 0
                 if side < 0:
                     s_lo[..., axis] = s_hi[..., axis] = lo[..., axis] - 1
                 else:

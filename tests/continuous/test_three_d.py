@@ -501,3 +501,35 @@ def test_pieces_spanning_several_steps_in_space():
     assert max(c.pieces_per_robot) < len(c.knot_times) - 1
     dense = brute_check(c.trajectories, window_wall(), downwash_scale(3, DOWNWASH))
     assert dense["separation"] >= 2 * RADIUS and dense["clearance"] >= RADIUS and not dense["off_map"]
+
+
+@pytest.mark.parametrize("growth", [0.5, 1.0, 1.5, 2.0])
+def test_regions_grow_by_the_scaled_metric_and_only_over_free_voxels(growth):
+    """With downwash c the boxes grow growth / c cells along z (growth along x and y), never over an
+    occupied voxel (exact clearance against every voxel: >= the radius)."""
+    rng = np.random.default_rng(int(growth * 10))
+    occ = rng.uniform(size=(10, 9, 8)) < 0.12
+    paths = np.array([[[4, 4, 4]], [[5, 4, 4]]])
+    occ[4:6, 4, 4] = False
+    grid = OccupancyGrid.from_occupied(occ)
+    s = downwash_scale(3, DOWNWASH)
+    reg = build_regions(paths, grid, RADIUS, growth, scale=s)
+    plain = build_regions(paths, grid, RADIUS, growth)
+    assert region_clearance(reg, grid, 3.0).min() >= RADIUS - 1e-12
+    assert region_clearance(plain, grid, 3.0).min() >= RADIUS - 1e-12
+    open_grid = OccupancyGrid(np.zeros((10, 9, 8)))
+    free = build_regions(paths, open_grid, RADIUS, growth, scale=s)
+    room = np.concatenate([[4, 4, 4] - free.lower[0, 0], free.upper[0, 0] - [5, 4, 4]]) + RADIUS - 0.5
+    np.testing.assert_allclose(room, [growth, growth, growth / DOWNWASH] * 2, atol=1e-8)
+    np.testing.assert_array_equal(build_regions(paths, open_grid, RADIUS, growth, scale=np.ones(3)).upper,
+                                  build_regions(paths, open_grid, RADIUS, growth).upper)
+
+
+def test_hull_distance_of_points_on_a_line_with_rounding_noise():
+    """Robots stacked exactly above one another: relative control points on the z axis, with 1e-9 of noise
+    across it. Slivers of triangles must not hide the distance (a plane through a near-line can pass
+    the origin as near as the noise)."""
+    rng = np.random.default_rng(3)
+    z = np.sort(rng.uniform(0.55, 1.2, (200, 8)), axis=1)
+    pts = np.stack([rng.normal(scale=1e-9, size=z.shape), rng.normal(scale=1e-9, size=z.shape), z], axis=-1)
+    np.testing.assert_allclose(hull_distance_from_origin(pts), z[:, 0], atol=1e-8)
