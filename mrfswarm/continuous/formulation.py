@@ -278,8 +278,9 @@ class WindowSpec:
         an exporter's rounding (the Crazyflie's compressed format moves control points by
         up to about 2 mm), which the certificate of the rounded flight then still proves.
     limit_mask
-        (M, G, 3) bool: which (step, robot, derivative order) get limit rows (None: all).
-        The window loop adds them lazily, where a solution without them exceeds a limit.
+        (M, G, 3) bool: which (step, robot, derivative order) get limit rows (None: all),
+        or (M, G, 3, F): which faces of the limit polytope (:func:`limit_polytope`) each
+        gets. The window loop adds them lazily, where a solution without them exceeds a limit.
     merged
         (M - 1,) bool: the pieces of steps j and j + 1 are one polynomial (every robot's;
         :mod:`mrfswarm.continuous.merge_pieces`). None: no piece spans two steps.
@@ -425,21 +426,28 @@ class WindowFormulation:
         add(shape_r, ridx, col(Gi, Dd, J, Aa), pm.k_index(J, 0, Mm, Aa), cf, pm.masks[0][Mm, Aa] & (cf != 0),
             reg.lower[:, :, None, :] - shift + spec.margin + spec.slack,
             reg.upper[:, :, None, :] - shift - spec.margin - spec.slack)
-        # limits: rows (j, g, m, direction) per order
+        # limits: rows (j, g, m, face) per order, the faces switched on for (j, g) only
         faces, inner = limit_polytope(dim)
         nf = len(faces)
+        mask = np.ones((M, G, 3, nf), dtype=bool) if spec.limit_mask is None else np.asarray(spec.limit_mask)
+        if mask.ndim == 3:  # per (step, robot, order): every face
+            mask = np.broadcast_to(mask[..., None], mask.shape + (nf,))
         for r, lim in zip(LIMIT_ORDERS, spec.limits):
             R = pm.rows[r]
-            J, Gi, Mm, Kk, Dd, Aa = np.ix_(np.arange(M), np.arange(G), np.arange(R), np.arange(nf), np.arange(dim),
-                                           np.arange(nz))
             bound = lim * Ts**r * inner * (1 - spec.margin)
-            cf = faces[Kk, Dd]
-            on = np.ones((M, G), dtype=bool) if spec.limit_mask is None else spec.limit_mask[:, :, r - 1]
-            J, Gi = (v[on] for v in np.meshgrid(np.arange(M), np.arange(G), indexing="ij"))
-            J, Gi = J[:, None, None, None, None], Gi[:, None, None, None, None]
-            ridx = (np.arange(len(J))[:, None, None, None, None] * R + Mm[0]) * nf + Kk[0]
-            add((len(J), R, nf), ridx, col(Gi, Dd[0], J, Aa[0]), pm.k_index(J, r, Mm[0], Aa[0]), cf[0],
-                pm.masks[r][Mm[0], Aa[0]] & (cf[0] != 0), -bound, bound)
+            on = mask[:, :, r - 1].any(axis=-1)
+            J, Gi = np.nonzero(on)  # row-major, as the rows are numbered
+            faces_on = mask[:, :, r - 1][on]  # (P, nf)
+            na = faces_on.sum(axis=1)
+            base = np.concatenate([[0], np.cumsum(R * na)[:-1]]).astype(np.int64)
+            rank = np.cumsum(faces_on, axis=1) - 1
+            I, Kf = np.nonzero(faces_on)  # (pair, face) in order
+            Mm, Dd, Aa = np.ix_(np.arange(R), np.arange(dim), np.arange(nz))
+            Jp, Gp = J[I][:, None, None, None], Gi[I][:, None, None, None]
+            ridx = (base[I] + rank[I, Kf])[:, None, None, None] + Mm[None] * na[I][:, None, None, None]
+            cf = faces[Kf][:, None, :, None]
+            add((int(R * na.sum()),), ridx, col(Gp, Dd[None], Jp, Aa[None]), pm.k_index(Jp, r, Mm[None], Aa[None]), cf,
+                pm.masks[r][Mm, Aa][None] & (cf != 0), -bound, bound)
         # relative safe corridors: rows (pair, m)
         P = len(spec.pair_step)
         if P:

@@ -420,7 +420,10 @@ class RecedingHorizon:
                 f"{int(np.argmax(slow))} would need {self.witness.max():.3g} s)")
         # rows switched on by lazy constraint generation (grow over the run)
         self.active = np.zeros(len(self.seps), dtype=bool)
-        self.limit_rows = np.zeros((self.T, self.N, 3), dtype=bool)
+        # per face of the limit polytope; in the plane the octagon's faces are switched on together (the plans
+        # are pinned to it), in space only the faces a solution crosses: 13 faces per control point would
+        # make the limit rows most of a window's QP (190 000 rows of 200 000 for 40 robots in a lattice)
+        self.limit_rows = np.zeros((self.T, self.N, 3, len(limit_polytope(self.dim)[0])), dtype=bool)
         self.workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
         self._pool: ProcessPoolExecutor | None = None
         self.regions_s = time.perf_counter() - t0
@@ -506,12 +509,13 @@ class RecedingHorizon:
             gap[look] = np.einsum("pmk,pk->pm", cps[0][seps.first[look], seps.step[look] - a]
                                   - cps[0][seps.second[look], seps.step[look] - a], seps.normal[look]).min(axis=1)
             new_pairs = (gap < self.distance + self.slack + MARGIN / 2) & ~self.active[cand]
-            new_limits = np.zeros((M, self.N, 3), dtype=bool)
             faces, inner = limit_polytope(self.dim)
+            new_limits = np.zeros((M, self.N, 3, len(faces)), dtype=bool)
             for r, lim in zip((1, 2, 3), self.limits):
-                proj = np.abs(cps[r][robots] @ faces.T).max(axis=(2, 3))  # (n, M)
-                new_limits[:, robots, r - 1] = (proj.T > lim * inner * (1 - MARGIN / 2)) & \
-                    ~self.limit_rows[a:b, robots, r - 1]
+                over = np.abs(cps[r][robots] @ faces.T).max(axis=2) > lim * inner * (1 - MARGIN / 2)  # (n, M, F)
+                if self.dim == 2:
+                    over[:] = over.any(axis=-1, keepdims=True)
+                new_limits[:, robots, r - 1] = over.transpose(1, 0, 2) & ~self.limit_rows[a:b, robots, r - 1]
             if not new_pairs.any() and not new_limits.any():
                 rec.active_pairs = int(self.active[cand].sum())
                 return _Solution(Y, B, durations, float(cost.sum()),
@@ -520,7 +524,7 @@ class RecedingHorizon:
             self.limit_rows[a:b] |= new_limits
             touched = np.zeros(self.N, dtype=bool)
             touched[seps.first[new_pairs]] = touched[seps.second[new_pairs]] = True
-            touched |= new_limits.any(axis=(0, 2))
+            touched |= new_limits.any(axis=(0, 2, 3))
             todo = np.zeros(self.N, dtype=bool)
             for g in interaction_groups(self.N, seps.select(self.active[cand])):
                 if touched[g].any():

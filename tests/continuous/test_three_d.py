@@ -20,7 +20,7 @@ from scipy.optimize import minimize
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous import RecedingHorizon
 from mrfswarm.continuous.certificate import certify, certify_pieces, control_point_stack, hull_distance_from_origin
-from mrfswarm.continuous.formulation import OCTAGON, OCTAGON_INNER, limit_polytope
+from mrfswarm.continuous.formulation import OCTAGON, OCTAGON_INNER, limit_polytope, piece_maps
 from mrfswarm.continuous.receding_horizon import exact_min_separation
 from mrfswarm.continuous.regions import (
     Regions,
@@ -533,3 +533,32 @@ def test_hull_distance_of_points_on_a_line_with_rounding_noise():
     z = np.sort(rng.uniform(0.55, 1.2, (200, 8)), axis=1)
     pts = np.stack([rng.normal(scale=1e-9, size=z.shape), rng.normal(scale=1e-9, size=z.shape), z], axis=-1)
     np.testing.assert_allclose(hull_distance_from_origin(pts), z[:, 0], atol=1e-8)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_limit_rows_per_face(d):
+    """A mask per (step, robot, order) is the mask of all its faces, row for row; a mask per face keeps
+    only those faces' rows (what the window loop switches on in space)."""
+    from mrfswarm.continuous.formulation import WindowFormulation, WindowSpec
+
+    rng = np.random.default_rng(d)
+    M, G = 3, 2
+    nf = len(limit_polytope(d)[0])
+    reg = Regions(np.broadcast_to(np.eye(d), (M, G, d, d)).copy(), np.full((M, G, d), -9.0),
+                  np.full((M, G, d), 9.0), np.zeros((M, G), bool), RADIUS)
+    per_order = rng.uniform(size=(M, G, 3)) < 0.6
+
+    def form(mask):
+        return WindowFormulation(WindowSpec(
+            degree=7, derivative=4, regions=reg, pair_step=np.zeros(0, int), pair_first=np.zeros(0, int),
+            pair_second=np.zeros(0, int), pair_normal=np.zeros((0, d)), distance=0.5,
+            start=np.zeros((G, 4, d)), end=np.ones((G, d)), origin=np.zeros((G, d)), limits=(2.0, 4.0, 4.0),
+            time_scale=1.0, limit_mask=mask))
+
+    T = np.array([1.0, 1.2, 0.9])
+    a, b = form(per_order).qp(T), form(np.repeat(per_order[..., None], nf, axis=-1)).qp(T)
+    assert (a.A != b.A).nnz == 0 and np.array_equal(a.l, b.l) and np.array_equal(a.u, b.u)
+    one = np.zeros((M, G, 3, nf), bool)
+    one[1, 0, 0, 2] = True  # one face of robot 0's velocity in step 1
+    f, none = form(one), form(np.zeros((M, G, 3), bool))
+    assert f.m - none.m == piece_maps(7, 4).rows[1]  # one row per velocity control point of the piece
