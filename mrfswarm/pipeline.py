@@ -393,7 +393,7 @@ def _continuous(result: Result, show: bool, workers: int | None = None) -> None:
 
     cfg = result.config
     rh = RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
-                         cfg.smoothing.backend, qp_options(cfg), workers=workers)
+                         cfg.smoothing.backend, qp_options(cfg), workers=workers, downwash=cfg.scenario.downwash)
     with tqdm(total=len(rh.windows()), desc="smoothing", unit="window", disable=not show, leave=False) as bar:
         plan = rh.run(on_window=lambda w: bar.update(1))
     result.continuous = plan

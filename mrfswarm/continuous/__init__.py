@@ -12,6 +12,14 @@ Modules, one part each:
 - :mod:`~mrfswarm.continuous.receding_horizon`: the window loop;
 - :mod:`~mrfswarm.continuous.sampled_check`: the optional dense sampled check (independent
   of the certificate).
+
+The dimension is data: discrete paths of shape (T + 1, N, d) on a grid of d = 2 or 3 axes
+give trajectories of d coordinates, by the same code. Separation is measured and
+constrained in the downwash-scaled metric ``|| (p - q) * geometry.downwash_scale(d, c) ||``
+(``scenario.downwash`` = c, passed as ``RecedingHorizon(..., downwash=c)``; the identity
+in the plane), so :attr:`ContinuousPlan.min_separation` is the scaled minimum (also named
+``min_separation_scaled``); obstacle clearance is the plain distance to occupied cells or
+voxels.
 """
 
 from mrfswarm.continuous.certificate import Certificate, certify, hull_distance_from_origin

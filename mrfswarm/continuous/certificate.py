@@ -25,10 +25,21 @@ hull iff the points' directions leave an angular gap wider than pi; the distance
 the smallest distance to a segment between two of the points). Each check costs a fixed
 amount per piece or near pair, so certifying is near-linear in the number of robots.
 Dense sampling remains the independent check (:mod:`mrfswarm.continuous.sampled_check`).
+
+In space (d = 3) the same checks run on points of three coordinates. Separation is that of
+the downwash-scaled space (``scale`` = ``geometry.downwash_scale(3, c)``: the relative
+control points scaled axis by axis are the control points of the scaled relative
+trajectory, since scaling is linear). The hull's distance is bounded from below by
+:math:`\\min_k u^\\top p_k` for a unit u (every point of the hull is at least that far
+along u); u points to the nearest of the candidate points of the hull (every point, the
+nearest point of every segment and of every triangle of the points), which is the hull's
+nearest point when the origin is outside: the bound is then the exact distance. Limits:
+the Euclidean norms of the derivative control points over the three axes.
 """
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -42,6 +53,7 @@ from mrfswarm.trajectory.piece_stack import (
     PIECE_CHUNK,
     map_coefficients,
     map_coefficients_in_order,
+    norms,
     squared_norms,
     stacked_tau_coefficients,
 )
@@ -59,9 +71,10 @@ class Certificate:
     problems
         What failed, one line each (empty when ``ok``).
     separation_bound
-        A proven lower bound on the separation of every two robots: the smallest
-        relative-hull distance of the pairs that come near each other, or the safety
-        distance if that is smaller (pairs not near are at least that far apart).
+        A proven lower bound on the separation of every two robots (downwash-scaled
+        metric): the smallest relative-hull distance of the pairs that come near each
+        other, or the safety distance if that is smaller (pairs not near are at least that
+        far apart).
     region_violation
         Largest distance of a control point outside its region (0 when all are inside).
     limit_bounds
@@ -79,18 +92,21 @@ class Certificate:
 
 
 def hull_distance_from_origin(points: np.ndarray) -> np.ndarray:
-    """Exact distance from the origin to the convex hull of each set of planar points.
+    """Exact distance from the origin to the convex hull of each set of points (planar or in space).
 
     Parameters
     ----------
     points
-        (P, K, 2).
+        (P, K, d), d = 2 or 3.
 
     Returns
     -------
     numpy.ndarray
-        (P,): 0 when the origin is in a hull (or on its boundary).
+        (P,): 0 when the origin is in a hull (or on its boundary). In space a proven lower
+        bound, exact (to rounding) when the origin is outside (:func:`_hull_bound`).
     """
+    if points.shape[-1] != 2:
+        return _hull_bound(points)
     K = points.shape[1]
     ang = np.sort(np.arctan2(points[..., 1], points[..., 0]), axis=1)
     gaps = np.concatenate([np.diff(ang, axis=1), (2 * np.pi - (ang[:, -1] - ang[:, 0]))[:, None]], axis=1)
@@ -100,29 +116,77 @@ def hull_distance_from_origin(points: np.ndarray) -> np.ndarray:
     return np.where(outside, d, 0.0)
 
 
+def _hull_bound(points: np.ndarray) -> np.ndarray:
+    """(P,) a lower bound on the distance from the origin to the hull of each (K, d) set of points.
+
+    For any unit u, :math:`\\min_k u^\\top p_k` bounds the distance from below (when
+    positive). u points to the nearest candidate: each point, the nearest point of each
+    segment between two points, and the foot of the origin on the plane of each triangle of
+    three points when it lies inside the triangle. With the origin outside, the hull's
+    nearest point lies on a facet, a triangle of the points (or an edge or a point), so it
+    is the nearest candidate and the bound is the distance itself; with the origin inside,
+    the bound is 0.
+    """
+    P, K, _ = points.shape
+    i, j = np.triu_indices(K, 1)
+    a, ab = points[:, i], points[:, j] - points[:, i]  # (P, S, d)
+    L2 = (ab * ab).sum(-1)
+    s = np.clip(-(a * ab).sum(-1) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
+    cand = [points, a + s[..., None] * ab]
+    if K >= 3 and points.shape[-1] == 3:
+        t = np.array(list(itertools.combinations(range(K), 3)))
+        A, B, C = points[:, t[:, 0]], points[:, t[:, 1]], points[:, t[:, 2]]
+        e0, e1 = B - A, C - A
+        n = np.cross(e0, e1)
+        nn = (n * n).sum(-1)
+        # slivers (sin^2 of their angle below 1e-12) are left to their edges, which come within 1e-6 of them:
+        # the foot of a sliver's plane is rounding noise (the plane through a near-line turns freely about it)
+        flat = nn <= 1e-12 * np.maximum((e0 * e0).sum(-1) * (e1 * e1).sum(-1), 1e-300)
+        foot = n * ((n * A).sum(-1) / np.where(flat, 1.0, nn))[..., None]  # the origin's projection on the plane
+        w = foot - A
+        d00, d01, d11 = (e0 * e0).sum(-1), (e0 * e1).sum(-1), (e1 * e1).sum(-1)
+        d20, d21 = (w * e0).sum(-1), (w * e1).sum(-1)
+        den = np.where(flat, 1.0, nn)  # d00 d11 - d01^2 = |e0 x e1|^2, without the cancellation
+        v, u = (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den
+        inside = ~flat & (v >= 0) & (u >= 0) & (u + v <= 1)
+        cand.append(np.where(inside[..., None], foot, points[:, :1]))  # else a point already a candidate
+    # two directions, each a valid bound: the nearest candidate's, and the nearest point or segment's
+    # (robust: clamped projections), in case rounding put a triangle's foot nearer than the hull is
+    out = np.zeros(P)
+    for c in (np.concatenate(cand, axis=1), np.concatenate(cand[:2], axis=1)):
+        x = c[np.arange(P), np.argmin(norms(c), axis=1)]  # (P, d)
+        nx = norms(x)
+        u = x / np.where(nx > 0, nx, 1.0)[:, None]
+        bound = (points * u[:, None, :]).sum(-1).min(axis=1)
+        out = np.maximum(out, np.where(nx > 0, bound, 0.0))
+    return out
+
+
 def certify_pieces(cps: list[np.ndarray], regions: Regions, distance: float,
-                   limits: tuple[float, float, float]) -> Certificate:
+                   limits: tuple[float, float, float], scale: np.ndarray | None = None) -> Certificate:
     """Certify pieces given by their control points.
 
     Parameters
     ----------
     cps
-        ``[P, V, A, J]``: (N, M, K_r, 2) control points of position and of its first three
+        ``[P, V, A, J]``: (N, M, K_r, d) control points of position and of its first three
         derivatives, robot i's piece j flown during step j of ``regions``.
     regions
         Regions of the same M steps and N robots.
     distance
-        Safety distance (metres).
+        Safety distance (metres, downwash-scaled metric).
     limits
         (v_max, a_max, j_max).
+    scale
+        (d,) downwash factors of the separation metric (default: ones).
     """
-    norms = [np.linalg.norm(cps[r], axis=-1).max(axis=-1) for r in (1, 2, 3)]
-    return _certify(cps[0], norms, regions, distance, limits)
+    top = [np.linalg.norm(cps[r], axis=-1).max(axis=-1) for r in (1, 2, 3)]
+    return _certify(cps[0], top, regions, distance, limits, scale)
 
 
 def _certify(P: np.ndarray, limit_norms: list[np.ndarray], regions: Regions, distance: float,
-             limits: tuple[float, float, float]) -> Certificate:
-    """:func:`certify_pieces` from the position control points (N, M, K, 2) and, per limit,
+             limits: tuple[float, float, float], scale: np.ndarray | None = None) -> Certificate:
+    """:func:`certify_pieces` from the position control points (N, M, K, d) and, per limit,
     the (N, M) largest control-point norm of each piece."""
     M = P.shape[1]
     problems = []
@@ -132,20 +196,21 @@ def _certify(P: np.ndarray, limit_norms: list[np.ndarray], regions: Regions, dis
         j, i = (int(v) for v in np.unravel_index(int(np.argmax(viol)), viol.shape))
         problems.append(f"robot {i} leaves its region in step {j} by {worst:.3g} m")
     bounds = []
-    for norms, lim, name in zip(limit_norms, limits, ("speed", "acceleration", "jerk")):
-        top = float(norms.max(initial=0.0))
+    for piece_top, lim, name in zip(limit_norms, limits, ("speed", "acceleration", "jerk")):
+        top = float(piece_top.max(initial=0.0))
         bounds.append(top)
         if top > lim:
-            i, j = (int(v) for v in np.unravel_index(int(np.argmax(norms)), norms.shape))
+            i, j = (int(v) for v in np.unravel_index(int(np.argmax(piece_top)), piece_top.shape))
             problems.append(f"robot {i}'s {name} control points reach {top:.4g} > {lim:g} in step {j}")
-    lo, hi = P.min(axis=2), P.max(axis=2)  # (N, M, 2)
+    S = P if scale is None or np.all(np.asarray(scale) == 1.0) else P * np.asarray(scale, dtype=float)
+    lo, hi = S.min(axis=2), S.max(axis=2)  # (N, M, d), in the scaled space
     sep, checked = np.inf, 0
     for j in range(M):
         pairs = near_pairs(lo[:, j], hi[:, j], distance)
         if len(pairs) == 0:
             continue
         checked += len(pairs)
-        d = hull_distance_from_origin(P[pairs[:, 0], j] - P[pairs[:, 1], j])
+        d = hull_distance_from_origin(S[pairs[:, 0], j] - S[pairs[:, 1], j])
         k = int(np.argmin(d))
         if d[k] < sep:
             sep = float(d[k])
@@ -157,22 +222,22 @@ def _certify(P: np.ndarray, limit_norms: list[np.ndarray], regions: Regions, dis
 
 
 def control_point_stack(trajectories: list[PiecewisePolynomial]) -> list[np.ndarray]:
-    """[P, V, A, J] control points (N, M, K_r, 2) of trajectories that share their knots."""
+    """[P, V, A, J] control points (N, M, K_r, d) of trajectories that share their knots."""
     N, T = len(trajectories), trajectories[0].durations
-    c = stacked_tau_coefficients(trajectories)  # (K, N M, 2)
+    c = stacked_tau_coefficients(trajectories)  # (K, N M, d)
     return [_robot_major(map_coefficients_in_order(control_point_matrix(len(c) - 1, r, 1 if r == 0 else LIMIT_PARTS), c),
                          N, len(T)) / T[None, :, None, None] ** r for r in range(4)]
 
 
 def _robot_major(points: np.ndarray, N: int, M: int) -> np.ndarray:
-    """Control points (K, N M, 2) of pieces robot after robot, as (N, M, K, 2)."""
-    return np.ascontiguousarray(points.reshape(len(points), N, M, 2).transpose(1, 2, 0, 3))
+    """Control points (K, N M, d) of pieces robot after robot, as (N, M, K, d)."""
+    return np.ascontiguousarray(points.reshape(len(points), N, M, points.shape[-1]).transpose(1, 2, 0, 3))
 
 
 def _limit_norms(c: np.ndarray, T: np.ndarray, order: int) -> np.ndarray:
     """(N M,) the largest norm of each piece's control points of the ``order``-th time derivative.
 
-    ``c`` (K, N M, 2) are the tau-coefficients of pieces robot after robot, all on the
+    ``c`` (K, N M, d) are the tau-coefficients of pieces robot after robot, all on the
     durations ``T`` (M,). The norms come from matrix products (fast, but their last bits
     may differ from ``np.einsum``'s), taken
     :data:`~mrfswarm.trajectory.piece_stack.PIECE_CHUNK` pieces at a time so the control
@@ -195,7 +260,7 @@ def _limit_norms(c: np.ndarray, T: np.ndarray, order: int) -> np.ndarray:
 
 
 def certify(trajectories: list[PiecewisePolynomial], knot_times: np.ndarray, regions: Regions, distance: float,
-            limits: tuple[float, float, float]) -> Certificate:
+            limits: tuple[float, float, float], scale: np.ndarray | None = None) -> Certificate:
     """Certify whole flights on the common time grid ``knot_times`` (the steps').
 
     A piece may span several steps (:mod:`mrfswarm.continuous.merge_pieces`): every
@@ -210,7 +275,7 @@ def certify(trajectories: list[PiecewisePolynomial], knot_times: np.ndarray, reg
         return Certificate(False, [split])
     trajectories = split
     N, T = len(trajectories), trajectories[0].durations
-    c = stacked_tau_coefficients(trajectories)  # (K, N M, 2)
+    c = stacked_tau_coefficients(trajectories)  # (K, N M, d)
     P = _robot_major(map_coefficients_in_order(control_point_matrix(len(c) - 1), c), N, len(T))
-    norms = [_limit_norms(c, T, r).reshape(N, len(T)) for r in (1, 2, 3)]
-    return _certify(P, norms, regions, distance, limits)
+    tops = [_limit_norms(c, T, r).reshape(N, len(T)) for r in (1, 2, 3)]
+    return _certify(P, tops, regions, distance, limits, scale)

@@ -27,8 +27,9 @@ combination of those coefficients, ``P.data = S_P k(T)``, ``A.data = S_A k(T)``,
 - every relative safe corridor: ``n . (P_m^g - P_m^h) >= d_safe``;
 - the limits: every velocity, acceleration and jerk control point (of each of
   ``LIMIT_PARTS`` equal sub-intervals of a piece: a linear map of the same variables) inside
-  a regular octagon inscribed in the disc of radius ``v_max`` (``a_max``, ``j_max``), so
-  the derivative's norm stays below the limit for all t;
+  a regular octagon inscribed in the disc of radius ``v_max`` (``a_max``, ``j_max``), in
+  space a 26-faced polytope inscribed in the ball (:func:`limit_polytope`), so the
+  derivative's norm stays below the limit for all t;
 - the window's ends: the start state (position and derivatives 1..q-1) and rest at the
   end position;
 - where a piece spans several steps (``WindowSpec.merged``): the Taylor coefficients of
@@ -57,6 +58,7 @@ instead of 33.2 s).
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import threading
@@ -80,6 +82,37 @@ LIMIT_ORDERS = (1, 2, 3)
 #: Directions of the octagon's faces; its inner radius is cos(pi/8) of the disc's.
 OCTAGON = np.array([[1.0, 0.0], [0.0, 1.0], [math.sqrt(0.5), math.sqrt(0.5)], [math.sqrt(0.5), -math.sqrt(0.5)]])
 OCTAGON_INNER = math.cos(math.pi / 8)
+
+
+@lru_cache(maxsize=4)
+def limit_polytope(dim: int) -> tuple[np.ndarray, float]:
+    """The faces of the polytope that bounds a derivative's control points, and its inner radius.
+
+    A control point v meets the limit L when :math:`|n_k \\cdot v| \\le \\rho L` for every
+    direction :math:`n_k` (unit, rows of the first array): that polytope is inscribed in the
+    ball of radius L (its vertices farthest out lie on it), so :math:`\\|v\\| \\le L`; the ball
+    of radius :math:`\\rho L` (the second value) lies inside it. In the plane: the regular
+    octagon (:data:`OCTAGON`, :math:`\\rho = \\cos(\\pi/8)`). In space: the 13 directions
+    of the cube's faces, edges and corners (the 26-neighbourhood up to sign), whose
+    polytope's farthest vertex :math:`x^*` is found by enumerating every three faces
+    (:math:`\\rho = 1/\\|x^*\\| \\approx 0.8865`).
+    """
+    if dim == 2:
+        return OCTAGON, OCTAGON_INNER
+    if dim != 3:
+        raise ValueError(f"limit_polytope: dim must be 2 or 3, got {dim}")
+    cube = np.array(np.meshgrid(*[[-1.0, 0.0, 1.0]] * 3, indexing="ij")).reshape(3, -1).T
+    first = cube[np.arange(len(cube)), np.argmax(cube != 0, axis=1)]
+    dirs = cube[first > 0]  # one of each +-pair
+    dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    planes = np.concatenate([dirs, -dirs])
+    tri = np.array(list(itertools.combinations(range(len(planes)), 3)))
+    A = planes[tri]  # (C, 3, 3)
+    ok = np.abs(np.linalg.det(A)) > 1e-9
+    x = np.linalg.solve(A[ok], np.ones((int(ok.sum()), 3, 1)))[..., 0]
+    vertex = (x @ planes.T <= 1 + 1e-9).all(axis=1)
+    far = float(np.linalg.norm(x[vertex], axis=1).max())
+    return dirs, (1.0 / far) * (1 - 1e-12)
 #: Each piece's derivatives are bounded on the control points of this many equal
 #: sub-intervals: within 5 % of the true maximum of jerk for a rest-to-rest step, where
 #: the whole piece's control points overestimate it eightfold.
@@ -228,11 +261,11 @@ class WindowSpec:
     distance
         Safety distance (metres).
     start
-        (G, q, 2) physical derivatives 0..q-1 at the window's start (positions absolute).
+        (G, q, dim) physical derivatives 0..q-1 at the window's start (positions absolute).
     end
-        (G, 2) where each robot comes to rest at the window's end.
+        (G, dim) where each robot comes to rest at the window's end.
     origin
-        (G, 2) the robots' discrete positions at the window's start (the local frame).
+        (G, dim) the robots' discrete positions at the window's start (the local frame).
     limits
         (v_max, a_max, j_max).
     time_scale
@@ -245,8 +278,9 @@ class WindowSpec:
         an exporter's rounding (the Crazyflie's compressed format moves control points by
         up to about 2 mm), which the certificate of the rounded flight then still proves.
     limit_mask
-        (M, G, 3) bool: which (step, robot, derivative order) get limit rows (None: all).
-        The window loop adds them lazily, where a solution without them exceeds a limit.
+        (M, G, 3) bool: which (step, robot, derivative order) get limit rows (None: all),
+        or (M, G, 3, F): which faces of the limit polytope (:func:`limit_polytope`) each
+        gets. The window loop adds them lazily, where a solution without them exceeds a limit.
     merged
         (M - 1,) bool: the pieces of steps j and j + 1 are one polynomial (every robot's;
         :mod:`mrfswarm.continuous.merge_pieces`). None: no piece spans two steps.
@@ -353,7 +387,8 @@ class WindowFormulation:
         self._k_val = np.zeros(0)
         M, G, D, q, nz = spec.steps, spec.robots, spec.degree, spec.derivative, pm.nz
         self.per_dim = (M + 1) * pm.stride - (pm.stride - q)  # y_0, b_0, ..., y_M
-        self.n = 2 * G * self.per_dim
+        dim = self.dim = spec.regions.axes.shape[-1]
+        self.n = dim * G * self.per_dim
         n_k = M * pm.size + 1
         const = M * pm.size
         Ts = spec.time_scale
@@ -368,7 +403,7 @@ class WindowFormulation:
         n_rows = 0
 
         def col(g, d, j, a):
-            return (g * 2 + d) * self.per_dim + j * pm.stride + pm.offset[a]
+            return (g * dim + d) * self.per_dim + j * pm.stride + pm.offset[a]
 
         def add(shape_rows: tuple, r_idx, c_idx, k_idx, cf, keep, lower, upper):
             nonlocal n_rows
@@ -382,33 +417,42 @@ class WindowFormulation:
             n_rows += int(np.prod(shape_rows))
 
         # regions: rows (j, g, m, k); entries over (d, a)
-        J, Gi, Mm, Kk, Dd, Aa = np.ix_(np.arange(M), np.arange(G), np.arange(D + 1), np.arange(2), np.arange(2),
-                                       np.arange(nz))
-        shape_r = (M, G, D + 1, 2)
-        ridx = ((J * G + Gi) * (D + 1) + Mm) * 2 + Kk
+        J, Gi, Mm, Kk, Dd, Aa = np.ix_(np.arange(M), np.arange(G), np.arange(D + 1), np.arange(dim),
+                                       np.arange(dim), np.arange(nz))
+        shape_r = (M, G, D + 1, dim)
+        ridx = ((J * G + Gi) * (D + 1) + Mm) * dim + Kk
         cf = reg.axes[J, Gi, Kk, Dd]
         shift = np.einsum("mgka,ga->mgk", reg.axes, origin)[:, :, None, :]
         add(shape_r, ridx, col(Gi, Dd, J, Aa), pm.k_index(J, 0, Mm, Aa), cf, pm.masks[0][Mm, Aa] & (cf != 0),
             reg.lower[:, :, None, :] - shift + spec.margin + spec.slack,
             reg.upper[:, :, None, :] - shift - spec.margin - spec.slack)
-        # limits: rows (j, g, m, direction) per order
+        # limits: rows (j, g, m, face) per order, the faces switched on for (j, g) only
+        faces, inner = limit_polytope(dim)
+        nf = len(faces)
+        mask = np.ones((M, G, 3, nf), dtype=bool) if spec.limit_mask is None else np.asarray(spec.limit_mask)
+        if mask.ndim == 3:  # per (step, robot, order): every face
+            mask = np.broadcast_to(mask[..., None], mask.shape + (nf,))
         for r, lim in zip(LIMIT_ORDERS, spec.limits):
             R = pm.rows[r]
-            J, Gi, Mm, Kk, Dd, Aa = np.ix_(np.arange(M), np.arange(G), np.arange(R), np.arange(4), np.arange(2),
-                                           np.arange(nz))
-            bound = lim * Ts**r * OCTAGON_INNER * (1 - spec.margin)
-            cf = OCTAGON[Kk, Dd]
-            on = np.ones((M, G), dtype=bool) if spec.limit_mask is None else spec.limit_mask[:, :, r - 1]
-            J, Gi = (v[on] for v in np.meshgrid(np.arange(M), np.arange(G), indexing="ij"))
-            J, Gi = J[:, None, None, None, None], Gi[:, None, None, None, None]
-            ridx = (np.arange(len(J))[:, None, None, None, None] * R + Mm[0]) * 4 + Kk[0]
-            add((len(J), R, 4), ridx, col(Gi, Dd[0], J, Aa[0]), pm.k_index(J, r, Mm[0], Aa[0]), cf[0],
-                pm.masks[r][Mm[0], Aa[0]] & (cf[0] != 0), -bound, bound)
+            bound = lim * Ts**r * inner * (1 - spec.margin)
+            on = mask[:, :, r - 1].any(axis=-1)
+            J, Gi = np.nonzero(on)  # row-major, as the rows are numbered
+            faces_on = mask[:, :, r - 1][on]  # (P, nf)
+            na = faces_on.sum(axis=1)
+            base = np.concatenate([[0], np.cumsum(R * na)[:-1]]).astype(np.int64)
+            rank = np.cumsum(faces_on, axis=1) - 1
+            I, Kf = np.nonzero(faces_on)  # (pair, face) in order
+            Mm, Dd, Aa = np.ix_(np.arange(R), np.arange(dim), np.arange(nz))
+            Jp, Gp = J[I][:, None, None, None], Gi[I][:, None, None, None]
+            ridx = (base[I] + rank[I, Kf])[:, None, None, None] + Mm[None] * na[I][:, None, None, None]
+            cf = faces[Kf][:, None, :, None]
+            add((int(R * na.sum()),), ridx, col(Gp, Dd[None], Jp, Aa[None]), pm.k_index(Jp, r, Mm[None], Aa[None]), cf,
+                pm.masks[r][Mm, Aa][None] & (cf != 0), -bound, bound)
         # relative safe corridors: rows (pair, m)
         P = len(spec.pair_step)
         if P:
             pj, pf, ps, nrm = spec.pair_step, spec.pair_first, spec.pair_second, spec.pair_normal
-            Pi, Mm, Dd, Aa = np.ix_(np.arange(P), np.arange(D + 1), np.arange(2), np.arange(nz))
+            Pi, Mm, Dd, Aa = np.ix_(np.arange(P), np.arange(D + 1), np.arange(dim), np.arange(nz))
             ridx = Pi * (D + 1) + Mm
             keep = pm.masks[0][Mm, Aa] & (nrm[Pi, Dd] != 0)
             offs = ((origin[pf] - origin[ps]) * nrm).sum(-1)[:, None]
@@ -423,27 +467,27 @@ class WindowFormulation:
         J = np.flatnonzero(spec.merged) if spec.merged is not None else np.zeros(0, dtype=int)
         if len(J):
             nt = pm.taylor_orders
-            Jm, Gi, Dd, Rr, Aa = np.ix_(np.arange(len(J)), np.arange(G), np.arange(2), np.arange(nt), np.arange(nz))
-            ridx = ((Jm * G + Gi) * 2 + Dd) * nt + Rr
+            Jm, Gi, Dd, Rr, Aa = np.ix_(np.arange(len(J)), np.arange(G), np.arange(dim), np.arange(nt), np.arange(nz))
+            ridx = ((Jm * G + Gi) * dim + Dd) * nt + Rr
             first_rows = n_rows
-            add((len(J), G, 2, nt), ridx, col(Gi, Dd, J[Jm], Aa), pm.t_index(J[Jm], 1, q + Rr, Aa), 1.0,
+            add((len(J), G, dim, nt), ridx, col(Gi, Dd, J[Jm], Aa), pm.t_index(J[Jm], 1, q + Rr, Aa), 1.0,
                 pm.t_mask[nt + Rr, Aa], 0.0, 0.0)
             n_rows = first_rows  # the next piece's entries share the same rows
             add((0,), ridx, col(Gi, Dd, J[Jm] + 1, Aa), pm.t_index(J[Jm] + 1, 0, q + Rr, Aa), -1.0,
                 pm.t_mask[Rr, Aa], 0.0, 0.0)
-            n_rows = first_rows + len(J) * G * 2 * nt
+            n_rows = first_rows + len(J) * G * dim * nt
         # ends: the start state and rest at the end
-        start = np.asarray(spec.start, dtype=float).copy()  # (G, q, 2)
+        start = np.asarray(spec.start, dtype=float).copy()  # (G, q, dim)
         start[:, 0] -= origin
         start *= (Ts ** np.arange(q))[None, :, None]
         end = np.zeros_like(start)
         end[:, 0] = np.asarray(spec.end, dtype=float) - origin
         for knot, val in ((0, start), (M, end)):
-            Gi, Rr, Dd = np.ix_(np.arange(G), np.arange(q), np.arange(2))
-            c_idx = (Gi * 2 + Dd) * self.per_dim + knot * pm.stride + Rr
-            add((G, q, 2), ((Gi * q + Rr) * 2 + Dd), c_idx, const, 1.0, True, val, val)
+            Gi, Rr, Dd = np.ix_(np.arange(G), np.arange(q), np.arange(dim))
+            c_idx = (Gi * dim + Dd) * self.per_dim + knot * pm.stride + Rr
+            add((G, q, dim), ((Gi * q + Rr) * dim + Dd), c_idx, const, 1.0, True, val, val)
         self._fixed = np.concatenate([
-            ((np.arange(G)[:, None, None] * 2 + np.arange(2)[None, None, :]) * self.per_dim + knot * pm.stride
+            ((np.arange(G)[:, None, None] * dim + np.arange(dim)[None, None, :]) * self.per_dim + knot * pm.stride
              + np.arange(q)[None, :, None]).ravel() for knot in (0, M)])
         self._fixed_values = np.concatenate([start.ravel(), end.ravel()])
         self.m = n_rows
@@ -451,7 +495,7 @@ class WindowFormulation:
         self._A = _distinct_sparse_map(rows_a, cols_a, np.concatenate(kidx), np.concatenate(coef), (self.m, self.n), n_k)
         self.l, self.u = np.concatenate(lo), np.concatenate(hi)
         # cost: one block per robot and coordinate, all alike (the symmetric piece Hessians along its steps)
-        self._P = _block_diagonal_map(_block_cost_map(D, q, M, self.per_dim), 2 * G)
+        self._P = _block_diagonal_map(_block_cost_map(D, q, M, self.per_dim), dim * G)
 
     # ------------------------------------------------------------------ QP
     def _k(self, durations: np.ndarray) -> np.ndarray:
@@ -509,7 +553,7 @@ class WindowFormulation:
         for (idx, ptr, S), half in ((self._A, False), (self._P, True)):
             cols = np.repeat(np.arange(len(ptr) - 1), np.diff(ptr))
             w = (0.5 * x[idx] if half else y[idx]) * x[cols]  # the Lagrangian's weight of each nonzero
-            credit = sp.csr_matrix((w, (cols // (2 * self.per_dim), np.arange(len(w)))), shape=(G, len(w)))
+            credit = sp.csr_matrix((w, (cols // (self.dim * self.per_dim), np.arange(len(w)))), shape=(G, len(w)))
             out += (credit @ (S @ DK)).toarray()
         # normalized -> physical: J = Ts^(1-2q) J~ and T~ = T / Ts
         return out * spec.time_scale ** (-2 * spec.derivative)
@@ -522,11 +566,12 @@ class WindowFormulation:
 
     # ------------------------------------------------------------------ variables
     def unpack(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Physical knot derivatives (G, M+1, q, 2) (positions absolute) and bubbles (G, M, nb, 2)."""
+        """Physical knot derivatives (G, M+1, q, dim) (positions absolute) and bubbles (G, M, nb, dim)."""
         spec, pm = self.spec, self.maps
         M, G, q = spec.steps, spec.robots, spec.derivative
-        X = np.asarray(x, dtype=float).reshape(G, 2, self.per_dim)
-        full = np.concatenate([X, np.zeros((G, 2, pm.stride - q))], axis=2).reshape(G, 2, M + 1, pm.stride)
+        X = np.asarray(x, dtype=float).reshape(G, self.dim, self.per_dim)
+        full = np.concatenate([X, np.zeros((G, self.dim, pm.stride - q))], axis=2).reshape(G, self.dim, M + 1,
+                                                                                           pm.stride)
         Y = full[..., :q].transpose(0, 2, 3, 1) / (spec.time_scale ** np.arange(q))[None, None, :, None]
         Y[:, :, 0] += np.asarray(spec.origin)[:, None, :]
         B = full[:, :, :M, q:].transpose(0, 2, 3, 1)
@@ -539,10 +584,10 @@ class WindowFormulation:
         Yn = np.array(Y, dtype=float)
         Yn[:, :, 0] -= np.asarray(spec.origin)[:, None, :]
         Yn *= (spec.time_scale ** np.arange(q))[None, None, :, None]
-        full = np.zeros((G, 2, M + 1, pm.stride))
+        full = np.zeros((G, self.dim, M + 1, pm.stride))
         full[..., :q] = Yn.transpose(0, 3, 1, 2)
         full[:, :, :M, q:] = np.asarray(B, dtype=float).transpose(0, 3, 1, 2)
-        return full.reshape(G, 2, -1)[:, :, :self.per_dim].reshape(-1)
+        return full.reshape(G, self.dim, -1)[:, :, :self.per_dim].reshape(-1)
 
 
 def hermite_trajectory(Y: np.ndarray, B: np.ndarray, durations: np.ndarray, degree: int,

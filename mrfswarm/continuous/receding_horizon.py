@@ -63,11 +63,10 @@ from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous.certificate import Certificate, certify, certify_pieces
 from mrfswarm.continuous.formulation import (
     LIMIT_PARTS,
-    OCTAGON,
-    OCTAGON_INNER,
     WindowFormulation,
     WindowSpec,
     hermite_trajectory,
+    limit_polytope,
     piece_maps,
 )
 from mrfswarm.continuous.merge_pieces import (
@@ -89,6 +88,7 @@ from mrfswarm.continuous.regions import (
 from mrfswarm.continuous.sampled_check import SampledCheck, check_positions, uniform_times
 from mrfswarm.continuous.time_grid import SwarmProfile, motion_profile, nominal_durations, witness_durations
 from mrfswarm.errors import UnsafeTrajectoryError
+from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.maps.obstacles import ObstacleIndex
 from mrfswarm.trajectory import PiecewisePolynomial
@@ -220,7 +220,8 @@ class ContinuousPlan:
     Attributes
     ----------
     trajectories
-        One 2-D :class:`PiecewisePolynomial` per robot, all on one time grid: the knots
+        One :class:`PiecewisePolynomial` of the plan's dimension (2 or 3) per robot, all on
+        one time grid: the knots
         ``knot_times[piece_steps]``, one piece per step or, where ``smoothing.max_pieces``
         needed it, per several steps.
     knot_times
@@ -240,10 +241,15 @@ class ContinuousPlan:
     v_max, a_max, j_max
         Exact maxima over all robots of speed, acceleration and jerk.
     min_separation
-        Exact smallest distance between two robots over the flight (metres).
+        Exact smallest distance between two robots over the flight (metres), in the
+        downwash-scaled metric :math:`\\|(p_i - p_k) \\odot s\\|`, ``s =
+        geometry.downwash_scale(dim, downwash)`` (the metric the safety distance
+        2 r is defined in: the plain distance in the plane or with ``downwash`` 1).
     min_clearance
         Smallest distance from a robot's centre to an occupied cell, sampled (metres; None
         without obstacles nearby).
+    downwash
+        The downwash factor c the separations were planned and measured with.
     sampled
         The optional dense sampled check (None unless ``smoothing.check_rate_hz`` > 0).
     timings
@@ -266,6 +272,17 @@ class ContinuousPlan:
     piece_steps: np.ndarray | None = None
     max_pieces: int = 0
     pieces_per_robot: list[int] = field(default_factory=list)
+    downwash: float = 1.0
+
+    @property
+    def min_separation_scaled(self) -> float:
+        """:attr:`min_separation`, named for what it is (the downwash-scaled metric)."""
+        return self.min_separation
+
+    @property
+    def dim(self) -> int:
+        """2 or 3."""
+        return self.trajectories[0].dim
 
     @property
     def makespan_s(self) -> float:
@@ -277,13 +294,13 @@ class ContinuousPlan:
         return self.max_pieces == 0 or max(self.pieces_per_robot, default=0) <= self.max_pieces
 
     def positions(self, times: np.ndarray) -> np.ndarray:
-        """(S, N, 2) every robot's position at ``times``."""
+        """(S, N, dim) every robot's position at ``times``."""
         return np.stack([tr.evaluate(times) for tr in self.trajectories], axis=1)
 
 
 @dataclass
 class _Solution:
-    """A window's trajectories: knot derivatives (N, M+1, q, 2), bubbles (N, M, nb, 2), durations (M,)."""
+    """A window's trajectories: knot derivatives (N, M+1, q, dim), bubbles (N, M, nb, dim), durations (M,)."""
 
     Y: np.ndarray
     B: np.ndarray
@@ -325,13 +342,17 @@ class RecedingHorizon:
     Parameters
     ----------
     paths
-        (T + 1, N, 2) discrete paths in cells.
+        (T + 1, N, d) discrete paths in cells, d = 2 or 3 (the grid's).
     grid
         The occupancy grid.
     cfg
         The smoothing settings.
     radius
         Robot radius (metres); the safety distance is twice it.
+    downwash
+        The downwash factor c >= 1 (``scenario.downwash``): two robots are apart when their
+        distance scaled by ``geometry.downwash_scale(d, c)`` (z divided by c) is at least
+        the safety distance. It changes nothing in the plane.
     backend
         QP backend name for every solve (default ``cfg.backend``).
     qp_options
@@ -352,9 +373,15 @@ class RecedingHorizon:
     """
 
     def __init__(self, paths: np.ndarray, grid: OccupancyGrid, cfg: SmoothingConfig, radius: float,
-                 backend: str | None = None, qp_options: QPOptions | None = None, workers: int | None = None) -> None:
+                 backend: str | None = None, qp_options: QPOptions | None = None, workers: int | None = None,
+                 downwash: float = 1.0) -> None:
         t0 = time.perf_counter()
         self.paths = np.asarray(paths, dtype=np.int64)
+        self.dim = self.paths.shape[-1]
+        if self.dim != grid.ndim:
+            raise ValueError(f"paths of {self.dim} axes on a grid of {grid.ndim}")
+        self.downwash = float(downwash)
+        self.scale = downwash_scale(self.dim, self.downwash)
         self.grid, self.cfg = grid, cfg
         self.backend = backend or cfg.backend
         solvers.qp.BACKENDS.get(self.backend)  # an unknown or missing backend fails now
@@ -371,13 +398,13 @@ class RecedingHorizon:
         self.limits = (cfg.v_max, cfg.a_max, cfg.j_max)
         self.X = grid.cell_to_world(self.paths)
         self.index = ObstacleIndex(grid)
-        self.regions = build_regions(self.paths, grid, self.radius, cfg.region_growth, self.index)
+        self.regions = build_regions(self.paths, grid, self.radius, cfg.region_growth, self.index, self.scale)
         clearance = region_clearance(self.regions, grid, 2 * self.radius)
         if self.T and clearance.min() < self.radius:
             j, i = np.unravel_index(int(np.argmin(clearance)), clearance.shape)
             raise UnsafeTrajectoryError(f"robot {i}'s safe region in step {j} comes {clearance[j, i]:.3f} m from "
                                         f"an obstacle (radius {self.radius:g} m): the discrete move is unsafe")
-        self.seps = separations(self.X, self.regions, self.distance)
+        self.seps = separations(self.X, self.regions, self.distance, self.scale)
         self.profiles: list[SwarmProfile] = []  # one per PROFILES entry
         if cfg.speed is None and self.T:
             self.profiles = [motion_profile(self.paths, grid.resolution, cruise * cfg.v_max,
@@ -401,7 +428,10 @@ class RecedingHorizon:
                 f"{int(np.argmax(slow))} would need {self.witness.max():.3g} s)")
         # rows switched on by lazy constraint generation (grow over the run)
         self.active = np.zeros(len(self.seps), dtype=bool)
-        self.limit_rows = np.zeros((self.T, self.N, 3), dtype=bool)
+        # per face of the limit polytope; in the plane the octagon's faces are switched on together (the plans
+        # are pinned to it), in space only the faces a solution crosses: 13 faces per control point would
+        # make the limit rows most of a window's QP (190 000 rows of 200 000 for 40 robots in a lattice)
+        self.limit_rows = np.zeros((self.T, self.N, 3, len(limit_polytope(self.dim)[0])), dtype=bool)
         self.workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
         self._pool: ProcessPoolExecutor | None = None
         # robots of the chunk whose QP failed last: solved first, so a failing attempt costs one chunk
@@ -449,11 +479,11 @@ class RecedingHorizon:
         rows found active before.
         """
         q, pm, M = self.cfg.derivative, piece_maps(self.cfg.degree, self.cfg.derivative), b - a
-        Y = np.zeros((self.N, M + 1, q, 2))
-        B = np.zeros((self.N, M, pm.nz - 2 * q, 2))
+        Y = np.zeros((self.N, M + 1, q, self.dim))
+        B = np.zeros((self.N, M, pm.nz - 2 * q, self.dim))
         cost = np.zeros(self.N)
         grad = np.zeros((self.N, M)) if gradient else None
-        cps = [np.zeros((self.N, M, pm.rows[r], 2)) for r in range(4)]
+        cps = [np.zeros((self.N, M, pm.rows[r], self.dim)) for r in range(4)]
         cand = np.flatnonzero((self.seps.step >= a) & (self.seps.step < b))
         seps = self.seps.select(cand)
         todo = np.ones(self.N, dtype=bool)
@@ -488,11 +518,13 @@ class RecedingHorizon:
             gap[look] = np.einsum("pmk,pk->pm", cps[0][seps.first[look], seps.step[look] - a]
                                   - cps[0][seps.second[look], seps.step[look] - a], seps.normal[look]).min(axis=1)
             new_pairs = (gap < self.distance + self.slack + MARGIN / 2) & ~self.active[cand]
-            new_limits = np.zeros((M, self.N, 3), dtype=bool)
+            faces, inner = limit_polytope(self.dim)
+            new_limits = np.zeros((M, self.N, 3, len(faces)), dtype=bool)
             for r, lim in zip((1, 2, 3), self.limits):
-                proj = np.abs(cps[r][robots] @ OCTAGON.T).max(axis=(2, 3))  # (n, M)
-                new_limits[:, robots, r - 1] = (proj.T > lim * OCTAGON_INNER * (1 - MARGIN / 2)) & \
-                    ~self.limit_rows[a:b, robots, r - 1]
+                over = np.abs(cps[r][robots] @ faces.T).max(axis=2) > lim * inner * (1 - MARGIN / 2)  # (n, M, F)
+                if self.dim == 2:
+                    over[:] = over.any(axis=-1, keepdims=True)
+                new_limits[:, robots, r - 1] = over.transpose(1, 0, 2) & ~self.limit_rows[a:b, robots, r - 1]
             if not new_pairs.any() and not new_limits.any():
                 rec.active_pairs = int(self.active[cand].sum())
                 return _Solution(Y, B, durations, float(cost.sum()),
@@ -501,7 +533,7 @@ class RecedingHorizon:
             self.limit_rows[a:b] |= new_limits
             touched = np.zeros(self.N, dtype=bool)
             touched[seps.first[new_pairs]] = touched[seps.second[new_pairs]] = True
-            touched |= new_limits.any(axis=(0, 2))
+            touched |= new_limits.any(axis=(0, 2, 3))
             todo = np.zeros(self.N, dtype=bool)
             for g in interaction_groups(self.N, seps.select(self.active[cand])):
                 if touched[g].any():
@@ -544,11 +576,11 @@ class RecedingHorizon:
         return list(self._pool.map(fn, *zip(*args)))
 
     def _control_points(self, Y: np.ndarray, B: np.ndarray, durations: np.ndarray) -> list[np.ndarray]:
-        """[P, V, A, J] control points (N, M, K_r, 2) of knot derivatives ``Y`` and bubbles ``B``."""
+        """[P, V, A, J] control points (N, M, K_r, dim) of knot derivatives ``Y`` and bubbles ``B``."""
         pm = piece_maps(self.cfg.degree, self.cfg.derivative)
-        z = np.concatenate([Y[:, :-1], Y[:, 1:], B], axis=2)  # (N, M, nz, 2)
+        z = np.concatenate([Y[:, :-1], Y[:, 1:], B], axis=2)  # (N, M, nz, dim)
         scale = durations[:, None] ** pm.rpow[None, :]
-        c = pm.E @ (z * scale[None, :, :, None])  # (K, nz) @ (N, M, nz, 2): one product per piece
+        c = pm.E @ (z * scale[None, :, :, None])  # (K, nz) @ (N, M, nz, dim): one product per piece
         ck = np.moveaxis(c, 2, 0)  # coefficient first: each map below is one matrix product over every piece
         T = durations[None, :, None, None]
         return [np.moveaxis(map_coefficients(control_point_matrix(c.shape[2] - 1, r, 1 if r == 0 else LIMIT_PARTS), ck),
@@ -558,7 +590,8 @@ class RecedingHorizon:
         tic = time.perf_counter()
         # the solve's control points of this very Y, B (every robot's were recomputed after its last QP)
         cps = sol.cps if sol.cps is not None else self._control_points(sol.Y, sol.B, sol.durations)
-        out = certify_pieces(cps, self.regions.window(a, a + len(sol.durations)), self.distance, self.limits)
+        out = certify_pieces(cps, self.regions.window(a, a + len(sol.durations)), self.distance, self.limits,
+                             self.scale)
         self._check_s += time.perf_counter() - tic
         return out
 
@@ -566,9 +599,9 @@ class RecedingHorizon:
         """Every robot's discrete move rest to rest, after the previous window's plan where it reaches."""
         q, pm = self.cfg.derivative, piece_maps(self.cfg.degree, self.cfg.derivative)
         M = b - a
-        Y = np.zeros((self.N, M + 1, q, 2))
+        Y = np.zeros((self.N, M + 1, q, self.dim))
         Y[:, :, 0] = self.X[a:b + 1].transpose(1, 0, 2)
-        B = np.zeros((self.N, M, pm.nz - 2 * q, 2))
+        B = np.zeros((self.N, M, pm.nz - 2 * q, self.dim))
         if prev is not None:
             pa, pb, psol = prev
             Y[:, :pb - a + 1] = psol.Y[:, a - pa:]
@@ -730,11 +763,11 @@ class RecedingHorizon:
         tic = time.perf_counter()
         if T == 0:  # nobody moved: hover in place for a moment
             hover = [PiecewisePolynomial(np.array([1.0]), np.concatenate(
-                [self.X[0, i][None, None, :], np.zeros((1, cfg.degree, 2))], axis=1)) for i in range(N)]
+                [self.X[0, i][None, None, :], np.zeros((1, cfg.degree, self.dim))], axis=1)) for i in range(N)]
             return self._finish(hover, np.array([0.0, 1.0]), [], tic, np.array([0, 1]))
-        Y = np.zeros((T + 1, N, q, 2))
+        Y = np.zeros((T + 1, N, q, self.dim))
         Y[0, :, 0] = self.X[0]
-        B = np.zeros((T, N, pm.nz - 2 * q, 2))
+        B = np.zeros((T, N, pm.nz - 2 * q, self.dim))
         durations = np.zeros(T)
         records, prev, used = [], None, 0
         windows = self.windows()
@@ -777,19 +810,19 @@ class RecedingHorizon:
         smoothing_s = time.perf_counter() - tic - self._check_s
         t0 = time.perf_counter()
         regions = self.regions if self.T else _hover_regions(self.X[0], self.radius)
-        cert = certify(trajectories, knots, regions, self.distance, self.limits)
+        cert = certify(trajectories, knots, regions, self.distance, self.limits, self.scale)
         if not cert.ok:  # each window was certified; the whole must be too (a bug otherwise, never a silent output)
             raise UnsafeTrajectoryError(f"assembled trajectories not certified: {cert.problems[0]}")
         steps = step_pieces(trajectories, knots)  # the same curves, one piece per step: what the checks expect
         assert not isinstance(steps, str), steps  # certify split them just now
         v, acc, jerk = (max_derivative_norm_all(steps, k) for k in (1, 2, 3))
-        min_sep = exact_min_separation(steps, 2 * self.grid.resolution)
+        min_sep = exact_min_separation(steps, 2 * self.grid.resolution, scale=self.scale)
         clearance = sampled_clearance(steps, self.grid)
         sampled = None
         if self.cfg.check_rate_hz > 0:
             times = uniform_times(0.0, float(knots[-1]), self.cfg.check_rate_hz)
             pts = np.stack([tr.evaluate(times) for tr in trajectories], axis=1)
-            sampled = check_positions(times, pts, self.grid)
+            sampled = check_positions(times, pts, self.grid, self.scale)
         check_s = time.perf_counter() - t0 + self._check_s
         pieces = [tr.pieces for tr in trajectories]
         max_pieces = self.cfg.max_pieces
@@ -798,7 +831,7 @@ class RecedingHorizon:
                         "does not fit", sum(p > max_pieces for p in pieces), max_pieces, max(pieces), self.T)
         return ContinuousPlan(trajectories, knots, regions, self.seps, records, cert, v, acc, jerk, min_sep, clearance,
                               sampled, {"regions": self.regions_s, "smoothing": smoothing_s, "checking": check_s},
-                              np.asarray(piece_steps), max_pieces, pieces)
+                              np.asarray(piece_steps), max_pieces, pieces, self.downwash)
 
 
 def solve_window(spec: WindowSpec, durations: np.ndarray, backend: str, options: QPOptions,
@@ -861,13 +894,18 @@ def pack_groups(groups: list[np.ndarray], size: int) -> list[np.ndarray]:
 
 def _hover_regions(X: np.ndarray, radius: float) -> Regions:
     """A point region per robot (the hover of a plan without steps)."""
-    N = len(X)
-    return Regions(np.broadcast_to(np.eye(2), (1, N, 2, 2)).copy(), X[None].copy(), X[None].copy(),
+    N, d = X.shape
+    return Regions(np.broadcast_to(np.eye(d), (1, N, d, d)).copy(), X[None].copy(), X[None].copy(),
                    np.zeros((1, N), dtype=bool), radius)
 
 
-def exact_min_separation(trajectories: list[PiecewisePolynomial], reach: float, block: int = 8) -> float:
+def exact_min_separation(trajectories: list[PiecewisePolynomial], reach: float, block: int = 8,
+                         scale: np.ndarray | None = None) -> float:
     """The exact smallest distance between two robots over trajectories on one time grid.
+
+    With ``scale`` (d,), the distance is :math:`\\|(p_i - p_k) \\odot s\\|` (the
+    downwash-scaled metric, :func:`mrfswarm.geometry.downwash_scale`): the trajectories
+    scaled axis by axis are polynomials too, so the same exact search runs on them.
 
     Pairs whose control-point boxes in a step stay ``reach`` apart are skipped (``reach``
     grows until the minimum is below it); for the others the minimum of :math:`|p_i(t) - p_k(t)|`
@@ -896,11 +934,13 @@ def exact_min_separation(trajectories: list[PiecewisePolynomial], reach: float, 
     if N < 2:
         return float("inf")
     M = trajectories[0].pieces
-    C = stacked_tau_coefficients(trajectories)  # (K, N M, 2), robot after robot
-    K = len(C)
-    C = C.reshape(K, N, M, 2)
-    P = map_coefficients(control_point_matrix(K - 1), C)  # (K, N, M, 2) position control points
-    lo, hi = P.min(axis=0), P.max(axis=0)  # (N, M, 2)
+    C = stacked_tau_coefficients(trajectories)  # (K, N M, d), robot after robot
+    K, d = len(C), C.shape[-1]
+    C = C.reshape(K, N, M, d)
+    if scale is not None and not np.all(scale == 1.0):
+        C = C * np.asarray(scale, dtype=float)
+    P = map_coefficients(control_point_matrix(K - 1), C)  # (K, N, M, d) position control points
+    lo, hi = P.min(axis=0), P.max(axis=0)  # (N, M, d)
     span = float((hi.max(axis=(0, 1)) - lo.min(axis=(0, 1))).max()) + reach
     tau = np.linspace(0.0, 1.0, 9)
     V = tau[:, None] ** np.arange(K)[None, :]  # (9, K)
@@ -914,7 +954,7 @@ def exact_min_separation(trajectories: list[PiecewisePolynomial], reach: float, 
         best, found = np.inf, []
         for j0 in range(0, M, steps):
             j1 = min(j0 + steps, M)
-            X = map_coefficients(V, C[:, :, j0:j1])  # (9, N, b, 2) positions at the 9 times
+            X = map_coefficients(V, C[:, :, j0:j1])  # (9, N, b, d) positions at the 9 times
             for j in range(j0, j1):
                 pairs = near_pairs(lo[:, j], hi[:, j], min(reach, best))
                 i, k = pairs[:, 0], pairs[:, 1]
@@ -941,13 +981,13 @@ def exact_min_separation(trajectories: list[PiecewisePolynomial], reach: float, 
 
 def sampled_clearance(trajectories: list[PiecewisePolynomial], grid: OccupancyGrid, per_piece: int = 16) -> float | None:
     """Smallest distance from a robot's centre to an occupied cell, at ``per_piece`` samples per piece."""
-    from mrfswarm.metrics import obstacle_clearance
+    from mrfswarm.continuous.sampled_check import voxel_clearance
 
     if not grid.occupied.any():
         return None
     knots = trajectories[0].knots
     tau = np.linspace(0.0, 1.0, per_piece)
     times = (knots[:-1, None] + tau[None, :] * np.diff(knots)[:, None]).ravel()
-    pts = np.stack([tr.evaluate(times) for tr in trajectories], axis=1).reshape(-1, 2)
-    clr = obstacle_clearance(grid.occupied, (pts - np.asarray(grid.origin)) / grid.resolution)
+    pts = np.stack([tr.evaluate(times) for tr in trajectories], axis=1).reshape(-1, grid.ndim)
+    clr = voxel_clearance(grid.occupied, (pts - np.asarray(grid.origin)) / grid.resolution)
     return None if clr is None else clr * grid.resolution

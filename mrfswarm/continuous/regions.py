@@ -21,8 +21,14 @@ whole bounding box of its two cells is free). So:
   point is within :math:`1/2 - r` of the segment, whose half-cell tube holds no occupied
   cell.
 
-A region is stored as two slabs, ``lower <= axes @ p <= upper`` (``axes`` orthonormal
+A region is stored as d slabs, ``lower <= axes @ p <= upper`` (``axes`` orthonormal
 rows), so both kinds have the same shape.
+
+In space (d = 3, voxels) the same lines hold one axis more: boxes grow over voxels along
+x, y and z; an oriented box has the move's direction u and two unit vectors across it
+(an orthonormal frame), half-width :math:`h/\\sqrt{2}` on both, so its farthest corner is
+still :math:`\\sqrt{h^2 + e^2} = 1/2 - r` cells from the segment; its clearance from
+voxels is measured exactly (:func:`box_cube_distance`).
 
 Robots: relative safe corridors (Park, Kim, Jang & Kim, "Efficient multi-agent trajectory
 planning with feasibility guarantee using relative Bernstein polynomial", ICRA 2020).
@@ -47,6 +53,14 @@ stay ``distance`` apart need no constraint at all.
 
 Only pairs whose regions come within ``distance`` of each other get a constraint
 (bounding boxes, through a k-d tree per step: near-linear in the number of robots).
+
+Downwash (3-D): two robots are apart when :math:`\\|S (p_i - p_k)\\| \\ge d_{safe}` with
+:math:`S = \\mathrm{diag}(s)`, ``s = geometry.downwash_scale(3, c)`` (z divided by c). The
+discrete plan keeps every pair at least one cell apart in that metric along the moves, so
+the construction above, run on the scaled relative motion :math:`S d(s)`, gives a unit
+n with :math:`n^\\top S (p_i - p_k) \\ge d_{safe}`: still linear in the positions, so the
+proof for all t carries over; the row's vector in world coordinates is :math:`S n`
+(:attr:`Separations.normal`). In the plane, or with c = 1, S is the identity.
 """
 
 from __future__ import annotations
@@ -62,6 +76,7 @@ from mrfswarm.errors import ScenarioError
 from mrfswarm.geometry import polygon_box_distance
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.maps.obstacles import ObstacleIndex
+from mrfswarm.trajectory.piece_stack import norms
 
 #: Regions are shrunk by this much more than the robot radius (metres per metre of cell), so
 #: that rounding of world coordinates never leaves a region a hair closer than the radius.
@@ -77,11 +92,11 @@ class Regions:
     Attributes
     ----------
     axes
-        (T, N, 2, 2): rows are unit vectors (the identity for boxes).
+        (T, N, d, d): rows are orthonormal vectors (the identity for boxes).
     lower, upper
-        (T, N, 2).
+        (T, N, d).
     oriented
-        (T, N) bool: an oriented rectangle rather than a box.
+        (T, N) bool: an oriented rectangle (box, in space) rather than an axis-aligned box.
     radius
         The robot radius (metres) the regions were shrunk by.
     """
@@ -100,16 +115,20 @@ class Regions:
     def robots(self) -> int:
         return self.axes.shape[1]
 
+    @property
+    def dim(self) -> int:
+        return self.axes.shape[-1]
+
     def corners(self) -> np.ndarray:
-        """(T, N, 4, 2) corners in order around each region."""
-        s = np.stack([np.stack([self.lower[..., 0], self.lower[..., 1]], -1),
-                      np.stack([self.upper[..., 0], self.lower[..., 1]], -1),
-                      np.stack([self.upper[..., 0], self.upper[..., 1]], -1),
-                      np.stack([self.lower[..., 0], self.upper[..., 1]], -1)], axis=-2)  # slab coordinates
+        """(T, N, 2^d, d) corners, in Gray-code order (in the plane: in order around each region)."""
+        d = self.dim
+        gray = np.arange(2**d) ^ (np.arange(2**d) >> 1)
+        upper = (gray[:, None] >> np.arange(d)[None, :]) & 1  # (2^d, d): corner v takes the upper slab on axis k
+        s = np.where(upper.astype(bool), self.upper[..., None, :], self.lower[..., None, :])  # slab coordinates
         return np.einsum("...ka,...vk->...va", self.axes, s)  # axes orthonormal: p = axes^T s
 
     def bounding_boxes(self) -> tuple[np.ndarray, np.ndarray]:
-        """(T, N, 2) lower and upper corners of each region's axis-aligned bounding box."""
+        """(T, N, d) lower and upper corners of each region's axis-aligned bounding box."""
         c = self.corners()
         return c.min(axis=-2), c.max(axis=-2)
 
@@ -119,7 +138,7 @@ class Regions:
         Parameters
         ----------
         points
-            (T, N, K, 2): K points per robot and step (e.g. control points).
+            (T, N, K, d): K points per robot and step (e.g. control points).
 
         Returns
         -------
@@ -130,6 +149,8 @@ class Regions:
         # written out: einsum took a quarter of certifying 1000 robots over 300 steps
         ax = self.axes[:, :, None, :, :]
         s = ax[..., 0] * points[..., None, 0] + ax[..., 1] * points[..., None, 1]
+        for a in range(2, self.dim):
+            s += ax[..., a] * points[..., None, a]
         out = np.maximum(self.lower[:, :, None, :] - s, s - self.upper[:, :, None, :])
         return np.maximum(out.max(axis=(-1, -2)), 0.0)
 
@@ -140,13 +161,13 @@ class Regions:
 
 
 def build_regions(paths: np.ndarray, grid: OccupancyGrid, radius: float, growth: float = 0.5,
-                  index: ObstacleIndex | None = None) -> Regions:
+                  index: ObstacleIndex | None = None, scale: np.ndarray | None = None) -> Regions:
     """The obstacle-free region of every robot in every step of the discrete ``paths``.
 
     Parameters
     ----------
     paths
-        (T + 1, N, 2) integer cells.
+        (T + 1, N, d) integer cells (d = 2 or 3, the grid's).
     grid
         The occupancy grid.
     radius
@@ -156,6 +177,12 @@ def build_regions(paths: np.ndarray, grid: OccupancyGrid, radius: float, growth:
         (a fraction of a cell reaches into the next row of cells only if it is free).
     index
         The grid's obstacle index (built here if not given).
+    scale
+        (d,) the downwash factors (``geometry.downwash_scale``; default ones): the growth is
+        measured in the scaled metric, ``growth * scale[k]`` cells along axis k (along z
+        growth / c). Two robots stacked at the discrete minimum (2 voxels apart with c = 2,
+        one scaled cell) then get regions as far apart as two neighbours in the plane, and
+        need no corridor between them unless they move towards each other.
 
     Raises
     ------
@@ -172,15 +199,22 @@ def build_regions(paths: np.ndarray, grid: OccupancyGrid, radius: float, growth:
     box = index.occupied_count(lo, hi) == 0
     lo, hi = lo.copy(), hi.copy()
     ext_lo, ext_hi = np.zeros(lo.shape), np.zeros(hi.shape)  # fractional growth (cells) past lo, hi
-    whole, frac = int(np.floor(growth)), float(growth - np.floor(growth))
-    for rnd in range(whole + (frac > 0)):
-        amount = 1.0 if rnd < whole else frac
-        for axis in (0, 1):
+    d = paths.shape[-1]
+    grow = growth * (np.ones(d) if scale is None else np.asarray(scale, dtype=float))  # cells per axis
+    whole, frac = np.floor(grow).astype(int), grow - np.floor(grow)
+    for rnd in range(int((whole + (frac > 0)).max())):
+        for axis in range(d):
+            if rnd > whole[axis] or (rnd == whole[axis] and not frac[axis] > 0):
+                continue  # this axis has grown all it may
+            amount = 1.0 if rnd < whole[axis] else float(frac[axis])
             for side in (-1, 1):
                 s_lo, s_hi = lo.copy(), hi.copy()
-                if amount < 1.0:  # a fractional strip also spans the fractions grown on the other axis
-                    s_lo[..., 1 - axis] -= ext_lo[..., 1 - axis] > 0
-                    s_hi[..., 1 - axis] += ext_hi[..., 1 - axis] > 0
+                # a strip also spans the fractions grown on the other axes (none yet with equal growth per axis:
+                # then fractions come last; with growth per axis a whole row may follow another axis' fraction)
+                for other in range(d):
+                    if other != axis:
+                        s_lo[..., other] -= ext_lo[..., other] > 0
+                        s_hi[..., other] += ext_hi[..., other] > 0
                 if side < 0:
                     s_lo[..., axis] = s_hi[..., axis] = lo[..., axis] - 1
                 else:
@@ -195,21 +229,38 @@ def build_regions(paths: np.ndarray, grid: OccupancyGrid, radius: float, growth:
     shrink = radius + _REGION_EPS * res
     origin = np.asarray(grid.origin)
     T, N = a.shape[:2]
-    axes = np.broadcast_to(np.eye(2), (T, N, 2, 2)).copy()
+    axes = np.broadcast_to(np.eye(d), (T, N, d, d)).copy()
     lower = origin + (lo - 0.5 - ext_lo) * res + shrink
     upper = origin + (hi + 0.5 + ext_hi) * res - shrink
     if not box.all():
         p = grid.cell_to_world(a[~box])
         q = grid.cell_to_world(b[~box])
         u = (q - p) / np.linalg.norm(q - p, axis=-1, keepdims=True)
-        w = np.stack([-u[:, 1], u[:, 0]], axis=-1)
+        w = across(u)  # (n, d - 1, d)
         H = 0.5 * res - shrink
         h = H - min(_ORIENTED_SLACK * res, H / 5)
         e = np.sqrt(H**2 - h**2)
-        axes[~box] = np.stack([u, w], axis=1)
-        lower[~box] = np.stack([(u * p).sum(-1) - e, (w * p).sum(-1) - h], axis=-1)
-        upper[~box] = np.stack([(u * q).sum(-1) + e, (w * p).sum(-1) + h], axis=-1)
+        h = h / np.sqrt(d - 1)  # d - 1 directions across: the farthest corner is sqrt(h^2 + e^2) = H out
+        axes[~box] = np.concatenate([u[:, None], w], axis=1)
+        wp = (w * p[:, None, :]).sum(-1)
+        lower[~box] = np.concatenate([((u * p).sum(-1) - e)[:, None], wp - h], axis=-1)
+        upper[~box] = np.concatenate([((u * q).sum(-1) + e)[:, None], wp + h], axis=-1)
     return Regions(axes, lower, upper, ~box, float(radius))
+
+
+def across(u: np.ndarray) -> np.ndarray:
+    """(n, d - 1, d) unit vectors across unit vectors ``u`` (n, d): with u, an orthonormal frame.
+
+    In the plane u turned by +90 degrees; in space the coordinate axis least aligned with u
+    made orthogonal to it, then the cross product.
+    """
+    if u.shape[-1] == 2:
+        return np.stack([-u[:, 1], u[:, 0]], axis=-1)[:, None, :]
+    k = np.argmin(np.abs(u), axis=-1)
+    e = np.eye(3)[k]
+    w1 = e - (u * e).sum(-1, keepdims=True) * u
+    w1 /= np.linalg.norm(w1, axis=-1, keepdims=True)
+    return np.stack([w1, np.cross(u, w1)], axis=1)
 
 
 def region_clearance(regions: Regions, grid: OccupancyGrid, reach: float) -> np.ndarray:
@@ -235,35 +286,120 @@ def region_clearance(regions: Regions, grid: OccupancyGrid, reach: float) -> np.
         return out
     t_idx, n_idx = np.nonzero(near)
     span = (c_hi - c_lo)[near].max(axis=0) + 1
-    ox, oy = np.meshgrid(np.arange(span[0]), np.arange(span[1]), indexing="ij")
-    offs = np.stack([ox.ravel(), oy.ravel()], axis=1)  # (K, 2)
+    d = regions.dim
+    offs = np.stack([g.ravel() for g in np.meshgrid(*[np.arange(n) for n in span], indexing="ij")], axis=1)  # (K, d)
     corners = regions.corners()
     chunk = max(1, 200_000 // len(offs))
     for s in range(0, len(t_idx), chunk):
         ti, ni = t_idx[s:s + chunk], n_idx[s:s + chunk]
-        cells = c_lo[ti, ni][:, None, :] + offs[None, :, :]  # (R, K, 2)
+        cells = c_lo[ti, ni][:, None, :] + offs[None, :, :]  # (R, K, d)
         valid = (cells <= c_hi[ti, ni][:, None, :]).all(axis=-1) & index.is_occupied(cells)
         centers = origin + cells * res
-        poly = np.broadcast_to(corners[ti, ni][:, None], cells.shape[:2] + (4, 2))
-        d = polygon_box_distance(poly, centers, 0.5 * res)
-        d = np.where(valid, d, np.inf).min(axis=1)
-        out[ti, ni] = np.minimum(out[ti, ni], d)
+        if d == 2:
+            poly = np.broadcast_to(corners[ti, ni][:, None], cells.shape[:2] + (4, 2))
+            dist = np.where(valid, polygon_box_distance(poly, centers, 0.5 * res), np.inf)
+        else:  # only the occupied voxels; a box's distance is the gap axis by axis, an oriented box's the
+            # exact box-cube distance (200 features of each pair)
+            dist = np.full(valid.shape, np.inf)
+            r, k = np.nonzero(valid)
+            rt, rn, c = ti[r], ni[r], centers[r, k]
+            lo, hi = regions.lower[rt, rn], regions.upper[rt, rn]
+            val = norms(np.maximum(0.0, np.maximum(lo - c - 0.5 * res, c - 0.5 * res - hi)))
+            o = regions.oriented[rt, rn]
+            val[o] = box_cube_distance(regions.axes[rt[o], rn[o]], lo[o], hi[o], c[o], 0.5 * res)
+            dist[r, k] = val
+        out[ti, ni] = np.minimum(out[ti, ni], dist.min(axis=1))
     return out
+
+
+def _segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray) -> np.ndarray:
+    """Distance between segments p1q1 and p2q2 (..., d) in any dimension, either possibly a point
+    (the clamped closest points of Ericson, "Real-Time Collision Detection", 5.1.9)."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a, e = (d1 * d1).sum(-1), (d2 * d2).sum(-1)
+    b, c, f = (d1 * d2).sum(-1), (d1 * r).sum(-1), (d2 * r).sum(-1)
+    tiny = 1e-300
+    pa, pe = a > 1e-24, e > 1e-24  # not a point
+    denom = a * e - b * b
+    s = np.where(denom > 1e-12 * a * e, np.clip((b * f - c * e) / np.maximum(denom, tiny), 0.0, 1.0), 0.0)
+    t = np.where(pe, (b * s + f) / np.where(pe, e, 1.0), 0.0)
+    tc = np.clip(t, 0.0, 1.0)
+    s = np.where((t != tc) | ~pe, np.clip((b * tc - c) / np.where(pa, a, 1.0), 0.0, 1.0), s)
+    s = np.where(pa, s, 0.0)
+    tc = np.where(pa | ~pe, tc, np.clip(f / np.where(pe, e, 1.0), 0.0, 1.0))
+    return norms(p1 + s[..., None] * d1 - p2 - tc[..., None] * d2)
+
+
+def box_cube_distance(axes: np.ndarray, lower: np.ndarray, upper: np.ndarray, center: np.ndarray,
+                      half: float) -> np.ndarray:
+    """Exact distance between boxes ``lower <= axes @ p <= upper`` and axis-aligned cubes (zero when they meet).
+
+    Parameters
+    ----------
+    axes
+        (..., d, d) orthonormal rows.
+    lower, upper
+        (..., d).
+    center
+        (..., d) cube centres.
+    half
+        Half side of the cubes.
+
+    Notes
+    -----
+    They meet unless one of the box's axes, the coordinate axes or (in space) the cross
+    products of one of each separates them (the separating axis theorem for two boxes).
+    Apart, two convex polytopes are closest between a vertex of one and the other, or
+    between an edge of each: the distance is the smallest of the corners' distances to
+    the other box (exact, in its own frame) and the edges' distances to each other.
+    """
+    d = axes.shape[-1]
+    gray = np.arange(2**d) ^ (np.arange(2**d) >> 1)
+    up = ((gray[:, None] >> np.arange(d)[None, :]) & 1).astype(bool)  # (V, d)
+    slab = np.where(up, upper[..., None, :], lower[..., None, :])
+    box = np.einsum("...ka,...vk->...va", axes, slab)  # (..., V, d) corners
+    cube = center[..., None, :] + np.where(up, half, -half)  # (V, d)
+    # separating axes
+    eye = np.broadcast_to(np.eye(d), axes.shape)
+    cand = [axes, eye]
+    if d == 3:
+        cand.append(np.cross(axes[..., :, None, :], eye[..., None, :, :]).reshape(axes.shape[:-2] + (9, 3)))
+    ax = np.concatenate(cand, axis=-2)  # (..., A, d)
+    pb = np.einsum("...ak,...vk->...av", ax, box)
+    pc = np.einsum("...ak,...vk->...av", ax, cube)
+    separated = (pb.max(-1) < pc.min(-1)) | (pc.max(-1) < pb.min(-1))
+    meet = ~separated.any(axis=-1)
+    best = norms(np.maximum(0.0, np.abs(box - center[..., None, :]) - half)).min(axis=-1)  # box corners to the cube
+    sc = np.einsum("...ka,...va->...vk", axes, cube)  # cube corners in the box's frame
+    best = np.minimum(best, norms(np.maximum(0.0, np.maximum(lower[..., None, :] - sc, sc - upper[..., None, :])))
+                      .min(axis=-1))
+    # edges: corner pairs that differ on one axis (V d / 2 of each)
+    ei, ej = np.nonzero((np.bitwise_count(gray[:, None] ^ gray[None, :]) == 1) & (gray[:, None] < gray[None, :]))
+    bp, bq = box[..., ei, :], box[..., ej, :]  # (..., E, d)
+    cp, cq = cube[..., ei, :], cube[..., ej, :]
+    edges = _segment_distance(bp[..., :, None, :], bq[..., :, None, :], cp[..., None, :, :], cq[..., None, :, :])
+    best = np.minimum(best, edges.min(axis=(-1, -2)))
+    return np.where(meet, 0.0, best)
 
 
 @dataclass(frozen=True)
 class Separations:
     """Relative safe corridors: ``normal . (p_first - p_second) >= distance`` during ``step``.
 
+    ``normal`` is :math:`S n` for a unit n of the downwash-scaled space (``S`` =
+    ``diag(downwash_scale)``, the identity in the plane): the row is
+    :math:`n^\\top S (p_i - p_k) \\ge d_{safe}`.
+
     Attributes
     ----------
     step, first, second
         (P,) step index and the two robots (first < second).
     normal
-        (P, 2) unit normals.
+        (P, d) the rows' vectors in world coordinates: unit normals scaled by the downwash
+        factors (unit vectors in the plane and with c = 1).
     room
-        (P,) how far the discrete relative motion stays inside the half-plane (metres):
-        ``min_s normal . d(s) - distance``.
+        (P,) how far the discrete relative motion stays inside the half-space (scaled
+        metres): ``min_s normal . d(s) - distance``.
     distance
         The safety distance (metres).
     """
@@ -285,7 +421,7 @@ class Separations:
 
 
 def near_pairs(lo: np.ndarray, hi: np.ndarray, gap: float) -> np.ndarray:
-    """Pairs (i < k) of axis-aligned boxes ``lo..hi`` (N, 2) closer than ``gap`` (exact, via a k-d tree).
+    """Pairs (i < k) of axis-aligned boxes ``lo..hi`` (N, d) closer than ``gap`` (exact, via a k-d tree).
 
     Returns
     -------
@@ -295,25 +431,29 @@ def near_pairs(lo: np.ndarray, hi: np.ndarray, gap: float) -> np.ndarray:
     if len(lo) < 2:
         return np.zeros((0, 2), dtype=np.int64)
     centre, half = (lo + hi) / 2, (hi - lo) / 2
-    reach = 2 * float(np.hypot(half[:, 0], half[:, 1]).max()) + gap
+    reach = 2 * float(norms(half).max()) + gap
     pairs = cKDTree(centre).query_pairs(reach, output_type="ndarray")
     if len(pairs) == 0:
         return np.zeros((0, 2), dtype=np.int64)
     g = np.maximum(0.0, np.abs(centre[pairs[:, 0]] - centre[pairs[:, 1]]) - half[pairs[:, 0]] - half[pairs[:, 1]])
-    return pairs[np.hypot(g[:, 0], g[:, 1]) < gap]
+    return pairs[norms(g) < gap]
 
 
-def separations(positions: np.ndarray, regions: Regions, distance: float) -> Separations:
+def separations(positions: np.ndarray, regions: Regions, distance: float,
+                scale: np.ndarray | None = None) -> Separations:
     """A relative safe corridor for every pair of robots whose regions come within ``distance``.
 
     Parameters
     ----------
     positions
-        (T + 1, N, 2) discrete positions in metres (cell centres).
+        (T + 1, N, d) discrete positions in metres (cell centres).
     regions
         The robots' regions for the T steps.
     distance
-        The safety distance (metres).
+        The safety distance (metres, in the scaled metric).
+    scale
+        (d,) the downwash factors (``geometry.downwash_scale``; default ones): pairs, their
+        distance and their half-spaces are those of the scaled space.
 
     Raises
     ------
@@ -321,7 +461,9 @@ def separations(positions: np.ndarray, regions: Regions, distance: float) -> Sep
         Two robots whose discrete relative motion comes within ``distance``: the discrete
         plan breaks its own invariant.
     """
+    S = np.ones(positions.shape[-1]) if scale is None else np.asarray(scale, dtype=float)
     blo, bhi = regions.bounding_boxes()
+    blo, bhi = blo * S, bhi * S  # the scaled boxes (S > 0): the bounding boxes of the scaled regions
     steps, firsts, seconds = [], [], []
     for j in range(regions.steps):
         p = near_pairs(blo[j], bhi[j], distance)
@@ -330,8 +472,8 @@ def separations(positions: np.ndarray, regions: Regions, distance: float) -> Sep
         seconds.append(p[:, 1])
     step = np.concatenate(steps).astype(np.int64)
     i, k = np.concatenate(firsts).astype(np.int64), np.concatenate(seconds).astype(np.int64)
-    d0 = positions[step, i] - positions[step, k]
-    v = (positions[step + 1, i] - positions[step, i]) - (positions[step + 1, k] - positions[step, k])
+    d0 = (positions[step, i] - positions[step, k]) * S
+    v = ((positions[step + 1, i] - positions[step, i]) - (positions[step + 1, k] - positions[step, k])) * S
     vv = (v * v).sum(-1)
     s = np.clip(-(d0 * v).sum(-1) / np.where(vv > 0, vv, 1.0), 0.0, 1.0)
     y = d0 + s[:, None] * v
@@ -340,8 +482,9 @@ def separations(positions: np.ndarray, regions: Regions, distance: float) -> Sep
     if bad.any():
         q = int(np.argmax(bad))
         raise ScenarioError(f"robots {i[q]} and {k[q]} come {ny[q]:.3f} m apart in discrete step {step[q]}, "
-                            f"closer than the safety distance {distance:g} m")
-    return Separations(step, i, k, y / ny[:, None], ny - distance, float(distance))
+                            f"closer than the safety distance {distance:g} m"
+                            + ("" if np.all(S == 1) else " (downwash-scaled metric)"))
+    return Separations(step, i, k, y / ny[:, None] * S, ny - distance, float(distance))
 
 
 def interaction_groups(n_robots: int, seps: Separations) -> list[np.ndarray]:

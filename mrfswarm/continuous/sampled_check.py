@@ -5,6 +5,11 @@ this samples all robots on one time grid at ``rate_hz`` (at least 100 Hz): the m
 distance between any two robots (all pairs, not only neighbours), whether any sample
 lies in an occupied cell or off the map, and the distance to the nearest occupied cell.
 The continuous stage runs it on the whole flight when ``smoothing.check_rate_hz`` > 0.
+
+Points have d = 2 or 3 coordinates. Separation is measured in the downwash-scaled metric
+:math:`\\|(p_i - p_k) \\odot s\\|` (``s = geometry.downwash_scale(d, c)``: z divided by c),
+the metric the safety distance is defined in; clearance is the plain distance to the
+nearest occupied cell's square or voxel's cube (a robot is a ball for obstacles).
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mrfswarm.maps import OccupancyGrid
-from mrfswarm.metrics import obstacle_clearance
+from mrfswarm.trajectory.piece_stack import norms
 
 #: Below this many robots, all pairwise distances are computed at once per sample.
 _DENSE_PAIRS = 64
@@ -30,11 +35,12 @@ class SampledCheck:
     Attributes
     ----------
     min_separation
-        Smallest distance between two robots over the samples.
+        Smallest distance between two robots over the samples (downwash-scaled metric).
     pair, time
         The robots and the time of that smallest distance.
     min_clearance
-        Smallest distance from a sample to an occupied cell's square (None: no obstacle).
+        Smallest distance from a sample to an occupied cell's square or cube (None: no
+        obstacle).
     in_obstacle
         (robot, time) of the first sample inside an occupied cell or off the map, or None.
     """
@@ -53,7 +59,7 @@ def uniform_times(t0: float, t1: float, rate_hz: float) -> np.ndarray:
 
 
 def min_pair_distance(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per sample of ``points`` (S, N, 2): the smallest pairwise distance and its pair (S, 2).
+    """Per sample of ``points`` (S, N, d): the smallest pairwise distance and its pair (S, 2).
 
     Exact, without looking at every pair at every sample: within a chunk of samples in
     which no robot moves more than D from its first position, a pair more than
@@ -71,20 +77,50 @@ def min_pair_distance(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if N <= _DENSE_PAIRS:
             iu, ju = np.triu_indices(N, 1)
         else:
-            drift = float(np.max(np.hypot(*(chunk - chunk[:1]).transpose(2, 0, 1))))
+            drift = float(np.max(norms(chunk - chunk[:1])))
             d0, _ = cKDTree(chunk[0]).query(chunk[0], 2)
             cand = cKDTree(chunk[0]).query_pairs(float(d0[:, 1].min()) + 4 * drift + 1e-9, output_type="ndarray")
             iu, ju = cand[:, 0], cand[:, 1]
-        d = np.hypot(*(chunk[:, iu] - chunk[:, ju]).transpose(2, 0, 1))  # (chunk, pairs)
+        d = norms(chunk[:, iu] - chunk[:, ju])  # (chunk, pairs)
         k = np.argmin(d, axis=1)
         dmin[a:a + len(chunk)] = d[np.arange(len(chunk)), k]
         pairs[a:a + len(chunk)] = np.stack([iu[k], ju[k]], axis=1)
     return dmin, pairs
 
 
-def check_positions(times: np.ndarray, points: np.ndarray, grid: OccupancyGrid) -> SampledCheck:
-    """Check robots at ``points`` (S, N, 2) metres, sampled at ``times`` (S,)."""
-    dmin, pairs = min_pair_distance(points)
+def voxel_clearance(occupied: np.ndarray, points: np.ndarray, k: int = 8) -> float | None:
+    """Smallest distance (cells) from any point (..., d), in cell coordinates, to an occupied cell's square or cube.
+
+    None when there is no occupied cell. Exact: a cell whose centre is c from a point is
+    between c - sqrt(d)/2 and c from it, so with the ``k`` nearest centres of a point at
+    most c_k away, the nearest cell is among them once the best of them is within
+    c_k - sqrt(d)/2; points where it is not are asked again with four times as many.
+    """
+    cells = np.argwhere(occupied)
+    if len(cells) == 0:
+        return None
+    d = occupied.ndim
+    tree = cKDTree(cells)
+    pts = np.asarray(points, dtype=float).reshape(-1, d)
+    best = np.inf
+    while len(pts):
+        kk = min(k, len(cells))
+        dist, idx = tree.query(pts, kk)
+        dist, idx = np.asarray(dist).reshape(len(pts), kk), np.asarray(idx).reshape(len(pts), kk)
+        gap = norms(np.maximum(0.0, np.abs(pts[:, None, :] - cells[idx]) - 0.5)).min(axis=1)
+        best = min(best, float(gap.min()))
+        if kk == len(cells):
+            break
+        pts = pts[gap > dist[:, -1] - 0.5 * np.sqrt(d)]  # another cell might be nearer
+        k *= 4
+    return best
+
+
+def check_positions(times: np.ndarray, points: np.ndarray, grid: OccupancyGrid,
+                    scale: np.ndarray | None = None) -> SampledCheck:
+    """Check robots at ``points`` (S, N, d) metres, sampled at ``times`` (S,); separation in the metric
+    scaled by ``scale`` (d,) (default: the plain distance)."""
+    dmin, pairs = min_pair_distance(points if scale is None else points * np.asarray(scale, dtype=float))
     k = int(np.argmin(dmin))
     pair = (int(min(pairs[k])), int(max(pairs[k]))) if np.isfinite(dmin[k]) else None
     cells = grid.world_to_cell(points)
@@ -94,7 +130,7 @@ def check_positions(times: np.ndarray, points: np.ndarray, grid: OccupancyGrid) 
         s, i = np.argwhere(inside)[0]
         hit = (int(i), float(times[s]))
     cell_pts = (points - np.asarray(grid.origin)) / grid.resolution
-    clr = obstacle_clearance(grid.occupied, cell_pts)
+    clr = voxel_clearance(grid.occupied, cell_pts)
     return SampledCheck(
         min_separation=float(dmin[k]),
         pair=pair,

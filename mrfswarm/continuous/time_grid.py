@@ -18,7 +18,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from mrfswarm.continuous.formulation import LIMIT_ORDERS, OCTAGON_INNER, piece_maps
+from mrfswarm.continuous.formulation import LIMIT_ORDERS, limit_polytope, piece_maps
+from mrfswarm.trajectory.piece_stack import norms
 
 
 def nominal_durations(paths: np.ndarray, resolution: float, speed: float, acceleration: float) -> np.ndarray:
@@ -30,7 +31,7 @@ def nominal_durations(paths: np.ndarray, resolution: float, speed: float, accele
     when the flight is too short to reach ``speed``). Step j lasts from the time the
     profile reaches :math:`s_j` to the time it reaches :math:`s_{j+1}`.
     """
-    moves = np.hypot(*np.diff(np.asarray(paths, dtype=float), axis=0).transpose(2, 0, 1))  # (T, N)
+    moves = norms(np.diff(np.asarray(paths, dtype=float), axis=0))  # (T, N)
     if moves.size == 0:
         return np.zeros(0)
     L = np.maximum(moves.max(axis=1), 1.0) * resolution
@@ -187,12 +188,14 @@ def witness_durations(paths: np.ndarray, resolution: float, limits: tuple[float,
     """(T,) durations at which every robot's rest-to-rest move meets the limits by its control points.
 
     A move of length L flown in time T has r-th derivative control points of norm
-    ``peak_r L / T^r``; each must fit in the octagon of inner radius
-    ``cos(pi/8) limit_r (1 - margin)``.
+    ``peak_r L / T^r``, all along the move; each must fit in the limit polytope
+    (:func:`~mrfswarm.continuous.formulation.limit_polytope`: the octagon in the plane),
+    within its inner radius ``rho limit_r (1 - margin)``.
     """
-    moves = np.hypot(*np.diff(np.asarray(paths, dtype=float), axis=0).transpose(2, 0, 1))
+    inner = limit_polytope(np.shape(paths)[-1])[1]
+    moves = norms(np.diff(np.asarray(paths, dtype=float), axis=0))
     L = moves.max(axis=1, initial=0.0) * resolution
     out = np.zeros_like(L)
     for r, peak, lim in zip(LIMIT_ORDERS, rest_step_peaks(degree, derivative), limits):
-        out = np.maximum(out, (peak * L / (OCTAGON_INNER * lim * (1 - margin))) ** (1.0 / r))
+        out = np.maximum(out, (peak * L / (inner * lim * (1 - margin))) ** (1.0 / r))
     return out * (1 + 1e-6)

@@ -82,6 +82,18 @@ def map_coefficients_in_order(matrix: np.ndarray, coefficients: np.ndarray) -> n
     return out
 
 
+def norms(points: np.ndarray) -> np.ndarray:
+    """Euclidean norms of points (..., dim): (...).
+
+    By ``np.hypot`` one coordinate at a time: for planar points exactly ``np.hypot(x, y)``,
+    in space ``hypot(hypot(x, y), z)`` (as accurate, and no overflow).
+    """
+    out = np.hypot(points[..., 0], points[..., 1]) if points.shape[-1] > 1 else np.abs(points[..., 0])
+    for d in range(2, points.shape[-1]):
+        out = np.hypot(out, points[..., d])
+    return out
+
+
 def squared_norms(points: np.ndarray) -> np.ndarray:
     """Squared norms of points (..., dim): (...).
 

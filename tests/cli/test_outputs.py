@@ -180,7 +180,7 @@ def test_a_3d_run_writes_z_projections_and_the_interactive_view(tmp_path, tmp_pa
         assert set(sim["max_tracking_error_axis_m"]) == {"x", "y", "z"}
         assert max(sim["max_tracking_error_axis_m"].values()) <= sim["max_tracking_error_m"]
         ys = yaml_robots(out)
-        assert {p[2] for p in ys} == {0.75, 1.25}  # initial_position z = the start's z
+        assert {p[2] for p in ys} == {0.0}  # initial_position: on the ground below the start
 
 
 def yaml_robots(out: Path) -> list:

@@ -112,13 +112,15 @@ def test_more_than_64_robots_at_other_resolutions(resolution, radius, dense_chec
     assert c.sampled.min_separation == pytest.approx(c.min_separation, abs=1e-3)
 
 
-def test_pair_distance_kd_tree_branch_matches_brute_force():
+@pytest.mark.parametrize("d", [2, 3])
+def test_pair_distance_kd_tree_branch_matches_brute_force(d):
     rng = np.random.default_rng(7)
     for n in (10, 65, 200):
-        pts = np.cumsum(rng.normal(scale=0.05, size=(300, n, 2)), axis=0) + rng.uniform(0, 15, (1, n, 2))
+        pts = np.cumsum(rng.normal(scale=0.05, size=(300, n, d)), axis=0) + rng.uniform(0, 15, (1, n, d))
         dmin, pairs = min_pair_distance(pts)
         iu, ju = np.triu_indices(n, 1)
         brute = np.linalg.norm(pts[:, iu] - pts[:, ju], axis=-1)
         np.testing.assert_allclose(dmin, brute.min(axis=1), rtol=0, atol=1e-12)
         got = np.linalg.norm(pts[np.arange(300), pairs[:, 0]] - pts[np.arange(300), pairs[:, 1]], axis=-1)
         np.testing.assert_allclose(got, dmin, atol=1e-12)
+
