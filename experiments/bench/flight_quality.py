@@ -28,6 +28,8 @@ Cases (deterministic maps built here; 1 m cells unless said):
 - ``arena8``: 8 robots in a 6 x 3.5 m arena of 0.25 m cells (robot radius 0.1 m, v_max 1 m/s);
 - ``big200`` (``--cases`` only): 200 robots on 128 x 128 with 15 % obstacles;
 - ``cross1000`` (``--cases`` only): 1000 robots crossing 240 m of open field;
+- ``field3d``, ``window3d``, ``columns3d`` (``--cases`` only): the 3-D scenarios of ``experiments/``
+  (40, 12 and 16 robots on voxel maps, downwash 2; the bound on the 26-connected voxel graph);
 - ``cross300`` (``--cases`` only): 300 robots crossing 110 m of open field (the big swarm's windows, quicker).
 
     python experiments/bench/flight_quality.py [--cases ...] [--variants default,refined]
@@ -98,6 +100,8 @@ def case_config(case: str) -> tuple[dict, Path]:
 
     if case == "corridor":
         return tomllib.loads((EXP / "corridor.toml").read_text()), EXP
+    if case in ("field3d", "window3d", "columns3d"):  # voxel maps with downwash 2 (issue 20)
+        return tomllib.loads((EXP / f"{case}.toml").read_text()), EXP
     if case in ("forest", "rooms", "trap"):
         name = {"forest": "forest_01", "rooms": "rooms_01", "trap": "trap_01"}[case]
         data = tomllib.loads((EXP / "maps" / f"{name}.toml").read_text())
