@@ -170,6 +170,8 @@ class Result:
             "separation_threshold_m": SEPARATION_FACTOR * self.scenario.morse.d_min,
             "steps_with_separated_robots": int(sum(s.get("separated", 0) > 0 for s in self.discrete.steps)),
             "swarm_energy": [float(e) for e in self.discrete.energy],
+            # both separations in the downwash-scaled metric (sqrt(dx^2 + dy^2 + (dz / c)^2); plain in 2-D)
+            "downwash": self.config.scenario.downwash,
             "min_separation_discrete": _num(m.min_separation),
             "min_separation_continuous": None if c is None else _num(c.min_separation),
             "min_obstacle_clearance": _num(m.min_obstacle_clearance if c is None else c.min_clearance),
@@ -409,5 +411,5 @@ def _simulate(result: Result, show: bool, workers: int | None = None) -> None:
     result.flight = fly_swarm(c.trajectories, cfg.scenario.altitude, result.scenario.grid,
                               cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=c.j_max,
                               workers=workers, speed=c.v_max, progress=show,
-                              backend=cfg.simulation.backend)
+                              backend=cfg.simulation.backend, downwash=cfg.scenario.downwash)
     result.timings_s["simulation"] = time.perf_counter() - t0

@@ -66,6 +66,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mrfswarm.errors import ConfigError, SolverNotFound
+from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.metrics import min_pair_distances, obstacle_clearance
 from mrfswarm.trajectory import PiecewisePolynomial
@@ -114,7 +115,7 @@ class SwarmFlight:
     max_tracking_error, rms_tracking_error
         Over all robots and times.
     min_separation
-        Smallest distance between two flown robots (3-D).
+        Smallest distance between two flown robots (3-D; on a voxel map in the downwash-scaled metric).
     min_clearance
         Smallest distance from a flown robot to an occupied cell (None: no obstacle): horizontal on a 2-D map,
         in 3-D on a voxel map.
@@ -362,8 +363,12 @@ def fly_batched(trajectories: list[PiecewisePolynomial], altitude: float, rate_h
 
 def fly_swarm(trajectories: list[PiecewisePolynomial], altitude: float, grid: OccupancyGrid, rate_hz: float = 100.0,
               vehicle: str = "crazyflie", workers: int | None = None, jerk: float | None = None,
-              speed: float | None = None, progress: bool | None = None, backend: str = "auto") -> SwarmFlight:
+              speed: float | None = None, progress: bool | None = None, backend: str = "auto",
+              downwash: float = 1.0) -> SwarmFlight:
     """Fly every robot and measure tracking, separation and clearance on the common time grid.
+
+    ``downwash``: c of the separation's scaled metric on a voxel map (dz counts 1/c; a 2-D
+    map's flights are measured in plain 3-D distance).
 
     ``jerk``, ``speed``: the trajectories' maximum jerk and speed, for the tracking bound
     (None: no bound).
@@ -397,16 +402,17 @@ def fly_swarm(trajectories: list[PiecewisePolynomial], altitude: float, grid: Oc
                     f.result()
                     bar.update(1)
                 flights = [f.result() for f in futures]
-    return _measure(flights, grid, vehicle, jerk, speed)
+    return _measure(flights, grid, vehicle, jerk, speed, downwash)
 
 
 def _measure(flights: list[Flight], grid: OccupancyGrid, vehicle: str, jerk: float | None,
-             speed: float | None) -> SwarmFlight:
+             speed: float | None, downwash: float = 1.0) -> SwarmFlight:
     """Tracking, separation and clearance of flights on one time grid."""
     err = np.concatenate([f.tracking_error for f in flights])
     axis = np.concatenate([f.axis_error for f in flights])  # (S N, 3)
     pts = np.stack([f.positions for f in flights], axis=1)  # (S, N, 3)
-    d3 = float(min_pair_distances(pts)[0].min()) if len(flights) > 1 else float("inf")  # exact, in 3-D
+    scale = downwash_scale(3, downwash if grid.ndim == 3 else 1.0)
+    d3 = float(min_pair_distances(pts * scale)[0].min()) if len(flights) > 1 else float("inf")  # exact, in 3-D
     p = pts[..., :grid.ndim].reshape(-1, grid.ndim)  # a 2-D map: the horizontal position; a voxel map: all of it
     cells = grid.world_to_cell(p)
     clr = obstacle_clearance(grid.occupied, (p - np.asarray(grid.origin)) / grid.resolution)

@@ -161,3 +161,20 @@ def test_a_flight_over_a_voxel_map_measures_clearance_in_3d():
     p = np.array([[3.0, 3.0, 2.0], [3.0, 3.0, 2.0]])
     s = _measure([Flight(t, p, p)], grid, "crazyflie", None, None)
     assert s.min_clearance == pytest.approx(1.5) and not s.in_obstacle  # above it: the 3-D distance, not 0
+
+
+def test_flown_separation_is_measured_in_the_downwash_metric_on_voxel_maps():
+    """Two robots 0.8 m apart in z: 0.4 m apart with downwash 2 on a voxel map (below the 0.5 m safety
+    distance), 0.8 m on a 2-D map whatever the downwash (it applies to voxel maps only)."""
+    from mrfswarm.maps import OccupancyGrid
+    from mrfswarm.simulation import Flight, _measure
+
+    t = np.linspace(0.0, 1.0, 11)
+    a = np.column_stack([t, np.full_like(t, 2.0), np.full_like(t, 2.0)])
+    b = a + [0.0, 0.0, 0.8]
+    flights = [Flight(t, p, p) for p in (a, b)]
+    voxels = OccupancyGrid(np.zeros((5, 5, 5)))
+    plane = OccupancyGrid(np.zeros((5, 5)))
+    assert _measure(flights, voxels, "crazyflie", None, None, downwash=2.0).min_separation == pytest.approx(0.4)
+    assert _measure(flights, voxels, "crazyflie", None, None).min_separation == pytest.approx(0.8)
+    assert _measure(flights, plane, "crazyflie", None, None, downwash=2.0).min_separation == pytest.approx(0.8)

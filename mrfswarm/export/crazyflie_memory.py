@@ -91,6 +91,7 @@ def _compressed(result: Result, taus: np.ndarray,
     from mrfswarm.continuous.certificate import certify, control_point_stack, hull_distance_from_origin
     from mrfswarm.continuous.merge_pieces import step_pieces, step_times
     from mrfswarm.continuous.regions import near_pairs
+    from mrfswarm.geometry import downwash_scale
 
     c = result.smoothed()
     cfg = result.config
@@ -106,7 +107,8 @@ def _compressed(result: Result, taus: np.ndarray,
     piece_steps = np.arange(len(c.knot_times)) if c.piece_steps is None else c.piece_steps
     steps = step_times(decoded[0].knots, c.knot_times, piece_steps) \
         if len(decoded[0].knots) == len(piece_steps) else decoded[0].knots
-    cert = certify(decoded, steps, c.regions, distance, limits)
+    scale = downwash_scale(dim, cfg.scenario.downwash)  # separation in the downwash-scaled metric, as planned
+    cert = certify(decoded, steps, c.regions, distance, limits, scale)
 
     # the firmware's float32 maths against the exact decoding, and against the plan
     durations, fw = cflib_.firmware_positions_compressed(blobs, taus)
@@ -130,11 +132,12 @@ def _compressed(result: Result, taus: np.ndarray,
         clearance = radius - np.sqrt(dim) * slab
         for r, lim in zip(cps[1:], limits):
             within &= np.linalg.norm(r, axis=-1).max(axis=(1, 2)) <= lim
-        lo, hi = P.min(axis=2), P.max(axis=2)
+        S = P * scale
+        lo, hi = S.min(axis=2), S.max(axis=2)
         for j in range(P.shape[1]):
             pairs = near_pairs(lo[:, j], hi[:, j], distance)
             if len(pairs):
-                d = hull_distance_from_origin(P[pairs[:, 0], j] - P[pairs[:, 1], j])
+                d = hull_distance_from_origin(S[pairs[:, 0], j] - S[pairs[:, 1], j])
                 np.minimum.at(separation, pairs[:, 0], d)
                 np.minimum.at(separation, pairs[:, 1], d)
     for i, entry in enumerate(robots):
