@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from mrfswarm.config import from_dict, load_config
-from mrfswarm.discrete.potentials import goal_distances
 from mrfswarm.discrete.start import start_cells
 from mrfswarm.errors import ScenarioError
 from mrfswarm.geometry import downwash_scale
@@ -16,23 +15,6 @@ from mrfswarm.scenario import build_scenario, goal_cell
 from support.repository import EXPERIMENTS
 
 SCENARIOS_3D = ["window3d", "columns3d", "field3d"]
-
-
-def _potentials_take_voxels() -> bool:
-    """Whether the goal field works on voxel grids (the discrete stage's generalization, merged separately)."""
-    cfg = from_dict({})
-    try:
-        goal_distances(np.zeros((3, 3, 3)), np.array([1, 1, 1]), 1.0, cfg.goal_potential, cfg.obstacle_potential,
-                       cfg.mrf.order)
-    except ValueError:
-        return False
-    return True
-
-
-#: build_scenario computes the static field, which needs the 3-D potentials of branch discrete3d; once merged the
-#: mark lifts itself (strict: it can only excuse the one missing piece).
-needs_3d_potentials = pytest.mark.xfail(not _potentials_take_voxels(), raises=ValueError, strict=True,
-                                        reason="the potentials on voxel grids come with the 3-D discrete stage")
 
 
 def scaled_gaps(cells: np.ndarray, downwash: float) -> np.ndarray:
@@ -79,7 +61,6 @@ def test_columns3d_has_a_low_ceiling_over_the_columns():
 
 
 @pytest.mark.parametrize("name", SCENARIOS_3D)
-@needs_3d_potentials
 def test_3d_scenarios_build(name):
     cfg = load_config(EXPERIMENTS / f"{name}.toml")
     scn = build_scenario(cfg)
@@ -108,7 +89,6 @@ def test_2d_scenarios_carry_the_default_downwash():
     assert scn.discrete_problem().downwash == 3.0
 
 
-@needs_3d_potentials
 def test_a_3d_config_flows_through_plan_to_the_discrete_stage():
     r = plan(load_config(EXPERIMENTS / "field3d.toml", ["smoothing.enabled=false"]))
     paths = r.discrete.paths
@@ -119,3 +99,33 @@ def test_a_3d_config_flows_through_plan_to_the_discrete_stage():
     for step in paths:  # the downwash the scenario carries reached the planner: one scaled cell apart
         assert scaled_gaps(step, 2.0).min() >= 1.0 - 1e-9
     assert r.summary()["goal"] == [27.0, 7.0, 4.0]
+
+
+def _target_run(refined: bool):
+    from mrfswarm.flight_quality import makespan_lower_bound
+
+    cfg = load_config(EXPERIMENTS / "field3d.toml", ["simulation.enabled=false", "smoothing.check_rate_hz=500",
+                                                     f"smoothing.time_refinement={str(refined).lower()}"])
+    r = plan(cfg, progress=False)
+    s, c, scn = r.summary(), r.continuous, r.scenario
+    assert s["robots_at_goal"] == s["n_robots"] == 40 and s["reached_goal"] is True
+    assert c.certificate.ok and s["downwash"] == 2.0
+    r2 = cfg.scenario.robot_radius
+    assert s["min_separation_discrete"] >= scn.grid.resolution - 1e-9  # one scaled cell
+    check = s["sampled_check"]  # the independent check at 500 Hz, in the scaled metric
+    assert check["rate_hz"] == 500 and check["min_separation_m"] >= 2 * r2 and check["min_clearance_m"] >= r2
+    P = r.discrete.paths
+    bound = makespan_lower_bound(scn.grid.free, P[0], P[-1], scn.grid.resolution, cfg.smoothing.v_max,
+                                 None if scn.distances is None else scn.distances.path)
+    return c.makespan_s / bound
+
+
+def test_the_issue_target_field_flies_safely_with_the_default_time_grid():
+    """40 robots, 32 x 16 x 8 voxels, downwash 2: all at the goal, certified, checked at 500 Hz (2.07 x the bound)."""
+    assert _target_run(False) < 2.5
+
+
+@pytest.mark.slow
+def test_the_issue_target_field_refined_is_within_1_8_times_the_bound():
+    """The scenario's own setting (time refinement): 1.38 x the 26-connected bound, about 50 s to plan."""
+    assert _target_run(True) <= 1.8

@@ -137,19 +137,6 @@ def test_swarm_measures_report_the_error_per_axis():
     assert s.max_tracking_error == pytest.approx(0.2)
 
 
-def _metrics_take_voxels() -> bool:
-    from mrfswarm.metrics import obstacle_clearance
-
-    try:
-        occ = np.zeros((3, 3, 3), dtype=bool)
-        occ[2, 2, 2] = True
-        return obstacle_clearance(occ, np.zeros((1, 3))) == pytest.approx(np.sqrt(3) * 1.5)
-    except ValueError:
-        return False
-
-
-@pytest.mark.skipif(not _metrics_take_voxels(), reason="mrfswarm.metrics measures clearance in 2-D only on this "
-                                                       "branch (the discrete stage's branch makes it d-dimensional)")
 def test_a_flight_over_a_voxel_map_measures_clearance_in_3d():
     from mrfswarm.maps import OccupancyGrid
     from mrfswarm.simulation import Flight, _measure

@@ -139,25 +139,12 @@ def _voxel_config(tmp_path: Path, smoothing: bool) -> Path:
     return p
 
 
-def _voxel_configs_load(tmp_path_factory) -> bool:
-    from mrfswarm.config import load_config
-    from mrfswarm.errors import ConfigError
-
-    try:
-        load_config(_voxel_config(tmp_path_factory.mktemp("probe"), False))
-    except ConfigError:
-        return False
-    return True
-
-
 @pytest.mark.parametrize("smoothing", [False, True], ids=["discrete", "smoothed"])
-def test_a_3d_run_writes_z_projections_and_the_interactive_view(tmp_path, tmp_path_factory, smoothing):
+def test_a_3d_run_writes_z_projections_and_the_interactive_view(tmp_path, smoothing):
     """End to end on a voxel map: discrete_paths.csv with the voxel centres' z, the projected figures, the
     self-contained scene.html and, smoothed and flown, the animation and the tracking error per axis."""
     import csv
 
-    if not _voxel_configs_load(tmp_path_factory):
-        pytest.skip("3-D configs ([W, H, D] maps) are not loaded on this branch (the maps branch brings them)")
     out = tmp_path / "out"
     cfg = _voxel_config(tmp_path, smoothing)
     assert main(["run", str(cfg), "--out", str(out), "--animate", "--workers", "1"]) == 0
