@@ -5,8 +5,10 @@ and every robot's trajectory (durations and coefficients) as planned after the 3
 generalization. When it was written, the same plans from the last revision before it
 (d57dabc) were equal to them (paths exactly, coefficients within 1e-9) once the moderate
 speed profile added beside it (issue 18) was switched off; with it, blocks and
-single_obstacle fly 0.8 and 0.2 s sooner. A change that moves a 2-D plan fails here: if it is
-meant, regenerate the file and say why in the commit.
+single_obstacle fly 0.8 and 0.2 s sooner. Regenerated once since, for the drift through
+single-step waits (issue 18: corridor 22.91 -> 22.38 s, single_obstacle 25.04 -> 24.58 s; the
+same paths). A change that moves a 2-D plan fails here: if it is meant, regenerate the file
+and say why in the commit.
 """
 
 from __future__ import annotations

@@ -123,12 +123,15 @@ def motion_durations(paths: np.ndarray, resolution: float, v_max: float, acceler
     return motion_profile(paths, resolution, v_max, acceleration).durations
 
 
-def motion_profile(paths: np.ndarray, resolution: float, v_max: float, acceleration: float) -> SwarmProfile:
+def motion_profile(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
+                   drift: float = 0.0) -> SwarmProfile:
     r"""(T,) step durations derived from every robot's own motion and the limits.
 
     Each robot flies its discrete polyline with a speed profile of its own: at most
     ``v_max``, speeding up and slowing down at ``acceleration``, at rest where it waits
-    (a step without a move) and at both ends, and through a turn of angle
+    (a step without a move) and at both ends, except that with ``drift`` > 0 a single-step
+    wait between two moves that turn by at most 90 degrees counts as a move of ``drift``
+    metres along the way (the robot slows down within its cell instead of stopping), and through a turn of angle
     :math:`	heta` between two moves no faster than
     :math:`\sqrt{a L / (2 \sin(	heta/2))}` (the speed whose change of direction,
     :math:`2 v \sin(	heta/2)`, takes the time of half a move each side at ``acceleration``).
@@ -139,7 +142,17 @@ def motion_profile(paths: np.ndarray, resolution: float, v_max: float, accelerat
     slows only the steps around it.
     """
     P = np.asarray(paths, dtype=float) * resolution
-    m = np.diff(P, axis=0)  # (T, N, 2)
+    m = np.diff(P, axis=0)  # (T, N, d)
+    if drift > 0 and len(m) >= 3:
+        # a single-step wait between two moves that do not turn back: the robot may drift up to ``drift``
+        # metres within its cell along its way instead of stopping (its region is the cell's room)
+        Lm = np.linalg.norm(m, axis=-1)
+        way = m[:-2] + m[2:]
+        ahead = (m[:-2] * m[2:]).sum(-1) > 0
+        wait = (Lm[1:-1] == 0) & (Lm[:-2] > 0) & (Lm[2:] > 0) & ahead
+        norm = np.linalg.norm(way, axis=-1, keepdims=True)
+        m = m.copy()
+        m[1:-1] = np.where(wait[..., None], drift * way / np.maximum(norm, 1e-12), m[1:-1])
     L = np.linalg.norm(m, axis=-1)  # (T, N)
     T = len(L)
     a = float(acceleration)

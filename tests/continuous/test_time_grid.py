@@ -37,3 +37,21 @@ def test_a_window_brakes_to_rest_at_its_end_and_keeps_the_flight_pace_before():
     # braking from v to 0 at a over the tail: the tail lasts at least v / a
     assert win[4:].sum() >= 2.0 / 1.0 - 1e-9
     np.testing.assert_allclose(prof.window(0, 29), whole)  # the whole flight: the same profile
+
+
+def test_a_single_step_wait_drifts_instead_of_stopping_unless_the_robot_turns_back():
+    """Robot 0 runs along x and waits one step; robot 1 runs on throughout. With a drift the waiting robot
+    keeps some speed through the wait (its knots are not at rest), so the steps around it are shorter; a wait
+    before a turn of more than 90 degrees, and a wait of two steps, still stop."""
+    run = [0, 1, 2, 3, 4, 4, 5, 6, 7, 8]
+    def pair(xs, ys=(0,) * 10):
+        return np.array([[[x, y], [i, 5]] for i, (x, y) in enumerate(zip(xs, ys))], dtype=float)
+    stop, drift = (motion_profile(pair(run), 1.0, 2.0, 1.0, d) for d in (0.0, 0.5))
+    assert drift.durations.sum() < stop.durations.sum() - 0.2
+    assert np.allclose(drift.durations[:2], stop.durations[:2]) and drift.durations[3] < stop.durations[3]
+    back = [0, 1, 2, 3, 4, 4, 3, 2, 1, 0], [0, 0, 0, 0, 0, 0, 1, 2, 3, 4]  # turns 135 degrees after the wait
+    assert np.allclose(motion_profile(pair(*back), 1.0, 2.0, 1.0, 0.5).durations,
+                       motion_profile(pair(*back), 1.0, 2.0, 1.0, 0.0).durations)
+    long = [0, 1, 2, 3, 4, 4, 4, 5, 6, 7]  # two steps of waiting: no room to drift through
+    assert np.allclose(motion_profile(pair(long), 1.0, 2.0, 1.0, 0.5).durations,
+                       motion_profile(pair(long), 1.0, 2.0, 1.0, 0.0).durations)
