@@ -157,8 +157,9 @@ def case_config(case: str) -> tuple[dict, Path]:
     raise SystemExit(f"unknown case {case!r}")
 
 
-def child(case: str, variant: str, code: str | None, overrides: list[str]) -> None:
-    """Plan one case with one variant and print its row as JSON (run in a child process)."""
+def child(case: str, variant: str, code: str | None, overrides: list[str], arrays: str) -> None:
+    """Plan one case with one variant and print its row as JSON (run in a child process); the arrays
+    the makespan's lower bound needs go to the file ``arrays``."""
     use(code)
     import importlib.util
 
@@ -189,14 +190,15 @@ def child(case: str, variant: str, code: str | None, overrides: list[str]) -> No
     scn, c = r.scenario, r.continuous
     paths = r.discrete.paths
     d = scn.distances
-    bound = fq.makespan_lower_bound(scn.grid.free, paths[0], paths[-1], scn.grid.resolution, cfg.smoothing.v_max,
-                                    None if d is None else d.path)
+    # the lower bound is computed by the parent, with the working tree's code (the baseline's goal-field
+    # functions differ): the child leaves it what it needs
+    np.savez(arrays, free=scn.grid.free, starts=paths[0], ends=paths[-1], resolution=scn.grid.resolution,
+             v_max=cfg.smoothing.v_max, **({} if d is None else {"via": d.path}))
     stops = fq.count_stops(c.trajectories)
     moving = np.any(np.diff(paths, axis=0) != 0, axis=2)  # (T, N)
     robots = r.robots()
     row = {"case": case, "variant": variant, "robots": scn.n_robots, "steps": r.discrete.n_steps,
-           "bound": round(c.makespan_s / bound, 2) if bound > 0 else None,
-           "makespan_s": round(c.makespan_s, 2), "bound_s": round(bound, 2),
+           "makespan_s": round(c.makespan_s, 2),
            "stops": round(stops.mean, 2), "stops_max": int(stops.per_robot.max(initial=0)),
            "speed": round(float(stops.mean_speed.mean()), 2),
            "at_goal": sum(bool(o.at_goal) for o in robots),
@@ -204,6 +206,18 @@ def child(case: str, variant: str, code: str | None, overrides: list[str]) -> No
            "plan_s": round(total, 1),
            "min_sep_m": round(float(c.min_separation), 3)}
     print(json.dumps(row))
+
+
+def lower_bound(arrays: Path, makespan: float) -> dict:
+    """The makespan's lower bound of a child's plan (working tree's :mod:`mrfswarm.flight_quality`)."""
+    import numpy as np
+
+    from mrfswarm.flight_quality import makespan_lower_bound
+
+    a = np.load(arrays)
+    bound = makespan_lower_bound(a["free"], a["starts"], a["ends"], float(a["resolution"]), float(a["v_max"]),
+                                 a["via"] if "via" in a.files else None)
+    return {"bound": round(makespan / bound, 2) if bound > 0 else None, "bound_s": round(bound, 2)}
 
 
 COLUMNS = ["steps", "bound", "stops", "stops_max", "speed", "at_goal", "moving_share", "makespan_s", "bound_s",
@@ -221,9 +235,10 @@ def main() -> None:
                     help="a config override for every run (repeatable)")
     ap.add_argument("--child", nargs=2, metavar=("CASE", "VARIANT"), help=argparse.SUPPRESS)
     ap.add_argument("--code", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--arrays", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        child(*args.child, args.code, args.set)
+        child(*args.child, args.code, args.set, args.arrays)
         return
     rows = []
     print(f"{'case':<10} {'code':<9} {'variant':<8} " + " ".join(f"{c[:12]:>12}" for c in COLUMNS), flush=True)
@@ -234,7 +249,10 @@ def main() -> None:
             if old is not None:
                 runs = [(v, old, args.baseline) for v in args.baseline_variants.split(",") if v] + runs
             for v, code, label in runs:
-                row = {"code": label, **run_child(Path(__file__), ["--child", case, v, *(f"--set={o}" for o in args.set)], code)}
+                arrays = Path(tmp) / "arrays.npz"
+                row = {"code": label, **run_child(Path(__file__), ["--child", case, v, "--arrays", str(arrays),
+                                                                   *(f"--set={o}" for o in args.set)], code)}
+                row.update(lower_bound(arrays, row["makespan_s"]))
                 rows.append(row)
                 print(f"{case:<10} {label:<9} {v:<8} " + " ".join(f"{str(row[c]):>12}" for c in COLUMNS), flush=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
