@@ -129,9 +129,10 @@ def motion_profile(paths: np.ndarray, resolution: float, v_max: float, accelerat
 
     Each robot flies its discrete polyline with a speed profile of its own: at most
     ``v_max``, speeding up and slowing down at ``acceleration``, at rest where it waits
-    (a step without a move) and at both ends, except that with ``drift`` > 0 a single-step
-    wait between two moves that turn by at most 90 degrees counts as a move of ``drift``
-    metres along the way (the robot slows down within its cell instead of stopping), and through a turn of angle
+    (a step without a move) and at both ends (except that with ``drift`` > 0 a single-step
+    wait between two moves that turn by less than 90 degrees counts as a move of ``drift``
+    metres along the way: the robot slows down within its cell instead of stopping), and
+    through a turn of angle
     :math:`	heta` between two moves no faster than
     :math:`\sqrt{a L / (2 \sin(	heta/2))}` (the speed whose change of direction,
     :math:`2 v \sin(	heta/2)`, takes the time of half a move each side at ``acceleration``).
@@ -144,7 +145,7 @@ def motion_profile(paths: np.ndarray, resolution: float, v_max: float, accelerat
     P = np.asarray(paths, dtype=float) * resolution
     m = np.diff(P, axis=0)  # (T, N, d)
     if drift > 0 and len(m) >= 3:
-        # a single-step wait between two moves that do not turn back: the robot may drift up to ``drift``
+        # a single-step wait between two moves that turn by less than 90 degrees: the robot may drift up to ``drift``
         # metres within its cell along its way instead of stopping (its region is the cell's room)
         Lm = np.linalg.norm(m, axis=-1)
         way = m[:-2] + m[2:]
