@@ -198,9 +198,7 @@ def test_fig6_the_papers_seams_stop_and_start_ours_do_not():
     assert np.all(ts.stops() >= len(paper.continuous.windows) // 2)
     nums = trajectories.variant_numbers("corridor")
     assert all(max(nums[v]["stops_per_robot"]) == 0 for v in ("default", "refined"))
-    # the default grid (robots drift through single-step waits) flies the corridor as fast as the refined one:
-    # 22.38 s against 22.41 (22.91 before the drift)
-    assert nums["refined"]["makespan_s"] < 1.01 * nums["default"]["makespan_s"] < 0.6 * nums["paper"]["makespan_s"]
+    assert nums["refined"]["makespan_s"] < nums["default"]["makespan_s"] < 0.6 * nums["paper"]["makespan_s"]
     assert nums["default"]["snap_integral"] < 0.1 * nums["paper"]["snap_integral"]
     assert all(nums[v]["certified"] and nums[v]["min_separation_m"] >= 0.5 for v in trajectories.VARIANTS)
     assert np.all(trajectories.time_series("free5").stops() == 0)

@@ -730,7 +730,9 @@ class RecedingHorizon:
 
         Every iterate is a solution of the window problem, so the result keeps the next
         window's feasibility argument; the best point the backend evaluated is kept if it
-        certifies and lowers f (the next best otherwise, and so on down to ``sol``).
+        certifies, lowers f and does not last longer than ``sol`` (the next best otherwise,
+        and so on down to ``sol``). Without the last condition a point of lower snap but
+        longer steps was kept: the corridor refined flew 22.4 s, now 20.4.
         """
         alloc = self.time_allocation(sol, a, start, rec, merged)
         res = solvers.nlp.minimize(alloc.problem, self.cfg.nlp, NLP_OPTIONS)
@@ -741,7 +743,7 @@ class RecedingHorizon:
             if value >= before:
                 break
             best = found[key]
-            if self._certify(best, a).ok:
+            if best.durations.sum() <= sol.durations.sum() and self._certify(best, a).ok:
                 rec.refined = True
                 self.active, self.limit_rows = alloc.rows[key]
                 return best

@@ -88,17 +88,14 @@ def test_rest_seams_stop_at_every_execution_point():
 
 @pytest.mark.slow
 def test_time_refinement_flies_faster():
-    # one piece per step: the refinement's own gain (with the default 31 pieces, two windows merged, it gains
-    # less: 22.9 -> 22.4 s; merged windows keep their certified refinement too)
+    # one piece per step: the refinement's own gain (merged windows keep their certified refinement too)
     base = run("corridor", "smoothing.max_pieces=0").continuous
     fast = run("corridor", "smoothing.time_refinement=true", "smoothing.max_pieces=0").continuous
     assert fast.certificate.ok and any(w.refined for w in fast.windows)
-    # the default grid already flies near the limits: 22.4 s, refined less (21.2 without the rows' 3 mm of room for
-    # the compressed export's rounding, EXPORT_SLACK: the local NLP then takes other windows)
+    # the default grid flies 22.4 s, refined 20.5 (a refined window never lasts longer than the QP's; merged 20.4)
     assert fast.makespan_s < 0.99 * base.makespan_s
     merged = run("corridor", "smoothing.time_refinement=true").continuous
-    # merged windows gain less (22.41 s): about the default grid's 22.38 since waits drift (DRIFT)
-    assert merged.certificate.ok and max(merged.pieces_per_robot) <= 31 and merged.makespan_s < 1.01 * base.makespan_s
+    assert merged.certificate.ok and max(merged.pieces_per_robot) <= 31 and merged.makespan_s < base.makespan_s
 
 
 def test_uav_csv_exports_evaluate_back(tmp_path):
