@@ -187,6 +187,8 @@ class Result:
             "pruned_waypoints": [int(len(p)) for p in self.pruned],
             "mrf_step_time_s": {k: float(np.mean(v)) if len(v) else 0.0 for k, v in self.discrete.timings.items()},
             "mrf_repaired": int(sum(s["repaired"] for s in self.discrete.steps)),
+            "merged_waits": self.discrete.merged_waits,
+            "congested_fields": self.discrete.congested_fields,
             "timings_s": {k: float(v) for k, v in self.timings_s.items()},
             "failure": self.failure,
         }

@@ -7,10 +7,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from mrfswarm.config import Config
-from mrfswarm.discrete.goal_distance import GoalDistance
+from mrfswarm.discrete.congestion import CongestionField
+from mrfswarm.discrete.goal_distance import GoalDistance, GoalGraph
 from mrfswarm.discrete.interaction_graph import check_k
 from mrfswarm.discrete.planner import DiscreteProblem
-from mrfswarm.discrete.potentials import Morse, goal_distances, static_field
+from mrfswarm.discrete.potentials import Morse, goal_distances, obstacle_field, static_field
 from mrfswarm.discrete.robot_outcomes import goal_region_radius
 from mrfswarm.discrete.start import format_point, start_cells
 from mrfswarm.errors import ConfigError, ScenarioError
@@ -102,7 +103,21 @@ class Scenario:
             goal_path=None if self.distances is None else self.distances.path,
             goal_region_radius=0.0 if self.goal_region_radius is None else self.goal_region_radius,
             downwash=c.scenario.downwash,
+            congestion=self.congestion_field(),
+            merge_waits=c.mrf.merge_waits,
         )
+
+    def congestion_field(self) -> CongestionField | None:
+        """The goal field's congestion pricing (None with ``goal_potential.congestion`` 0 or without a goal)."""
+        g = self.config.goal_potential
+        if g.congestion_weight <= 0 or self.goal is None or self.distances is None:
+            return None
+        obstacle = obstacle_field(self.grid.prob, self.config.obstacle_potential)
+        graph = GoalGraph.build(self.grid.free, self.goal, self.grid.resolution, self.config.mrf.order, obstacle,
+                                climb_weight=g.k * self.grid.resolution / g.a)
+        return CongestionField(graph=graph, obstacle=obstacle, goal_cfg=g, resolution=self.grid.resolution,
+                               weight=g.congestion_weight, every=g.congestion_every, goal_path=self.distances.path,
+                               region_radius=0.0 if self.goal_region_radius is None else self.goal_region_radius)
 
 
 def build_scenario(cfg: Config, seed: int | None = None) -> Scenario:

@@ -53,7 +53,7 @@ EXP = ROOT / "experiments"
 RESULTS = Path(__file__).parent / "results"
 DEFAULT_CASES = "corridor,doorway,forest,rooms,trap,open50,clutter40,aisles30,arena8"
 #: mrf keys newer than the default baseline (dropped from a case for a baseline that does not know them).
-NEW_KEYS = ("follow", "arrival")
+NEW_KEYS = ("follow", "arrival", "merge_waits")
 VARIANTS = {"default": [], "refined": ["smoothing.time_refinement=true"]}
 
 

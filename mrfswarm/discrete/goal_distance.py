@@ -143,39 +143,78 @@ def goal_distance(free: np.ndarray, goal_cell: np.ndarray, resolution: float = 1
     -------
     GoalDistance
     """
-    free = np.asarray(free, dtype=bool)
-    shape = free.shape
-    g = np.asarray(goal_cell, dtype=np.intp)
-    if not (g.shape == (free.ndim,) and np.all((g >= 0) & (g < shape)) and free[tuple(g)]):
-        raise ValueError(f"goal cell {tuple(int(v) for v in g)} is not a free cell of the "
-                         f"{' x '.join(str(n) for n in shape)} grid")
-    if climb_weight < 0 or not math.isfinite(climb_weight):
-        raise ValueError(f"climb_weight must be finite and >= 0, got {climb_weight!r}")
-    if climb_weight > 0 and obstacle is None:
-        raise ValueError("climb_weight > 0 needs the obstacle potential")
-    src, dst, m_idx = free_moves(free, order)
-    length = norm(graph_moves(order, free.ndim)[m_idx]) * resolution
-    n = free.size
-    # Edges point from q (nearer the goal) to p so that one search from the goal follows
-    # them: the cost of moving p -> q sits on the edge q -> p.
-    a = np.ravel_multi_index(tuple(dst.T), shape)
-    b = np.ravel_multi_index(tuple(src.T), shape)
-    gi = int(np.ravel_multi_index(tuple(g), shape))
-    path = _search(a, b, length, n, gi)[0].reshape(shape)
+    graph = GoalGraph.build(free, goal_cell, resolution, order, obstacle, climb_weight)
+    path, nxt = graph.search(graph.length)
+    field = path
     if climb_weight > 0:
-        if obstacle is None:
-            raise ValueError("climb_weight > 0 needs the obstacle field")
-        rise = np.maximum(0.0, cell_values(obstacle, dst) - cell_values(obstacle, src))
-        field, pred = _search(a, b, length + climb_weight * rise, n, gi)
-        field = field.reshape(shape)
-    else:
-        field, pred = _search(a, b, length, n, gi)
-        field = field.reshape(shape)
-    nxt = np.full((n, free.ndim), -1, dtype=np.intp)
-    has = pred >= 0
-    nxt[has] = np.stack(np.unravel_index(pred[has], shape), axis=1)
-    nxt[gi] = g
-    return GoalDistance(path=path, field=field, next_cell=nxt.reshape(*shape, free.ndim))
+        field, nxt = graph.search(graph.length + graph.climb)
+    return GoalDistance(path=path, field=field, next_cell=nxt)
+
+
+@dataclass(frozen=True)
+class GoalGraph:
+    """The search graph of :func:`goal_distance`, kept for searches with other move costs.
+
+    Edges point from q (nearer the goal) to p, so that one search from the goal follows
+    them: the cost of the move p -> q sits on the edge q -> p.
+
+    Attributes
+    ----------
+    shape
+        The grid's shape.
+    tail, head
+        (E,) flat indices of each edge's ends (q, p).
+    into
+        (E, d) the cell each move enters (q).
+    length
+        (E,) each move's length (metres).
+    climb
+        (E,) the obstacle potential each move climbs, times the climb weight (metres; zeros without one).
+    goal
+        The goal cell's flat index.
+    """
+
+    shape: tuple[int, ...]
+    tail: np.ndarray
+    head: np.ndarray
+    into: np.ndarray
+    length: np.ndarray
+    climb: np.ndarray
+    goal: int
+
+    @classmethod
+    def build(cls, free: np.ndarray, goal_cell: np.ndarray, resolution: float = 1.0, order: int = 2,
+              obstacle: np.ndarray | None = None, climb_weight: float = 0.0) -> GoalGraph:
+        """The graph of the clear moves between free cells (arguments of :func:`goal_distance`)."""
+        free = np.asarray(free, dtype=bool)
+        shape = free.shape
+        g = np.asarray(goal_cell, dtype=np.intp)
+        if not (g.shape == (free.ndim,) and np.all((g >= 0) & (g < shape)) and free[tuple(g)]):
+            raise ValueError(f"goal cell {tuple(int(v) for v in g)} is not a free cell of the "
+                             f"{' x '.join(str(n) for n in shape)} grid")
+        if climb_weight < 0 or not math.isfinite(climb_weight):
+            raise ValueError(f"climb_weight must be finite and >= 0, got {climb_weight!r}")
+        if climb_weight > 0 and obstacle is None:
+            raise ValueError("climb_weight > 0 needs the obstacle potential")
+        src, dst, m_idx = free_moves(free, order)
+        length = norm(graph_moves(order, free.ndim)[m_idx]) * resolution
+        climb = np.zeros_like(length)
+        if climb_weight > 0 and obstacle is not None:
+            climb = climb_weight * np.maximum(0.0, cell_values(obstacle, dst) - cell_values(obstacle, src))
+        return cls(shape=shape, tail=np.ravel_multi_index(tuple(dst.T), shape),
+                   head=np.ravel_multi_index(tuple(src.T), shape), into=dst, length=length, climb=climb,
+                   goal=int(np.ravel_multi_index(tuple(g), shape)))
+
+    def search(self, cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distances to the goal (the grid's shape, metres) with ``cost`` (E,) per move, and each cell's next
+        cell on its shortest path (shape + (d,); the goal itself for the goal, -1 where unreachable)."""
+        n = int(np.prod(self.shape))
+        dist, pred = _search(self.tail, self.head, cost, n, self.goal)
+        nxt = np.full((n, len(self.shape)), -1, dtype=np.intp)
+        has = pred >= 0
+        nxt[has] = np.stack(np.unravel_index(pred[has], self.shape), axis=1)
+        nxt[self.goal] = np.unravel_index(self.goal, self.shape)
+        return dist.reshape(self.shape), nxt.reshape(*self.shape, len(self.shape))
 
 
 def _search(a: np.ndarray, b: np.ndarray, cost: np.ndarray, n: int, source: int) -> tuple[np.ndarray, np.ndarray]:

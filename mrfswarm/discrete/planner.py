@@ -30,14 +30,16 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from mrfswarm.config import PROGRESS_RULES
+from mrfswarm.discrete.congestion import CongestionField
 from mrfswarm.discrete.interaction_graph import CliqueWeights, clique_weights_of_graph, knn_edges, update_clique_weights
 from mrfswarm.discrete.label_sets import LabelSets, label_sets
+from mrfswarm.discrete.merge_waits import merge_waits
 from mrfswarm.discrete.motion import MIN_SEPARATION, cell_values, step_min_separation
 from mrfswarm.discrete.potentials import Morse
 from mrfswarm.discrete.safety import discrete_violations
@@ -93,6 +95,12 @@ class DiscreteProblem:
     downwash
         c = ``scenario.downwash`` >= 1: robots keep one cell apart in the metric of
         :func:`mrfswarm.geometry.downwash_scale` (z / c in 3-D; no effect in 2-D).
+    congestion
+        Recomputes the goal field around stalled robots every few steps
+        (:mod:`mrfswarm.discrete.congestion`); None keeps ``static`` throughout.
+    merge_waits
+        Merge each robot's waits between runs of moves once the paths are planned
+        (:mod:`mrfswarm.discrete.merge_waits`).
     """
 
     free: np.ndarray
@@ -110,6 +118,8 @@ class DiscreteProblem:
     goal_path: np.ndarray | None = None
     goal_region_radius: float = 0.0
     downwash: float = 1.0
+    congestion: CongestionField | None = None
+    merge_waits: bool = False
 
 
 @dataclass(frozen=True)
@@ -135,9 +145,11 @@ class DiscretePlan:
     Attributes
     ----------
     paths
-        (T + 1, N, d) cells, x^0 .. x^T.
+        (T + 1, N, d) cells, x^0 .. x^T: the MRF's configurations, with each robot's waits
+        merged when ``merge_waits`` is on.
     energy
-        (T + 1,) swarm energy of each configuration on its own graph.
+        (T + 1,) swarm energy of each of the MRF's configurations on its own graph (and,
+        with congestion, the goal field of its step).
     converged
         True if the energy converged (a step lowered it by less than the tolerance) with
         every robot that can reach the goal region in it (any fixed point without a goal).
@@ -150,6 +162,10 @@ class DiscretePlan:
         stage -> (T,) seconds per step.
     steps
         Per-step optimizer facts: iterations, repaired, lower bound, moved robots.
+    merged_waits
+        Waits moved by :func:`~mrfswarm.discrete.merge_waits.merge_waits` (0 when off).
+    congested_fields
+        Goal fields recomputed around stalled robots (:mod:`mrfswarm.discrete.congestion`).
     """
 
     paths: np.ndarray
@@ -158,6 +174,8 @@ class DiscretePlan:
     timings: dict[str, np.ndarray]
     steps: list[dict] = field(default_factory=list)
     stop_reason: str = "max_steps"
+    merged_waits: int = 0
+    congested_fields: int = 0
 
     @property
     def n_steps(self) -> int:
@@ -374,7 +392,14 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     apart = separation_cells(problem)
     gt: dict[str, float] = {}
     weights = graph_weights(pos, problem.k, gt)
+    base, congested = problem, 0
     for t in range(1, max_steps + 1):
+        cong = base.congestion
+        if cong is not None and t > 1 and (t - 2) % cong.every == 0:
+            stalled = cong.stalled(paths[-2], pos)
+            new = cong.fields(pos[stalled]) if stalled.any() else None
+            problem = base if new is None else replace(base, static=new[0], goal_distance=new[1])
+            congested += new is not None
         out = mrf_step(problem, pos, method, options, weights, gt)
         if t == 1:
             energy.append(out.energy_before)
@@ -408,7 +433,8 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         if arrival and problem.goal_path is not None and not _short_of_goal(problem, pos):
             converged, reason = True, "arrived"
             break
-        watch.record(t, energy[-1], _static_sum(problem, pos))
+        # progress is measured on the scenario's own field (a congested one changes every few steps)
+        watch.record(t, energy[-1] if problem is base else swarm_energy(base, pos, weights), _static_sum(base, pos))
         if watch.since >= patience:
             # the steps since the last progress only circulate: the plan ends there
             reason, best_t = "stalled", watch.best_t
@@ -420,6 +446,9 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         converged, reason = False, "trapped"
     log.info("discrete stage: %d steps, %s", len(paths) - 1, reason)
     stacked = np.stack(paths)
+    merged = 0
+    if problem.merge_waits:
+        stacked, merged = merge_waits(stacked, problem.downwash)
     bad = discrete_violations(stacked, problem.free, downwash=problem.downwash)
     if bad:  # a bug in the planner or an optimizer, never something to return
         raise AssertionError("discrete safety invariant violated: " + "; ".join(bad))
@@ -430,4 +459,6 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         timings={s: np.array(v) for s, v in timings.items()},
         steps=steps,
         stop_reason=reason,
+        merged_waits=merged,
+        congested_fields=congested,
     )

@@ -15,7 +15,6 @@ from hypothesis import strategies as st
 from mrfswarm.cli import main as cli_main
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig, load_config
 from mrfswarm.discrete.goal_distance import goal_distance, graph_moves
-from mrfswarm.discrete.motion import moves_clear, stencil
 from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, DiscreteProblem, plan_discrete
 from mrfswarm.discrete.potentials import Morse, goal_distances, goal_field, obstacle_field, static_field
 from mrfswarm.discrete.robot_outcomes import (
@@ -32,6 +31,7 @@ from mrfswarm.maps.synthetic import GENERATORS, generate
 from mrfswarm.metrics import min_separation
 from mrfswarm.pipeline import mrf_options, plan
 from mrfswarm.scenario import Scenario, build_scenario
+from support.fields import local_minima
 from support.repository import EXPERIMENTS
 
 MAPS = EXPERIMENTS / "maps"
@@ -75,19 +75,6 @@ def test_map_runs_report_what_plan_reports():
     s = r.summary()
     assert [x["stop_reason"] for x in s["robots"]] == [x.stop_reason for x in m.robots]
     assert [x["at_goal"] for x in s["robots"]] == [x.at_goal for x in m.robots]
-
-
-def local_minima(free: np.ndarray, field: np.ndarray, order: int) -> list[tuple[int, int]]:
-    """Free cells from which no clear move of the order-n stencil lowers ``field`` (brute force)."""
-    out = []
-    off = stencil(order)
-    cells = np.argwhere(free & np.isfinite(field))
-    ok = moves_clear(free, cells, np.broadcast_to(np.arange(len(off)), (len(cells), len(off))), order)
-    for c, row in zip(cells, ok):
-        lower = [field[tuple(c + o)] < field[tuple(c)] for o, k in zip(off, row) if k]
-        if not any(lower):
-            out.append(tuple(int(v) for v in c))
-    return out
 
 
 # --- the maps --------------------------------------------------------------------------------

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
+from mrfswarm.discrete.motion import moves_clear, stencil
 from mrfswarm.discrete.potentials import static_field
 
 
@@ -21,3 +22,16 @@ def random_map_static(free: np.ndarray, goal: np.ndarray | None, start: np.ndarr
     if np.isfinite(s[tuple(np.asarray(start).T)]).all():
         return s
     return static_field(prob, goal, 1.0, GoalPotentialConfig(distance="euclidean"), ObstaclePotentialConfig(), order)
+
+
+def local_minima(free: np.ndarray, field: np.ndarray, order: int) -> list[tuple[int, int]]:
+    """Free cells from which no clear move of the order-n stencil lowers ``field`` (brute force)."""
+    out = []
+    off = stencil(order)
+    cells = np.argwhere(free & np.isfinite(field))
+    ok = moves_clear(free, cells, np.broadcast_to(np.arange(len(off)), (len(cells), len(off))), order)
+    for c, row in zip(cells, ok):
+        lower = [field[tuple(c + o)] < field[tuple(c)] for o, k in zip(off, row) if k]
+        if not any(lower):
+            out.append(tuple(int(v) for v in c))
+    return out

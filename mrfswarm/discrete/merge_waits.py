@@ -1,0 +1,92 @@
+"""Merging a robot's waits: the same cells in the same order, fewer stops and starts (``mrf.merge_waits``).
+
+The MRF steps move every robot at once, and a robot blocked for a step waits where it
+is: its path comes out as runs of moves cut by single waits (move, wait, move, wait...).
+Flown on the common time grid each run starts from rest and ends at rest, and a step
+lasts as long as its slowest mover needs, so a step where any robot starts or stops is
+a slow step (about 0.9 s for a cell from rest against 0.5 s at 2 m/s on the default
+limits). On a 64 x 64 clutter map with 40 robots, 60 of 78 steps were paced by a robot
+starting or stopping.
+
+After the MRF has chosen the paths, :func:`merge_waits` moves each wait that separates
+two runs of a robot to the run's other end, where it joins another wait: the earlier
+run is delayed by the wait's length (its moves happen later), or if that is not safe
+the later run is advanced (its moves happen sooner). Each robot keeps its cells, their
+order and its start and end; only when it is in them changes. A change is kept only if
+the robot stays at least one cell (in the downwash-scaled metric) from every other robot
+during every step it touches, the invariant of :mod:`mrfswarm.discrete.safety`, which is
+checked again on the whole plan afterwards; the moves are the MRF's own moves, so their
+clearance from obstacles is unchanged. On that clutter map the runs went from 139 to 85.
+
+This is a post-process of the paper's method (its robots keep the MRF's timing);
+``mrf.merge_waits = false`` turns it off, as the paper's scenario configs do.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mrfswarm.discrete.motion import MIN_SEPARATION, min_distance_during_move
+from mrfswarm.geometry import downwash_scale
+
+_TOL = 1e-9
+#: Sweeps over all robots; a merge can make another one possible (measured: the third finds none on clutter40).
+PASSES = 4
+
+
+def robot_clear(paths: np.ndarray, robot: int, first: int, last: int, scale: np.ndarray) -> bool:
+    """Robot ``robot`` stays MIN_SEPARATION (scaled by ``scale``) from every other robot in steps first..last - 1."""
+    if last <= first:
+        return True
+    others = np.arange(paths.shape[1]) != robot
+    p0, p1 = paths[first:last], paths[first + 1:last + 1]  # (S, N, d)
+    d0 = (p0[:, robot, None] - p0[:, others]) * scale
+    v = ((p1[:, robot] - p0[:, robot])[:, None] - (p1[:, others] - p0[:, others])) * scale
+    return bool(np.all(min_distance_during_move(d0, v) >= MIN_SEPARATION - _TOL))
+
+
+def merge_waits(paths: np.ndarray, downwash: float = 1.0) -> tuple[np.ndarray, int]:
+    """The (T + 1, N, d) ``paths`` with every wait between two runs of moves merged where safe, and the merges.
+
+    See the module docstring. The result has the same steps, starts and ends, and each
+    robot visits the same cells in the same order.
+    """
+    P = np.array(paths, dtype=np.int64)
+    T, N = len(P) - 1, P.shape[1]
+    if T < 3:
+        return P, 0
+    scale = downwash_scale(P.shape[-1], downwash)
+    merged = 0
+    for _ in range(PASSES):
+        before = merged
+        for i in range(N):
+            k = 1
+            while k < T:
+                moves = np.any(P[1:, i] != P[:-1, i], axis=1)
+                if moves[k] or not moves[k - 1]:
+                    k += 1
+                    continue
+                e = k  # the waits [k, e) follow a move and ...
+                while e < T and not moves[e]:
+                    e += 1
+                if e == T:  # ... end the flight: nothing to merge
+                    break
+                w, s, r = e - k, k, e
+                while s > 0 and moves[s - 1]:  # the run before: [s, k)
+                    s -= 1
+                while r < T and moves[r]:  # the run after: [e, r)
+                    r += 1
+                late = P.copy()  # the run before delayed by w
+                late[s:s + w + 1, i] = P[s, i]
+                late[s + w:e + 1, i] = P[s:k + 1, i]
+                soon = P.copy()  # the run after advanced by w
+                soon[k:k + (r - e) + 1, i] = P[e:r + 1, i]
+                soon[k + (r - e):r + 1, i] = P[r, i]
+                for Q, f0, f1 in ((late, s, e), (soon, k, r)):
+                    if robot_clear(Q, i, f0, f1, scale):
+                        P, merged = Q, merged + 1
+                        break
+                k = e + 1
+        if merged == before:
+            break
+    return P, merged

@@ -1,0 +1,113 @@
+"""Merging each robot's waits between runs of moves (``mrf.merge_waits``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrfswarm.config import from_dict
+from mrfswarm.discrete.merge_waits import merge_waits, robot_clear
+from mrfswarm.discrete.safety import discrete_violations
+from mrfswarm.pipeline import plan
+
+
+def runs(paths: np.ndarray) -> int:
+    """Runs of moves over all robots (a run starts where a robot moves after a wait or at the start)."""
+    moving = np.any(np.diff(paths, axis=0) != 0, axis=2)
+    return int(moving[0].sum() + (moving[1:] & ~moving[:-1]).sum())
+
+
+def visits(paths: np.ndarray, robot: int) -> list[tuple[int, ...]]:
+    """The robot's cells in order, waits dropped."""
+    out: list[tuple[int, ...]] = []
+    for c in paths[:, robot]:
+        if not out or out[-1] != tuple(c):
+            out.append(tuple(int(v) for v in c))
+    return out
+
+
+def line(pattern: str, y: int = 0, x0: int = 0) -> np.ndarray:
+    """(len + 1, 2) one robot's path along x: "M" moves one cell, "." waits."""
+    x = [x0]
+    for ch in pattern:
+        x.append(x[-1] + (ch == "M"))
+    return np.array([[v, y] for v in x])
+
+
+def test_a_lone_robots_stutter_becomes_one_run():
+    paths = line("M.M.M.MM")[:, None]
+    out, merged = merge_waits(paths)
+    assert merged == 3
+    assert "".join("M" if m else "." for m in np.any(np.diff(out[:, 0], axis=0) != 0, axis=1)) == "...MMMMM"
+    assert visits(out, 0) == visits(paths, 0) and runs(out) == 1
+
+
+def crossing() -> np.ndarray:
+    """Robot 0 stutters (move, wait, move, wait) along y = 3; robot 1 steps into the cell robot 0 left, robot 2
+    into the cell robot 0 moves to next, each just in time."""
+    r0 = [(0, 3), (1, 3), (1, 3), (2, 3), (2, 3)]
+    r1 = [(0, 4), (0, 4), (0, 3), (0, 3), (0, 3)]
+    r2 = [(2, 5), (2, 4), (2, 3), (3, 3), (3, 3)]
+    return np.array([r0, r1, r2]).transpose(1, 0, 2)
+
+
+def test_a_merge_that_would_bring_robots_within_a_cell_is_refused():
+    paths, free = crossing(), np.ones((6, 8), dtype=bool)
+    assert discrete_violations(paths, free) == []
+    # delaying robot 0's first move: it leaves (0, 3) while robot 1 enters it (0.71 cells apart); advancing its
+    # second move: it enters (2, 3) with robot 2
+    late, soon = paths.copy(), paths.copy()
+    late[1, 0], soon[2, 0] = (0, 3), (2, 3)
+    assert not robot_clear(late, 0, 0, 3, np.ones(2)) and not robot_clear(soon, 0, 0, 3, np.ones(2))
+    out, merged = merge_waits(paths)
+    assert merged == 0
+    np.testing.assert_array_equal(out, paths)
+
+
+def test_the_guard_alone_keeps_the_merge_safe(monkeypatch):
+    """With the separation check switched off, the refused merge above breaks the invariant."""
+    import mrfswarm.discrete.merge_waits as mw
+
+    monkeypatch.setattr(mw, "robot_clear", lambda *a: True)
+    unguarded, merged = mw.merge_waits(crossing())
+    assert merged == 1
+    assert discrete_violations(unguarded, np.ones((6, 8), dtype=bool)) != []
+
+
+def test_downwash_counts_in_the_check():
+    # robot 1 hovers 2 voxels above robot 0's second cell: fine with c = 1, too close with c = 2 ...
+    r0 = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 0], [2, 0, 0]])
+    r1 = np.array([[1, 0, 2], [1, 0, 2], [1, 0, 2], [1, 0, 2]])
+    paths = np.stack([r0, r1], axis=1)
+    assert robot_clear(paths, 0, 0, 3, np.ones(3))
+    assert not robot_clear(paths, 0, 0, 3, np.array([1.0, 1.0, 1.0 / 3.0]))
+
+
+@pytest.mark.parametrize("case", ["clutter", "doorway"])
+def test_planned_paths_keep_their_cells_and_the_invariant(case):
+    occ = np.zeros((30, 20), dtype=bool)
+    if case == "doorway":
+        occ[15, :] = True
+        occ[15, 9:12] = False
+    else:
+        rng = np.random.default_rng(3)
+        occ = rng.random((30, 20)) < 0.12
+        occ[:9, 5:16] = False
+        occ[22:, 5:16] = False
+    rows = ["".join("@" if occ[x, y] else "." for x in range(occ.shape[0])) for y in range(occ.shape[1])]
+    data = {"scenario": {"map": {"kind": "ascii", "rows": rows},
+                         "start": {"center": [4, 10], "n_robots": 12, "sigma": 1.5, "seed": 1}, "goal": [26, 10]},
+            "interaction": {"k": 5}, "smoothing": {"enabled": False}, "simulation": {"enabled": False}}
+    plans = {m: plan(from_dict({**data, "mrf": {"merge_waits": m}}, Path(".")), progress=False) for m in (False, True)}
+    raw, merged = plans[False].discrete, plans[True].discrete
+    assert merged.merged_waits > 0 and raw.merged_waits == 0
+    assert discrete_violations(merged.paths, ~occ) == []
+    assert merged.paths.shape == raw.paths.shape
+    np.testing.assert_array_equal(merged.paths[[0, -1]], raw.paths[[0, -1]])
+    for i in range(raw.paths.shape[1]):
+        assert visits(merged.paths, i) == visits(raw.paths, i)
+    assert runs(merged.paths) < runs(raw.paths)
+    # the same merge applied by hand gives the same paths (the planner calls it once, at the end)
+    np.testing.assert_array_equal(merge_waits(raw.paths)[0], merged.paths)
