@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mrfswarm.config import Config
+from mrfswarm.continuous.receding_horizon import flight_model
 from mrfswarm.discrete.congestion import CongestionField
 from mrfswarm.discrete.goal_distance import GoalDistance, GoalGraph
 from mrfswarm.discrete.interaction_graph import check_k
@@ -105,6 +106,8 @@ class Scenario:
             downwash=c.scenario.downwash,
             congestion=self.congestion_field(),
             merge_waits=c.mrf.merge_waits,
+            flight=flight_model(c.smoothing, self.grid.resolution, c.scenario.robot_radius) if c.smoothing.enabled
+            else None,
         )
 
     def congestion_field(self) -> CongestionField | None:

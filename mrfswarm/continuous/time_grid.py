@@ -123,9 +123,9 @@ def motion_durations(paths: np.ndarray, resolution: float, v_max: float, acceler
     return motion_profile(paths, resolution, v_max, acceleration).durations
 
 
-def motion_profile(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
-                   drift: float = 0.0) -> SwarmProfile:
-    r"""(T,) step durations derived from every robot's own motion and the limits.
+def robot_needs(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
+                drift: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    r"""(T, N) the time each robot's move needs on its own speed profile, and (T, N) the moves' lengths (metres).
 
     Each robot flies its discrete polyline with a speed profile of its own: at most
     ``v_max``, speeding up and slowing down at ``acceleration``, at rest where it waits
@@ -170,16 +170,49 @@ def motion_profile(paths: np.ndarray, resolution: float, v_max: float, accelerat
         v[k + 1] = np.minimum(v[k + 1], np.sqrt(v[k] ** 2 + 2 * a * L[k]))
     for k in range(T - 1, -1, -1):  # backward: the next knot reachable from it
         v[k] = np.minimum(v[k], np.sqrt(v[k + 1] ** 2 + 2 * a * L[k]))
-    t = segment_times(L, v[:-1], v[1:], v_max, a).max(axis=1)  # (T,) what each step's slowest mover needs
+    return segment_times(L, v[:-1], v[1:], v_max, a), L
+
+
+def motion_profile(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
+                   drift: float = 0.0) -> SwarmProfile:
+    """(T,) step durations derived from every robot's own motion and the limits (:func:`robot_needs`, then
+    :func:`swarm_profile`)."""
+    needs, L = robot_needs(paths, resolution, v_max, acceleration, drift)
+    return swarm_profile(needs.max(axis=1, initial=0.0), np.maximum(L.max(axis=1, initial=0.0), resolution),
+                         v_max, acceleration)
+
+
+def swarm_profile(need: np.ndarray, ell: np.ndarray, v_max: float, acceleration: float) -> SwarmProfile:
+    """The swarm's profile from each step's slowest mover's need (T,) and the steps' progress ``ell`` (T,)."""
+    t, a = need, float(acceleration)
     # The steps share one grid: a robot on a straight run flies each step's move in the step's duration, so
     # the durations themselves must change no faster than a speed profile can (a long step between short
     # ones would brake and re-accelerate every robot in it). One more profile, of the swarm's progress ell_j
     # per step at the step speed ell_j / t_j, smooths them.
-    ell = np.maximum(L.max(axis=1), resolution)
     s = np.minimum(v_max, ell / np.maximum(t, 1e-12))
     u = np.minimum(np.concatenate([[0.0], s]), np.concatenate([s, [0.0]]))
     _passes(u, ell, a)
     return SwarmProfile(ell=ell, cap=s, need=t, knots=u, acceleration=a)
+
+
+@dataclass(frozen=True)
+class FlightModel:
+    """The time grid's first profile as the flight time of discrete paths (:mod:`mrfswarm.discrete.merge_waits`
+    asks it whether a change of the paths' timing shortens the flight)."""
+
+    resolution: float
+    v_max: float
+    acceleration: float
+    drift: float = 0.0
+
+    def needs(self, paths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(T, n) each robot's need and (T, n) its moves' lengths, for paths (T + 1, n, d) cells."""
+        return robot_needs(paths, self.resolution, self.v_max, self.acceleration, self.drift)
+
+    def duration(self, need: np.ndarray, longest: np.ndarray) -> float:
+        """The flight's duration from each step's largest need and longest move (T,) each."""
+        ell = np.maximum(longest, self.resolution)
+        return float(swarm_profile(need, ell, self.v_max, self.acceleration).durations.sum())
 
 
 @lru_cache(maxsize=16)

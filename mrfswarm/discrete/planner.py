@@ -39,7 +39,7 @@ from mrfswarm.config import PROGRESS_RULES
 from mrfswarm.discrete.congestion import CongestionField
 from mrfswarm.discrete.interaction_graph import CliqueWeights, clique_weights_of_graph, knn_edges, update_clique_weights
 from mrfswarm.discrete.label_sets import LabelSets, label_sets
-from mrfswarm.discrete.merge_waits import merge_waits
+from mrfswarm.discrete.merge_waits import FlightTime, merge_waits
 from mrfswarm.discrete.motion import MIN_SEPARATION, cell_values, step_min_separation
 from mrfswarm.discrete.potentials import Morse
 from mrfswarm.discrete.safety import discrete_violations
@@ -101,6 +101,8 @@ class DiscreteProblem:
     merge_waits
         Merge each robot's waits between runs of moves once the paths are planned
         (:mod:`mrfswarm.discrete.merge_waits`).
+    flight
+        The flight-time model a merge must not lengthen (None: every safe merge is made).
     """
 
     free: np.ndarray
@@ -120,6 +122,7 @@ class DiscreteProblem:
     downwash: float = 1.0
     congestion: CongestionField | None = None
     merge_waits: bool = False
+    flight: FlightTime | None = None
 
 
 @dataclass(frozen=True)
@@ -448,7 +451,7 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     stacked = np.stack(paths)
     merged = 0
     if problem.merge_waits:
-        stacked, merged = merge_waits(stacked, problem.downwash)
+        stacked, merged = merge_waits(stacked, problem.downwash, problem.flight)
     bad = discrete_violations(stacked, problem.free, downwash=problem.downwash)
     if bad:  # a bug in the planner or an optimizer, never something to return
         raise AssertionError("discrete safety invariant violated: " + "; ".join(bad))
