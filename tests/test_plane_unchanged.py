@@ -7,7 +7,10 @@ generalization. When it was written, the same plans from the last revision befor
 speed profile added beside it (issue 18) was switched off; with it, blocks and
 single_obstacle fly 0.8 and 0.2 s sooner. Regenerated once since, for the drift through
 single-step waits (issue 18: corridor 22.91 -> 22.38 s, single_obstacle 25.04 -> 24.58 s; the
-same paths). A change that moves a 2-D plan fails here: if it is meant, regenerate the file
+same paths). Regenerated again when the speed profiles' forward and backward passes became
+running minima over the squared speeds (the same recursion in whole-array operations):
+durations within 2e-15 s, coefficients within 5e-8, the window QP's own tolerance, the same
+paths and makespans. A change that moves a 2-D plan fails here: if it is meant, regenerate the file
 and say why in the commit.
 """
 

@@ -109,11 +109,17 @@ class SwarmProfile:
 
 
 def _passes(u: np.ndarray, ell: np.ndarray, a: float) -> None:
-    """Knot speeds ``u`` (in place) reachable from each other over the steps ``ell`` at acceleration ``a``."""
-    for k in range(len(ell)):
-        u[k + 1] = min(u[k + 1], np.sqrt(u[k] ** 2 + 2 * a * ell[k]))
-    for k in range(len(ell) - 1, -1, -1):
-        u[k] = min(u[k], np.sqrt(u[k + 1] ** 2 + 2 * a * ell[k]))
+    """Knot speeds ``u`` (T + 1, ...) (in place) reachable from each other over the steps ``ell`` (T, ...) at
+    acceleration ``a``: the forward pass u[k + 1] = min(u[k + 1], sqrt(u[k]^2 + 2 a ell[k])), then the backward
+    one, each a running minimum in the squared speeds, w[k] = S[k] + min over j <= k of (u[j]^2 - S[j]) with S
+    the running sum of 2 a ell."""
+    inc = 2 * a * np.asarray(ell, dtype=float)
+    zero = np.zeros_like(inc[:1])
+    S = np.concatenate([zero, np.cumsum(inc, axis=0)])
+    w = S + np.minimum.accumulate(u * u - S, axis=0)
+    R = np.concatenate([zero, np.cumsum(inc[::-1], axis=0)])  # the same from the end
+    w = (R + np.minimum.accumulate(w[::-1] - R, axis=0))[::-1]
+    u[...] = np.sqrt(np.maximum(w, 0.0))
 
 
 def motion_durations(paths: np.ndarray, resolution: float, v_max: float, acceleration: float) -> np.ndarray:
@@ -166,10 +172,7 @@ def robot_needs(paths: np.ndarray, resolution: float, v_max: float, acceleration
         turn = np.sqrt(a * np.minimum(L[:-1], L[1:]) / np.maximum(2 * half, 1e-12))
     cap[1:-1] = np.minimum(cap[1:-1], turn)
     v = cap.copy()
-    for k in range(T):  # forward: reachable from the previous knot
-        v[k + 1] = np.minimum(v[k + 1], np.sqrt(v[k] ** 2 + 2 * a * L[k]))
-    for k in range(T - 1, -1, -1):  # backward: the next knot reachable from it
-        v[k] = np.minimum(v[k], np.sqrt(v[k + 1] ** 2 + 2 * a * L[k]))
+    _passes(v, L, a)  # forward: reachable from the previous knot; backward: the next knot reachable from it
     return segment_times(L, v[:-1], v[1:], v_max, a), L
 
 

@@ -46,14 +46,27 @@ _TOL = 1e-9
 PASSES = 4
 
 
-def robot_clear(paths: np.ndarray, robot: int, first: int, last: int, scale: np.ndarray) -> bool:
-    """Robot ``robot`` stays MIN_SEPARATION (scaled by ``scale``) from every other robot in steps first..last - 1."""
+def robot_clear(paths: np.ndarray, robot: int, first: int, last: int, scale: np.ndarray,
+                own: np.ndarray | None = None) -> bool:
+    """Robot ``robot`` stays MIN_SEPARATION (scaled by ``scale``) from every other robot in steps first..last - 1,
+    flying its column of ``paths`` or, given, ``own`` (T + 1, d) instead."""
     if last <= first:
         return True
-    others = np.arange(paths.shape[1]) != robot
-    p0, p1 = paths[first:last], paths[first + 1:last + 1]  # (S, N, d)
-    d0 = (p0[:, robot, None] - p0[:, others]) * scale
-    v = ((p1[:, robot] - p0[:, robot])[:, None] - (p1[:, others] - p0[:, others])) * scale
+    mine = paths[first:last + 1, robot] if own is None else own[first:last + 1]
+    seg = paths[first:last + 1]  # (S + 1, N, d)
+    # only robots that can come that near: apart by less than the separation plus what two robots can move in
+    # the steps (each axis; the largest move of each step)
+    moves = np.abs(np.diff(seg, axis=0)).max(axis=(1, 2))
+    mine_moves = np.abs(np.diff(mine, axis=0)).max(axis=1)
+    reach = MIN_SEPARATION + 2 * (np.maximum(moves, mine_moves)[:, None] * scale).max(axis=1).sum()
+    gap = np.abs((seg[0] - mine[0]) * scale).max(axis=1)
+    others = gap <= reach
+    others[robot] = False
+    if not others.any():
+        return True
+    near = seg[:, others]  # (S + 1, n, d)
+    d0 = (mine[:-1, None] - near[:-1]) * scale
+    v = ((mine[1:] - mine[:-1])[:, None] - (near[1:] - near[:-1])) * scale
     return bool(np.all(min_distance_during_move(d0, v) >= MIN_SEPARATION - _TOL))
 
 
@@ -132,24 +145,25 @@ def merge_waits(paths: np.ndarray, downwash: float = 1.0,
                     s -= 1
                 while r < T and moves[r]:  # the run after: [e, r)
                     r += 1
-                late = P.copy()  # the run before delayed by w
-                late[s:s + w + 1, i] = P[s, i]
-                late[s + w:e + 1, i] = P[s:k + 1, i]
-                soon = P.copy()  # the run after advanced by w
-                soon[k:k + (r - e) + 1, i] = P[e:r + 1, i]
-                soon[k + (r - e):r + 1, i] = P[r, i]
-                for Q, f0, f1 in ((late, s, e), (soon, k, r)):
+                late = P[:, i].copy()  # the run before delayed by w
+                late[s:s + w + 1] = P[s, i]
+                late[s + w:e + 1] = P[s:k + 1, i]
+                soon = P[:, i].copy()  # the run after advanced by w
+                soon[k:k + (r - e) + 1] = P[e:r + 1, i]
+                soon[k + (r - e):r + 1] = P[r, i]
+                for col, f0, f1 in ((late, s, e), (soon, k, r)):
+                    if not robot_clear(P, i, f0, f1, scale, col):
+                        continue
                     if steps is not None and flight is not None:
-                        need_i, len_i = flight.needs(Q[:, i:i + 1])
+                        need_i, len_i = flight.needs(col[:, None])
                         need, longest = steps.without(i)
                         t = flight.duration(np.maximum(need, need_i[:, 0]), np.maximum(longest, len_i[:, 0]))
-                        if t > total + 1e-9 or not robot_clear(Q, i, f0, f1, scale):
+                        if t > total + 1e-9:
                             continue
                         steps.set(i, need_i[:, 0], len_i[:, 0])
                         total = t
-                    elif not robot_clear(Q, i, f0, f1, scale):
-                        continue
-                    P, merged = Q, merged + 1
+                    P[:, i] = col
+                    merged += 1
                     break
                 k = e + 1
         if merged == before:
