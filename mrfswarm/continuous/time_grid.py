@@ -144,9 +144,7 @@ def robot_needs(paths: np.ndarray, resolution: float, v_max: float, acceleration
     :math:`2 v \sin(	heta/2)`, takes the time of half a move each side at ``acceleration``).
     Forward and backward passes make the knot speeds reachable (the classic
     velocity-profile recursion); a move then takes its trapezoid's time
-    (:func:`segment_times`). All robots share the time grid, so a step lasts the longest
-    time any robot's move needs: a straight run flies at ``v_max``, a turn or a wait
-    slows only the steps around it.
+    (:func:`segment_times`).
     """
     P = np.asarray(paths, dtype=float) * resolution
     m = np.diff(P, axis=0)  # (T, N, d)
@@ -179,7 +177,11 @@ def robot_needs(paths: np.ndarray, resolution: float, v_max: float, acceleration
 def motion_profile(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
                    drift: float = 0.0) -> SwarmProfile:
     """(T,) step durations derived from every robot's own motion and the limits (:func:`robot_needs`, then
-    :func:`swarm_profile`)."""
+    :func:`swarm_profile`).
+
+    All robots share the time grid, so a step lasts the longest time any robot's move
+    needs: a straight run flies at ``v_max``, a turn or a wait slows only the steps around it.
+    """
     needs, L = robot_needs(paths, resolution, v_max, acceleration, drift)
     return swarm_profile(needs.max(axis=1, initial=0.0), np.maximum(L.max(axis=1, initial=0.0), resolution),
                          v_max, acceleration)

@@ -5,7 +5,7 @@ is: its path comes out as runs of moves cut by single waits (move, wait, move, w
 Flown on the common time grid each run starts from rest and ends at rest, and a step
 lasts as long as its slowest mover needs, so a step where any robot starts or stops is
 a slow step (about 0.9 s for a cell from rest against 0.5 s at 2 m/s on the default
-limits). On a 64 x 64 clutter map with 40 robots, 60 of 78 steps were paced by a robot
+limits). In a 78-step plan of 40 robots on a 64 x 64 clutter map, 60 steps were paced by a robot
 starting or stopping.
 
 After the MRF has chosen the paths, :func:`merge_waits` moves each wait that separates
@@ -16,7 +16,7 @@ order and its start and end; only when it is in them changes. A change is kept o
 the robot stays at least one cell (in the downwash-scaled metric) from every other robot
 during every step it touches, the invariant of :mod:`mrfswarm.discrete.safety`, which is
 checked again on the whole plan afterwards; the moves are the MRF's own moves, so their
-clearance from obstacles is unchanged. On that clutter map the runs went from 139 to 85.
+clearance from obstacles is unchanged. In that plan the runs went from 139 to 85.
 
 Fewer runs is not always a shorter flight: a robot that waited mid-flight together with
 another shares its slow steps with it, and a merge can move its start to a step where
