@@ -26,6 +26,9 @@ from solvers.nlp import BACKENDS as NLP_BACKENDS
 from solvers.qp import Options as QPOptions
 
 SEAM_MODES = ("rest", "continuous")
+#: How ``smoothing.time_refinement`` shortens a window's durations (:mod:`mrfswarm.continuous.duration_scaling`,
+#: or the NLP backend ``smoothing.nlp``).
+REFINEMENTS = ("scaling", "nlp")
 #: What resets the discrete stage's patience (see :func:`mrfswarm.discrete.planner.plan_discrete`).
 PROGRESS_RULES = ("static", "energy")
 #: How the goal potential measures the distance to the goal (see :mod:`mrfswarm.discrete.potentials`).
@@ -211,7 +214,9 @@ class SmoothingConfig:
     (m/s, m/s^2, m/s^3) are limits every trajectory meets, proven on control points; the
     jerk limit bounds how far a tracking controller lags (see :mod:`mrfswarm.simulation`).
     ``time_refinement`` re-optimizes each window's step durations for snap +
-    ``time_weight`` x flight time (snap units per second, per robot), with ``nlp``, a name
+    ``time_weight`` x flight time (snap units per second, per robot): with ``refinement =
+    "scaling"`` (the default) by a few QP solves that rescale each step by its multipliers
+    (:mod:`mrfswarm.continuous.duration_scaling`), with ``"nlp"`` by ``nlp``, a name
     of ``solvers.nlp.BACKENDS`` (``--nlp NAME`` is a shorthand for ``--set smoothing.nlp=NAME``). ``check_rate_hz`` > 0
     adds an independent sampled check of the whole flight at that rate. ``qp_options`` (the
     table ``[smoothing.qp_options]``) sets fields of :class:`solvers.qp.Options`
@@ -233,6 +238,7 @@ class SmoothingConfig:
     execution: float = 0.5
     seam: str = "continuous"
     time_refinement: bool = False
+    refinement: str = "scaling"
     # the time refinement's NLP backend, written only here
     nlp: str = "ipopt"
     time_weight: float = 10.0
@@ -455,6 +461,7 @@ def _validate(cfg: Config) -> None:
     need(0 < sm.execution <= 1, "smoothing.execution", sm.execution, "must be in (0, 1]")
     need(sm.seam in SEAM_MODES, "smoothing.seam", sm.seam, f"must be one of {', '.join(SEAM_MODES)}")
     need(sm.time_weight > 0, "smoothing.time_weight", sm.time_weight, "must be > 0")
+    need(sm.refinement in REFINEMENTS, "smoothing.refinement", sm.refinement, f"must be one of {', '.join(REFINEMENTS)}")
     check_nlp(sm.nlp)
     need(sm.check_rate_hz == 0 or sm.check_rate_hz >= 100, "smoothing.check_rate_hz", sm.check_rate_hz,
          "must be 0 (off) or >= 100")

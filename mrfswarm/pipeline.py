@@ -107,9 +107,9 @@ class Result:
 
     @property
     def nlp(self) -> str | None:
-        """The time refinement's NLP backend, None when no refinement ran."""
+        """The time refinement's NLP backend, None when no NLP refinement ran (none, or the multiplier scaling)."""
         sm = self.config.smoothing
-        return sm.nlp if sm.enabled and sm.time_refinement else None
+        return sm.nlp if sm.enabled and sm.time_refinement and sm.refinement == "nlp" else None
 
     def robots(self) -> list[RobotOutcome]:
         """Where each robot ended and, if short of the goal region, why (:mod:`mrfswarm.discrete.robot_outcomes`)."""
@@ -255,8 +255,8 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     """A config object from a config or a path, with ``--mrf``/``--qp``/``--nlp`` applied and checked.
 
     ``mrf``, ``qp`` and ``nlp`` are shorthands: ``mrf=NAME`` sets ``mrf.method``,
-    ``qp=NAME`` sets ``smoothing.backend`` and ``nlp=NAME`` ``smoothing.nlp``, over what
-    the config gives.
+    ``qp=NAME`` sets ``smoothing.backend`` and ``nlp=NAME`` ``smoothing.nlp`` (and
+    ``smoothing.refinement = "nlp"``: naming a backend asks for it), over what the config gives.
 
     Raises
     ------
@@ -273,9 +273,9 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
         cfg = cfg.replace(mrf=dataclasses.replace(cfg.mrf, method=mrf))
     if qp is not None:
         cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, backend=qp))
-    if nlp is not None:
+    if nlp is not None:  # naming an NLP backend asks for the NLP refinement
         check_nlp(nlp)  # the config's own check of the key
-        cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, nlp=nlp))
+        cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, nlp=nlp, refinement="nlp"))
     mrf_solvers.METHODS.get(cfg.mrf.method)  # fail now, not after the map is loaded
     if cfg.smoothing.enabled:
         record = solvers.qp.BACKENDS.get(cfg.smoothing.backend)  # an unknown or missing QP backend fails now too
@@ -284,7 +284,7 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
             raise ConfigError(f"smoothing.backend = {record.name!r} solves equality-constrained problems only; the "
                               f"continuous stage's regions, corridors and limits are inequalities (installed "
                               f"backends that take them: {able})")
-        if cfg.smoothing.time_refinement:
+        if cfg.smoothing.time_refinement and cfg.smoothing.refinement == "nlp":
             solvers.nlp.BACKENDS.get(cfg.smoothing.nlp)  # a registered NLP backend that is not installed
         if cfg.simulation.enabled:
             from mrfswarm.simulation import check_available
@@ -320,7 +320,8 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         ``solvers.qp.BACKENDS``) and ``smoothing.nlp`` (the time refinement's NLP
         backend, a name of ``solvers.nlp.BACKENDS``): given, they replace the config's
         value, as ``--mrf NAME``, ``--qp NAME`` and ``--nlp NAME`` stand for ``--set
-        mrf.method=NAME``, ``--set smoothing.backend=NAME`` and ``--set smoothing.nlp=NAME``.
+        mrf.method=NAME``, ``--set smoothing.backend=NAME`` and ``--set smoothing.nlp=NAME``
+        (``nlp`` also sets ``smoothing.refinement = "nlp"``).
     seed
         Overrides the start sampling seed and the MRF method's (``mrf.options.seed``), an
         integer >= 0.

@@ -1,6 +1,7 @@
 """Flight quality with default settings, on maps of our own, against an earlier revision in the same run.
 
-Per case and variant (``default``, ``refined`` = ``smoothing.time_refinement = true``),
+Per case and variant (``default``, ``refined`` = ``smoothing.time_refinement = true``, by the
+multiplier scaling, ``refined_nlp`` = the same by the NLP backend, Ipopt),
 flight simulation off, what a user feels:
 
 - ``bound``: makespan over its dynamic lower bound (the longest shortest free path,
@@ -32,7 +33,7 @@ Cases (deterministic maps built here; 1 m cells unless said):
   (40, 12 and 16 robots on voxel maps, downwash 2; the bound on the 26-connected voxel graph);
 - ``cross300`` (``--cases`` only): 300 robots crossing 110 m of open field (the big swarm's windows, quicker).
 
-    python experiments/bench/flight_quality.py [--cases ...] [--variants default,refined]
+    python experiments/bench/flight_quality.py [--cases ...] [--variants default,refined,refined_nlp]
         [--baseline REV] [--baseline-variants default] [--out experiments/bench/results/flight_quality.csv]
 """
 
@@ -54,7 +55,8 @@ RESULTS = Path(__file__).parent / "results"
 DEFAULT_CASES = "corridor,doorway,forest,rooms,trap,open50,clutter40,aisles30,arena8"
 #: mrf keys newer than the default baseline (dropped from a case for a baseline that does not know them).
 NEW_KEYS = ("follow", "arrival", "merge_waits")
-VARIANTS = {"default": [], "refined": ["smoothing.time_refinement=true"]}
+VARIANTS = {"default": [], "refined": ["smoothing.time_refinement=true"],
+            "refined_nlp": ["smoothing.time_refinement=true", "smoothing.refinement=nlp"]}
 
 
 def _rows(occ) -> list[str]:

@@ -21,7 +21,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "(names: `mrfswarm solvers`)")
     p.add_argument("--nlp", default=None, metavar="NAME",
                    help="NLP backend of the time refinement: shorthand for --set smoothing.nlp=NAME "
-                        "(names: `mrfswarm solvers`)")
+                        "--set smoothing.refinement=nlp (names: `mrfswarm solvers`)")
     p.add_argument("--seed", type=_args.seed, default=None,
                    help="seed (integer >= 0) of the start sampling and the MRF method")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",

@@ -37,12 +37,14 @@ limits: exact, on control points); the regions' clearance from obstacles is chec
 Dense sampling (``smoothing.check_rate_hz``) is an optional independent check.
 
 Time refinement (``smoothing.time_refinement``): after a window is accepted, its step
-durations become the variables of an NLP (:class:`TimeAllocation`) solved from the QP's
-by the backend ``smoothing.nlp`` of :data:`solvers.nlp.BACKENDS` (Ipopt by default): the
-window problem's optimal snap at those durations plus ``time_weight`` x duration, with
+durations become the variables of an NLP (:class:`TimeAllocation`) started from the QP's:
+the window problem's optimal snap at those durations plus ``time_weight`` x duration, with
 the exact gradient from the QP's multipliers (envelope theorem) and the symbolic pieces'
-derivative in their durations. The refined solution is accepted if it certifies and
-lowers that cost.
+derivative in their durations. ``smoothing.refinement = "scaling"`` (default) shortens
+them by a few QP solves that rescale each step by its multipliers
+(:mod:`mrfswarm.continuous.duration_scaling`); ``"nlp"`` solves the NLP by the backend
+``smoothing.nlp`` of :data:`solvers.nlp.BACKENDS` (Ipopt by default). The refined solution
+is accepted if it certifies and lowers that cost.
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ import solvers.nlp
 import solvers.qp
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous.certificate import Certificate, certify, certify_pieces
+from mrfswarm.continuous.duration_scaling import scale_durations
 from mrfswarm.continuous.formulation import (
     LIMIT_PARTS,
     WindowFormulation,
@@ -419,7 +422,7 @@ class RecedingHorizon:
         self.grid, self.cfg = grid, cfg
         self.backend = backend or cfg.backend
         solvers.qp.BACKENDS.get(self.backend)  # an unknown or missing backend fails now
-        if cfg.time_refinement:
+        if cfg.time_refinement and cfg.refinement == "nlp":
             solvers.nlp.BACKENDS.get(cfg.nlp)  # and so does the refinement's NLP backend
         self.qp_options = qp_options or QP_OPTIONS
         self.T, self.N = len(self.paths) - 1, self.paths.shape[1]
@@ -757,7 +760,9 @@ class RecedingHorizon:
 
     def _refine(self, sol: _Solution, a: int, start: np.ndarray, rec: WindowRecord,
                 merged: np.ndarray | None = None) -> _Solution:
-        """The window's step durations refined by the NLP backend ``cfg.nlp`` (:meth:`time_allocation`).
+        """The window's step durations refined (:meth:`time_allocation`): by the multiplier scaling
+        (:func:`~mrfswarm.continuous.duration_scaling.scale_durations`, ``cfg.refinement = "scaling"``) or by the
+        NLP backend ``cfg.nlp`` (``"nlp"``).
 
         Every iterate is a solution of the window problem, so the result keeps the next
         window's feasibility argument; the best point the backend evaluated is kept if it
@@ -766,7 +771,12 @@ class RecedingHorizon:
         longer steps was kept: the corridor refined flew 22.4 s, now 20.4.
         """
         alloc = self.time_allocation(sol, a, start, rec, merged)
-        res = solvers.nlp.minimize(alloc.problem, self.cfg.nlp, NLP_OPTIONS)
+        if self.cfg.refinement == "scaling":
+            scaled = scale_durations(alloc.problem, alloc.weight, self.cfg.derivative)
+            method, status = "scaling", scaled.status
+        else:
+            res = solvers.nlp.minimize(alloc.problem, self.cfg.nlp, NLP_OPTIONS)
+            method, status = res.backend, res.raw_status
         before = sol.cost + alloc.weight * sol.durations.sum()
         found = {k: s for k, s in alloc.solved.items() if s is not None}
         tried = sorted((s.cost + alloc.weight * s.durations.sum(), k) for k, s in found.items())
@@ -780,7 +790,7 @@ class RecedingHorizon:
                 return best
         self.active, self.limit_rows = alloc.base
         log.info("window %d..%d: time refinement (%s) kept the QP's durations (%s)", a, a + len(sol.durations),
-                 res.backend, res.raw_status)
+                 method, status)
         return sol
 
     # ------------------------------------------------------------------ run
