@@ -29,6 +29,11 @@ class QPCapabilities:
         The same engine also solves general nonlinear programs (see
         :func:`solvers.qp.ipopt_.solve_nlp`, and the NLP backend of the same name in
         :data:`solvers.nlp.BACKENDS`).
+    iteration_cap
+        The backend caps ``Options.max_iter`` at this many iterations (interior-point
+        methods converge in tens); None: it runs ``Options.max_iter``. A caller that gives
+        a solve a share of the budget computes it from the smaller of the two
+        (:meth:`iteration_budget`).
     """
 
     inequalities: bool
@@ -36,7 +41,12 @@ class QPCapabilities:
     detects_infeasibility: bool
     sparse: bool
     nlp: bool = False
+    iteration_cap: int | None = None
+
+    def iteration_budget(self, max_iter: int) -> int:
+        """The iterations a solve given ``max_iter`` runs at most."""
+        return max_iter if self.iteration_cap is None else min(max_iter, self.iteration_cap)
 
     def flags(self) -> list[str]:
         """The names of the capabilities the backend has, for listings."""
-        return [name for name, on in vars(self).items() if on]
+        return [name if on is True else f"{name}={on}" for name, on in vars(self).items() if on]

@@ -127,5 +127,6 @@ BACKEND = Backend(
     requires=("piqp",),
     extra="piqp",
     summary="PIQP: proximal interior point, sparse, accurate",
-    capabilities=QPCapabilities(inequalities=True, warm_start=False, detects_infeasibility=True, sparse=True),
+    capabilities=QPCapabilities(inequalities=True, warm_start=False, detects_infeasibility=True, sparse=True,
+                                iteration_cap=MAX_ITER),
 )

@@ -151,3 +151,46 @@ def test_the_window_refinement_by_scaling_is_the_nlps_at_a_fraction_of_the_qps(m
     value, rounds = window("scaling")
     assert value == pytest.approx(nlp_value, rel=5e-3)
     assert rounds * 3 < nlp_rounds
+
+
+def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch):
+    """The bold and moderate attempts run PIQP at 40 of its 120 iterations, the cautious one at the full budget.
+
+    Solves given the smaller budget are made to fail here: the window then flies the cautious profile, and every
+    solve of it had the stage's full options."""
+    import mrfswarm.continuous.receding_horizon as rh_mod
+    import solvers.qp
+
+    cap = solvers.qp.BACKENDS.get("piqp").capabilities.iteration_cap
+    assert cap and cap > 3
+    budgets: list[int] = []
+    solve = rh_mod.solve_window
+
+    def spy(spec, durations, backend, options, gradient=False):
+        budgets.append(options.max_iter)
+        if options.max_iter < rh_mod.QP_OPTIONS.max_iter:
+            return "iteration budget of the optimistic attempts"
+        return solve(spec, durations, backend, options, gradient)
+
+    monkeypatch.setattr(rh_mod, "solve_window", spy)
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(), 0.25, workers=1)
+    assert [name for name, _, _ in rh_mod.PROFILES] == ["nominal", "moderate", "cautious"] and rh.profiles
+    a, c, b = rh.windows()[0]
+    start = np.zeros((rh.N, 4, 2))
+    start[:, 0] = rh.X[0]
+    _, rec = rh._plan_window(a, c, b, start, None)
+    assert rec.attempt == "cautious"
+    assert [f.split(":")[0] for f in rec.failed] == ["nominal", "moderate"]
+    assert budgets[:2] == [int(np.ceil(cap / 3))] * 2
+    assert set(budgets[2:]) == {rh_mod.QP_OPTIONS.max_iter}
+
+
+def test_the_iteration_budget_is_the_smaller_of_the_cap_and_max_iter():
+    from solvers.qp import QPCapabilities
+
+    capped = QPCapabilities(inequalities=True, warm_start=False, detects_infeasibility=True, sparse=True,
+                            iteration_cap=120)
+    assert capped.iteration_budget(50000) == 120 and capped.iteration_budget(30) == 30
+    free = QPCapabilities(inequalities=True, warm_start=True, detects_infeasibility=True, sparse=True)
+    assert free.iteration_budget(50000) == 50000  # a first-order method runs what it is given
+    assert "iteration_cap=120" in capped.flags() and "warm_start" not in capped.flags()
