@@ -151,7 +151,9 @@ def test_qp_options_go_over_the_stages_own_and_reach_every_solve(monkeypatch):
 
     monkeypatch.setattr(solvers.qp, "solve", recording)
     plan(cfg, progress=False, workers=1)
-    assert seen and all(o == expected for o in seen)
+    # the bold and moderate attempts run a third of the budget PIQP gives (its cap of 120 under 777)
+    optimistic = dataclasses.replace(expected, max_iter=40)
+    assert seen and all(o in (expected, optimistic) for o in seen) and expected in seen
 
 
 def test_set_reaches_the_options_tables_from_the_cli(tmp_path):

@@ -185,6 +185,28 @@ def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch
     assert set(budgets[2:]) == {rh_mod.QP_OPTIONS.max_iter}
 
 
+def test_the_refinements_trial_points_get_the_smaller_budget(monkeypatch):
+    import mrfswarm.continuous.receding_horizon as rh_mod
+
+    budgets: dict[bool, set] = {True: set(), False: set()}
+    solve = rh_mod.solve_window
+
+    def spy(spec, durations, backend, options, gradient=False):
+        budgets[gradient].add(options.max_iter)
+        return solve(spec, durations, backend, options, gradient)
+
+    monkeypatch.setattr(rh_mod, "solve_window", spy)
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, speed=1.25), 0.25, workers=1)
+    a, c, b = rh.windows()[0]
+    start = np.zeros((rh.N, 4, 2))
+    start[:, 0] = rh.X[0]
+    rec = WindowRecord(a, c, b)
+    sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec)
+    rh._refine(sol, a, start, rec)
+    assert budgets[False] == {rh_mod.QP_OPTIONS.max_iter}  # the window's own solve (no profiles: speed given)
+    assert budgets[True] == {rh.optimistic_options.max_iter} and rh.optimistic_options.max_iter == 40
+
+
 def test_the_iteration_budget_is_the_smaller_of_the_cap_and_max_iter():
     from solvers.qp import QPCapabilities
 
