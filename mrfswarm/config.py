@@ -217,7 +217,8 @@ class SmoothingConfig:
     ``time_weight`` x flight time (snap units per second, per robot): with ``refinement =
     "scaling"`` (the default) by a few QP solves that rescale each step by its multipliers
     (:mod:`mrfswarm.continuous.duration_scaling`), with ``"nlp"`` by ``nlp``, a name
-    of ``solvers.nlp.BACKENDS`` (``--nlp NAME`` is a shorthand for ``--set smoothing.nlp=NAME``). ``check_rate_hz`` > 0
+    of ``solvers.nlp.BACKENDS`` (``--nlp NAME`` is a shorthand for ``--set smoothing.nlp=NAME --set
+    smoothing.refinement=nlp``). ``check_rate_hz`` > 0
     adds an independent sampled check of the whole flight at that rate. ``qp_options`` (the
     table ``[smoothing.qp_options]``) sets fields of :class:`solvers.qp.Options`
     (``eps_abs``, ``eps_rel``, ``max_iter``, ...) over the stage's own for every QP solve.
