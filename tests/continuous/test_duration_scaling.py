@@ -7,9 +7,9 @@ import pytest
 
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous.duration_scaling import scale_durations
-from mrfswarm.continuous.receding_horizon import RecedingHorizon, WindowRecord
-from mrfswarm.maps import OccupancyGrid
+from mrfswarm.continuous.receding_horizon import RecedingHorizon
 from solvers.nlp import NLPProblem
+from support.passing import GRID, PASSING, first_window
 
 Q = 4  # snap: each piece's cost scales as T^(1 - 2q) = T^-7
 W = 3.0
@@ -116,9 +116,6 @@ def test_bad_settings_are_refused(kw):
         scale_durations(separable(np.ones(1), np.ones(1)), W, Q, **kw)
 
 
-PASSING = np.array([[a, b] for a, b in zip([(x, 2) for x in range(7)] + [(6, 1), (6, 0), (7, 0)],
-                                            [(x, 3) for x in range(6, -1, -1)] + [(0, 4), (0, 5), (0, 6)])])
-GRID = OccupancyGrid.from_occupied(np.zeros((8, 7), bool))
 
 
 def test_the_window_refinement_by_scaling_is_the_nlps_at_a_fraction_of_the_qps(monkeypatch):
@@ -130,10 +127,7 @@ def test_the_window_refinement_by_scaling_is_the_nlps_at_a_fraction_of_the_qps(m
     def window(refinement: str):
         rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, speed=1.25, refinement=refinement),
                              0.25)
-        a, c, b = rh.windows()[0]
-        start = np.zeros((rh.N, 4, 2))
-        start[:, 0] = rh.X[0]
-        rec = WindowRecord(a, c, b)
+        a, c, b, start, rec = first_window(rh)
         sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec)
         rounds = rec.rounds
         refined = rh._refine(sol, a, start, rec)
@@ -175,9 +169,7 @@ def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch
     monkeypatch.setattr(rh_mod, "solve_window", spy)
     rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(), 0.25, workers=1)
     assert [name for name, _, _ in rh_mod.PROFILES] == ["nominal", "moderate", "cautious"] and rh.profiles
-    a, c, b = rh.windows()[0]
-    start = np.zeros((rh.N, 4, 2))
-    start[:, 0] = rh.X[0]
+    a, c, b, start, _ = first_window(rh)
     _, rec = rh._plan_window(a, c, b, start, None)
     assert rec.attempt == "cautious"
     assert [f.split(":")[0] for f in rec.failed] == ["nominal", "moderate"]
@@ -197,10 +189,7 @@ def test_the_refinements_trial_points_get_the_smaller_budget(monkeypatch):
 
     monkeypatch.setattr(rh_mod, "solve_window", spy)
     rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, speed=1.25), 0.25, workers=1)
-    a, c, b = rh.windows()[0]
-    start = np.zeros((rh.N, 4, 2))
-    start[:, 0] = rh.X[0]
-    rec = WindowRecord(a, c, b)
+    a, c, b, start, rec = first_window(rh)
     sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec)
     rh._refine(sol, a, start, rec)
     assert budgets[False] == {rh_mod.QP_OPTIONS.max_iter}  # the window's own solve (no profiles: speed given)

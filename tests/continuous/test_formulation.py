@@ -10,17 +10,10 @@ from mrfswarm.continuous import RecedingHorizon, WindowFormulation
 from mrfswarm.continuous.formulation import LIMIT_PARTS, hermite_trajectory, piece_maps
 from mrfswarm.continuous.receding_horizon import WindowRecord, exact_min_separation
 from mrfswarm.discrete.safety import discrete_violations
-from mrfswarm.maps import OccupancyGrid
 from mrfswarm.trajectory import integral_squared_derivative
 from mrfswarm.trajectory.bernstein import control_points
 from solvers.qp import Options
-
-# Robot 0 flies east along y = 2 and then turns south; robot 1 flies west along y = 3 and
-# then turns north. They pass one cell apart; each one's smoothest path swings out before
-# its turn, that is towards the other: only their relative corridor keeps them apart.
-PASSING = np.array([[a, b] for a, b in zip([(x, 2) for x in range(7)] + [(6, 1), (6, 0), (7, 0)],
-                                            [(x, 3) for x in range(6, -1, -1)] + [(0, 4), (0, 5), (0, 6)])])
-GRID = OccupancyGrid.from_occupied(np.zeros((8, 7), bool))
+from support.passing import GRID, PASSING
 
 
 def first_window(rh: RecedingHorizon, corridors: np.ndarray | None = None) -> tuple[WindowFormulation, np.ndarray]:

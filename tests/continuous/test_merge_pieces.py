@@ -25,10 +25,10 @@ from mrfswarm.continuous.merge_pieces import (
 )
 from mrfswarm.continuous.regions import Regions
 from mrfswarm.errors import ConfigError
-from mrfswarm.maps import OccupancyGrid
 from mrfswarm.trajectory import PiecewisePolynomial, read_uav_csv
 from mrfswarm.trajectory.bernstein import control_points, subdivision_matrix
 from mrfswarm.trajectory.polynomial import derivative_row, tau_to_time
+from support.passing import GRID, PASSING
 from support.repository import EXPERIMENTS
 
 #: cflib's Poly4D: 4 x 8 float32 coefficients and a float32 duration; a Crazyflie holds 4096 bytes of them.
@@ -183,9 +183,6 @@ def test_merged_pieces_too_near_or_too_fast_in_one_step_are_caught():
 
 # -- the window problem ------------------------------------------------------------------------------
 
-PASSING = np.array([[a, b] for a, b in zip([(x, 2) for x in range(7)] + [(6, 1), (6, 0), (7, 0)],
-                                            [(x, 3) for x in range(6, -1, -1)] + [(0, 4), (0, 5), (0, 6)])])
-GRID = OccupancyGrid.from_occupied(np.zeros((8, 7), bool))
 
 
 def test_taylor_rows_of_the_symbolic_piece():

@@ -2,7 +2,7 @@
 
 The problem is built by the project's own code (:meth:`RecedingHorizon.time_allocation`):
 f(T) = J*(T) + w N sum(T) over the step durations T of the first window of two robots that
-pass one cell apart (``PASSING``, as in ``tests/continuous/test_formulation.py``), every
+pass one cell apart (``PASSING``, ``tests/support/passing.py``), every
 evaluation a window QP (PIQP, lazy rows), the gradient from its multipliers (envelope
 theorem). The window is 4 steps long, from durations at a 1.25 m/s cruise (the earlier
 default, far from the limits: the refinement has much to gain), with the default limits
@@ -24,12 +24,9 @@ import pytest
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous import RecedingHorizon
 from mrfswarm.continuous.receding_horizon import NLP_OPTIONS, WindowRecord
-from mrfswarm.maps import OccupancyGrid
 from solvers import nlp
+from support.passing import GRID, PASSING
 
-PASSING = np.array([[a, b] for a, b in zip([(x, 2) for x in range(7)] + [(6, 1), (6, 0), (7, 0)],
-                                            [(x, 3) for x in range(6, -1, -1)] + [(0, 4), (0, 5), (0, 6)])])
-GRID = OccupancyGrid.from_occupied(np.zeros((8, 7), bool))
 REL_TOL = 1e-6
 OPTIONS = nlp.Options(tol=NLP_OPTIONS.tol, max_iter=60)
 
