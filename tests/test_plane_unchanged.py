@@ -10,7 +10,9 @@ single-step waits (issue 18: corridor 22.91 -> 22.38 s, single_obstacle 25.04 ->
 same paths). Regenerated again when the speed profiles' forward and backward passes became
 running minima over the squared speeds (the same recursion in whole-array operations):
 durations within 2e-15 s, coefficients within 5e-8, the window QP's own tolerance, the same
-paths and makespans. A change that moves a 2-D plan fails here: if it is meant, regenerate the file
+paths and makespans. Regenerated for the creep rows of windows where a robot waits a few steps
+between two moves the same way (the same paths and durations; coefficients within 7e-7 in corridor
+and single_obstacle, whose windows gained rows that the solution meets anyway). A change that moves a 2-D plan fails here: if it is meant, regenerate the file
 and say why in the commit.
 """
 

@@ -284,6 +284,11 @@ class WindowSpec:
     merged
         (M - 1,) bool: the pieces of steps j and j + 1 are one polynomial (every robot's;
         :mod:`mrfswarm.continuous.merge_pieces`). None: no piece spans two steps.
+    creep
+        (M, G, dim) m/s: where not zero, every velocity control point of robot g's piece in
+        step j has at least the norm of ``creep[j, g]`` along its direction, so the robot moves
+        that way at least that fast throughout the step (a wait flown as a slow drift rather
+        than a stop; a choice of the flight, not a safety row). None: no such rows.
     """
 
     degree: int
@@ -303,6 +308,7 @@ class WindowSpec:
     slack: float = 0.0
     limit_mask: np.ndarray | None = None
     merged: np.ndarray | None = None
+    creep: np.ndarray | None = None
 
     @property
     def steps(self) -> int:
@@ -448,6 +454,17 @@ class WindowFormulation:
             cf = faces[Kf][:, None, :, None]
             add((int(R * na.sum()),), ridx, col(Gp, Dd[None], Jp, Aa[None]), pm.k_index(Jp, r, Mm[None], Aa[None]), cf,
                 pm.masks[r][Mm, Aa][None] & (cf != 0), -bound, bound)
+        # creeping: rows (j, g, m) for the pieces that keep moving, u . V_m >= |creep| (time-normalized)
+        if spec.creep is not None:
+            speed = np.linalg.norm(spec.creep, axis=-1)  # (M, G)
+            J, Gi = np.nonzero(speed > 0)
+            if len(J):
+                R = pm.rows[1]
+                u = spec.creep[J, Gi] / speed[J, Gi][:, None]  # (P, dim)
+                Pi, Mm, Dd, Aa = np.ix_(np.arange(len(J)), np.arange(R), np.arange(dim), np.arange(nz))
+                cf = u[Pi, Dd]
+                add((len(J), R), Pi * R + Mm, col(Gi[Pi], Dd, J[Pi], Aa), pm.k_index(J[Pi], 1, Mm, Aa), cf,
+                    pm.masks[1][Mm, Aa] & (cf != 0), (speed[J, Gi] * Ts * (1 + spec.margin))[:, None], np.inf)
         # relative safe corridors: rows (pair, m)
         P = len(spec.pair_step)
         if P:

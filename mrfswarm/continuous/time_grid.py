@@ -149,15 +149,7 @@ def robot_needs(paths: np.ndarray, resolution: float, v_max: float, acceleration
     P = np.asarray(paths, dtype=float) * resolution
     m = np.diff(P, axis=0)  # (T, N, d)
     if drift > 0 and len(m) >= 3:
-        # a single-step wait between two moves that turn by less than 90 degrees: the robot may drift up to ``drift``
-        # metres within its cell along its way instead of stopping (its region is the cell's room)
-        Lm = np.linalg.norm(m, axis=-1)
-        way = m[:-2] + m[2:]
-        ahead = (m[:-2] * m[2:]).sum(-1) > 0
-        wait = (Lm[1:-1] == 0) & (Lm[:-2] > 0) & (Lm[2:] > 0) & ahead
-        norm = np.linalg.norm(way, axis=-1, keepdims=True)
-        m = m.copy()
-        m[1:-1] = np.where(wait[..., None], drift * way / np.maximum(norm, 1e-12), m[1:-1])
+        m = _drift_through_waits(m, drift)
     L = np.linalg.norm(m, axis=-1)  # (T, N)
     T = len(L)
     a = float(acceleration)
@@ -172,6 +164,45 @@ def robot_needs(paths: np.ndarray, resolution: float, v_max: float, acceleration
     v = cap.copy()
     _passes(v, L, a)  # forward: reachable from the previous knot; backward: the next knot reachable from it
     return segment_times(L, v[:-1], v[1:], v_max, a), L
+
+
+def drift_waits(moves: np.ndarray, longest: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The waits a robot can drift through instead of stopping, in moves (T, N, d).
+
+    A wait is one if it is in a run of at most ``longest`` waits between two moves that turn
+    by less than 90 degrees. Returns (T, N) bool, those waits; (T, N, d) the unit
+    direction of the way through each (the sum of the moves before and after it; zero elsewhere);
+    (T, N) the length of its run (0 elsewhere).
+    """
+    m = np.asarray(moves, dtype=float)
+    T = len(m)
+    moving = np.linalg.norm(m, axis=-1) > 0  # (T, N)
+    idx = np.arange(T)[:, None]
+    prev = np.maximum.accumulate(np.where(moving, idx, -1), axis=0)  # last move at or before k
+    nxt = np.minimum.accumulate(np.where(moving, idx, T)[::-1], axis=0)[::-1]  # first move at or after k
+    waits = np.zeros(m.shape[:2], dtype=bool)
+    way = np.zeros_like(m)
+    runs = np.zeros(m.shape[:2], dtype=np.int64)
+    k, i = np.nonzero(~moving & (prev >= 0) & (nxt < T))
+    before, after = m[prev[k, i], i], m[nxt[k, i], i]
+    w = nxt[k, i] - prev[k, i] - 1
+    ok = ((before * after).sum(-1) > 0) & (w <= longest)
+    k, i, through = k[ok], i[ok], (before + after)[ok]
+    waits[k, i] = True
+    way[k, i] = through / np.linalg.norm(through, axis=-1, keepdims=True)
+    runs[k, i] = w[ok]
+    return waits, way, runs
+
+
+def _drift_through_waits(m: np.ndarray, drift: float) -> np.ndarray:
+    """Moves ``m`` (T, N, d) with the single-step waits of :func:`drift_waits` replaced by moves of ``drift``
+    metres along the way (see :func:`robot_needs`)."""
+    waits, way, runs = drift_waits(m)
+    if not waits.any():
+        return m
+    out = m.copy()
+    out[waits] = (drift / runs[waits])[:, None] * way[waits]
+    return out
 
 
 def motion_profile(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
