@@ -95,6 +95,7 @@ from mrfswarm.continuous.time_grid import (
     SwarmProfile,
     drift_waits,
     motion_profile,
+    next_moves,
     nominal_durations,
     witness_durations,
 )
@@ -483,9 +484,7 @@ class RecedingHorizon:
             _, way, _ = drift_waits(moves, CREEP_WAITS)
             if drift > 0:
                 self.creep = CREEP_SPEED * way
-            moving = np.linalg.norm(moves, axis=-1) > 0
-            # the first move at or after each step: a run's rows go in a window that holds its way out
-            self._exit = np.minimum.accumulate(np.where(moving, np.arange(self.T)[:, None], self.T)[::-1], axis=0)[::-1]
+            self._exit = next_moves(moves)  # a run's rows go in a window that holds its way out
         elif cfg.speed is None:
             self.nominal = np.zeros(0)
         else:

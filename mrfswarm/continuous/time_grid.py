@@ -166,6 +166,13 @@ def robot_needs(paths: np.ndarray, resolution: float, v_max: float, acceleration
     return segment_times(L, v[:-1], v[1:], v_max, a), L
 
 
+def next_moves(moves: np.ndarray) -> np.ndarray:
+    """(T, N) for each step of moves (T, N, d), the first step at or after it where the robot moves (T if none)."""
+    T = len(moves)
+    moving = np.linalg.norm(moves, axis=-1) > 0
+    return np.minimum.accumulate(np.where(moving, np.arange(T)[:, None], T)[::-1], axis=0)[::-1]
+
+
 def drift_waits(moves: np.ndarray, longest: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The waits a robot can drift through instead of stopping, in moves (T, N, d).
 
@@ -177,9 +184,8 @@ def drift_waits(moves: np.ndarray, longest: int = 1) -> tuple[np.ndarray, np.nda
     m = np.asarray(moves, dtype=float)
     T = len(m)
     moving = np.linalg.norm(m, axis=-1) > 0  # (T, N)
-    idx = np.arange(T)[:, None]
-    prev = np.maximum.accumulate(np.where(moving, idx, -1), axis=0)  # last move at or before k
-    nxt = np.minimum.accumulate(np.where(moving, idx, T)[::-1], axis=0)[::-1]  # first move at or after k
+    prev = np.maximum.accumulate(np.where(moving, np.arange(T)[:, None], -1), axis=0)  # last move at or before k
+    nxt = next_moves(m)
     waits = np.zeros(m.shape[:2], dtype=bool)
     way = np.zeros_like(m)
     runs = np.zeros(m.shape[:2], dtype=np.int64)
