@@ -13,9 +13,10 @@ durations within 2e-15 s, coefficients within 5e-8, the window QP's own toleranc
 paths and makespans. Regenerated for the creep rows of windows where a robot waits a few steps
 between two moves the same way (the same paths and durations; coefficients within 7e-7 in corridor
 and single_obstacle, whose windows gained rows that the solution meets anyway). Regenerated when the
-plane's limit rows came to be switched on per face of the octagon, as in space, not all four at once (the
-same paths and durations; coefficients within 4.2e-5, positions within 3.1e-6 m: the window QPs reach the
-same optimum with fewer rows, to their tolerance). A change that moves a 2-D plan fails here: if it is meant, regenerate the file
+limit rows came to be switched on per face of the limit polytope and quarter of a piece (in the plane the
+octagon's four faces had come on at once, on all four quarters): the same paths and durations; coefficients
+within 2.4e-6, positions within 2.5e-6 m (the window QPs reach the same optimum with fewer rows, to their
+tolerance). A change that moves a 2-D plan fails here: if it is meant, regenerate the file
 and say why in the commit.
 """
 

@@ -280,7 +280,9 @@ class WindowSpec:
     limit_mask
         (M, G, 3) bool: which (step, robot, derivative order) get limit rows (None: all),
         or (M, G, 3, F): which faces of the limit polytope (:func:`limit_polytope`) each
-        gets. The window loop adds them lazily, where a solution without them exceeds a limit.
+        gets, or (M, G, 3, F, LIMIT_PARTS): which faces on which of the piece's equal parts
+        (the control points of that part only). The window loop adds them lazily, where a
+        solution without them exceeds a limit.
     merged
         (M - 1,) bool: the pieces of steps j and j + 1 are one polynomial (every robot's;
         :mod:`mrfswarm.continuous.merge_pieces`). None: no piece spans two steps.
@@ -438,22 +440,27 @@ class WindowFormulation:
         mask = np.ones((M, G, 3, nf), dtype=bool) if spec.limit_mask is None else np.asarray(spec.limit_mask)
         if mask.ndim == 3:  # per (step, robot, order): every face
             mask = np.broadcast_to(mask[..., None], mask.shape + (nf,))
+        if mask.ndim == 4:  # per face: every part of the piece
+            mask = np.broadcast_to(mask[..., None], mask.shape + (LIMIT_PARTS,))
         for r, lim in zip(LIMIT_ORDERS, spec.limits):
-            R = pm.rows[r]
+            Rp = pm.rows[r] // LIMIT_PARTS  # control points per part
             bound = lim * Ts**r * inner * (1 - spec.margin)
-            on = mask[:, :, r - 1].any(axis=-1)
+            slots = mask[:, :, r - 1].reshape(M, G, nf * LIMIT_PARTS)  # (face, part), face-major
+            on = slots.any(axis=-1)
             J, Gi = np.nonzero(on)  # row-major, as the rows are numbered
-            faces_on = mask[:, :, r - 1][on]  # (P, nf)
-            na = faces_on.sum(axis=1)
-            base = np.concatenate([[0], np.cumsum(R * na)[:-1]]).astype(np.int64)
-            rank = np.cumsum(faces_on, axis=1) - 1
-            I, Kf = np.nonzero(faces_on)  # (pair, face) in order
-            Mm, Dd, Aa = np.ix_(np.arange(R), np.arange(dim), np.arange(nz))
+            slots_on = slots[on]  # (P, nf * parts)
+            na = slots_on.sum(axis=1)
+            base = np.concatenate([[0], np.cumsum(Rp * na)[:-1]]).astype(np.int64)
+            rank = np.cumsum(slots_on, axis=1) - 1
+            I, S = np.nonzero(slots_on)  # (pair, slot) in order
+            Kf, part = S // LIMIT_PARTS, S % LIMIT_PARTS
+            Mm, Dd, Aa = np.ix_(np.arange(Rp), np.arange(dim), np.arange(nz))
             Jp, Gp = J[I][:, None, None, None], Gi[I][:, None, None, None]
-            ridx = (base[I] + rank[I, Kf])[:, None, None, None] + Mm[None] * na[I][:, None, None, None]
+            ridx = (base[I] + rank[I, S])[:, None, None, None] + Mm[None] * na[I][:, None, None, None]
+            cp = part[:, None, None, None] * Rp + Mm[None]  # the control point's index in the piece
             cf = faces[Kf][:, None, :, None]
-            add((int(R * na.sum()),), ridx, col(Gp, Dd[None], Jp, Aa[None]), pm.k_index(Jp, r, Mm[None], Aa[None]), cf,
-                pm.masks[r][Mm, Aa][None] & (cf != 0), -bound, bound)
+            add((int(Rp * na.sum()),), ridx, col(Gp, Dd[None], Jp, Aa[None]), pm.k_index(Jp, r, cp, Aa[None]), cf,
+                pm.masks[r][cp, Aa[None]] & (cf != 0), -bound, bound)
         # creeping: rows (j, g, m) for the pieces that keep moving, u . V_m >= |creep| (time-normalized)
         if spec.creep is not None:
             speed = np.linalg.norm(spec.creep, axis=-1)  # (M, G)

@@ -502,11 +502,12 @@ class RecedingHorizon:
                 f"{int(np.argmax(slow))} would need {self.witness.max():.3g} s)")
         # rows switched on by lazy constraint generation (grow over the run)
         self.active = np.zeros(len(self.seps), dtype=bool)
-        # per face of the limit polytope: only the faces a solution crosses. In space, 13 faces per control point
-        # would make the limit rows most of a window's QP (190 000 rows of 200 000 for 40 robots in a lattice);
-        # in the plane the octagon's 4 faces were switched on together until 2026-11-27, and the 300-robot
-        # crossing's window QPs took 111 s instead of 37 (same flight)
-        self.limit_rows = np.zeros((self.T, self.N, 3, len(limit_polytope(self.dim)[0])), dtype=bool)
+        # per face of the limit polytope and quarter of a piece (LIMIT_PARTS): only the faces a solution crosses, on
+        # the quarters where it does. In space, 13 faces per control point would make the limit rows most of a
+        # window's QP (190 000 rows of 200 000 for 40 robots in a lattice); in the plane the octagon's 4 faces came
+        # on together, on all quarters, until 2026-11-27: the 300-robot crossing's window QPs took 111 s, per
+        # face 37 s; the open field of 50 planned in 20.3 s, per face and quarter 5.6 s (the same flights)
+        self.limit_rows = np.zeros((self.T, self.N, 3, len(limit_polytope(self.dim)[0]), LIMIT_PARTS), dtype=bool)
         self.workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
         self._pool: ProcessPoolExecutor | None = None
         # robots of the chunk whose QP failed last: solved first, so a failing attempt costs one chunk
@@ -603,10 +604,12 @@ class RecedingHorizon:
                                   - cps[0][seps.second[look], seps.step[look] - a], seps.normal[look]).min(axis=1)
             new_pairs = (gap < self.distance + self.slack + MARGIN / 2) & ~self.active[cand]
             faces, inner = limit_polytope(self.dim)
-            new_limits = np.zeros((M, self.N, 3, len(faces)), dtype=bool)
+            new_limits = np.zeros((M, self.N, 3, len(faces), LIMIT_PARTS), dtype=bool)
             for r, lim in zip((1, 2, 3), self.limits):
-                over = np.abs(cps[r][robots] @ faces.T).max(axis=2) > lim * inner * (1 - MARGIN / 2)  # (n, M, F)
-                new_limits[:, robots, r - 1] = over.transpose(1, 0, 2) & ~self.limit_rows[a:b, robots, r - 1]
+                n, _, K, d = cps[r][robots].shape  # K: the control points of LIMIT_PARTS parts, part after part
+                parts = np.abs(cps[r][robots].reshape(n, M, LIMIT_PARTS, K // LIMIT_PARTS, d) @ faces.T).max(axis=3)
+                over = parts > lim * inner * (1 - MARGIN / 2)  # (n, M, parts, F)
+                new_limits[:, robots, r - 1] = over.transpose(1, 0, 3, 2) & ~self.limit_rows[a:b, robots, r - 1]
             if not new_pairs.any() and not new_limits.any():
                 rec.active_pairs = int(self.active[cand].sum())
                 return _Solution(Y, B, durations, float(cost.sum()),
@@ -615,7 +618,7 @@ class RecedingHorizon:
             self.limit_rows[a:b] |= new_limits
             touched = np.zeros(self.N, dtype=bool)
             touched[seps.first[new_pairs]] = touched[seps.second[new_pairs]] = True
-            touched |= new_limits.any(axis=(0, 2, 3))
+            touched |= new_limits.any(axis=(0, 2, 3, 4))
             todo = np.zeros(self.N, dtype=bool)
             for g in interaction_groups(self.N, seps.select(self.active[cand])):
                 if touched[g].any():

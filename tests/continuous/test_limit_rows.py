@@ -1,17 +1,19 @@
-"""The window loop switches limit rows on per face of the limit polytope, in the plane as in space."""
+"""The window loop switches limit rows on per face of the limit polytope and part of a piece, in the plane as in
+space."""
 
 import numpy as np
 
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous import RecedingHorizon
-from mrfswarm.continuous.formulation import limit_polytope
+from mrfswarm.continuous.formulation import LIMIT_PARTS, limit_polytope
 from mrfswarm.maps import OccupancyGrid
 
 
-def test_a_straight_run_switches_on_the_faces_it_presses_only():
+def test_a_straight_run_switches_on_the_faces_and_parts_it_presses_only():
     """Three robots cruise 12 cells along x: their velocity presses the octagon's x face; the rows of the faces
-    no control point crosses stay off (all four came on together before: 2-3 x the rows in big windows), and
-    the flight keeps every derivative inside the limit octagon all the same."""
+    and of the parts of a piece that no control point crosses stay off (all four faces and parts came on
+    together before: 2-3 x the rows in big windows), and the flight keeps every derivative within its limit
+    all the same."""
     cells = np.array([[2, 2], [2, 5], [2, 8]])
     paths = np.array([cells + [k, 0] for k in range(13)])
     grid = OccupancyGrid.from_occupied(np.zeros((16, 11), bool))
@@ -20,12 +22,14 @@ def test_a_straight_run_switches_on_the_faces_it_presses_only():
     plan = rh.run()
     assert plan.certificate.ok
     faces, inner = limit_polytope(2)
-    on = rh.limit_rows  # (T, N, 3, faces)
-    velocity = on[:, :, 0]
-    assert velocity[:, :, 0].any()  # the x face: (1, 0)
-    some = on.any(axis=-1)
-    assert some.any() and not np.array_equal(on[some], np.ones((int(some.sum()), len(faces)), bool))
-    assert on.sum() < len(faces) * some.sum()  # fewer rows than switching every face of an order on
+    on = rh.limit_rows  # (T, N, 3, faces, parts)
+    assert on.shape[-2:] == (len(faces), LIMIT_PARTS)
+    assert on[:, :, 0, 0].any()  # velocity, the x face: (1, 0)
+    some = on.any(axis=(-1, -2))  # (step, robot, order) with any row on
+    assert some.any() and on.sum() < len(faces) * LIMIT_PARTS * some.sum()  # fewer than every face and part
+    face = on.any(axis=-1)
+    assert face.sum() < len(faces) * some.sum()  # not every face
+    assert on.sum() < LIMIT_PARTS * face.sum()  # not every part of a face
     t = np.linspace(0.0, plan.makespan_s, 4001)
     for tr in plan.trajectories:  # within the limits (the certificate checks the octagons; here sampled once more)
         for r, lim in zip((1, 2, 3), (cfg.v_max, cfg.a_max, cfg.j_max)):

@@ -20,7 +20,7 @@ from scipy.optimize import minimize
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous import RecedingHorizon
 from mrfswarm.continuous.certificate import certify, certify_pieces, control_point_stack, hull_distance_from_origin
-from mrfswarm.continuous.formulation import OCTAGON, OCTAGON_INNER, limit_polytope, piece_maps
+from mrfswarm.continuous.formulation import LIMIT_PARTS, OCTAGON, OCTAGON_INNER, limit_polytope, piece_maps
 from mrfswarm.continuous.receding_horizon import exact_min_separation
 from mrfswarm.continuous.regions import (
     Regions,
@@ -562,3 +562,14 @@ def test_limit_rows_per_face(d):
     one[1, 0, 0, 2] = True  # one face of robot 0's velocity in step 1
     f, none = form(one), form(np.zeros((M, G, 3), bool))
     assert f.m - none.m == piece_maps(7, 4).rows[1]  # one row per velocity control point of the piece
+    part = np.zeros((M, G, 3, nf, LIMIT_PARTS), bool)
+    part[1, 0, 0, 2, 3] = True  # the same face, on the last part of the piece only
+    assert form(part).m - none.m == piece_maps(7, 4).rows[1] // LIMIT_PARTS
+    whole = f.qp(T).A.tocsr()
+    every = form(np.repeat(one[..., None], LIMIT_PARTS, axis=-1)).qp(T).A.tocsr()
+    assert (every != whole).nnz == 0  # a mask per face is the mask of all its parts
+    first = M * G * 8 * d  # the limit rows follow the region rows (8 position control points per piece, d slabs)
+    R = piece_maps(7, 4).rows[1] // LIMIT_PARTS
+    mine = form(part).qp(T).A.tocsr()[first:first + R]
+    # the face's rows on the last part: control points 3R..4R - 1 of the piece, every LIMIT_PARTS-th row of all
+    assert mine.nnz > 0 and (mine != whole[first + LIMIT_PARTS - 1:first + LIMIT_PARTS * R:LIMIT_PARTS]).nnz == 0
