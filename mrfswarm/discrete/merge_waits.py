@@ -130,8 +130,8 @@ def merge_waits(paths: np.ndarray, downwash: float = 1.0,
         before = merged
         for i in range(N):
             k = 1
+            moves = np.any(P[1:, i] != P[:-1, i], axis=1)  # again after each merge of this robot
             while k < T:
-                moves = np.any(P[1:, i] != P[:-1, i], axis=1)
                 if moves[k] or not moves[k - 1]:
                     k += 1
                     continue
@@ -163,6 +163,7 @@ def merge_waits(paths: np.ndarray, downwash: float = 1.0,
                         steps.set(i, need_i[:, 0], len_i[:, 0])
                         total = t
                     P[:, i] = col
+                    moves = np.any(P[1:, i] != P[:-1, i], axis=1)
                     merged += 1
                     break
                 k = e + 1
