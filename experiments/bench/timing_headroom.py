@@ -37,22 +37,18 @@ import numpy as np
 from flight_quality import DEFAULT_CASES, RESULTS, case_config
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 
 def ordered_makespan(need: np.ndarray, lo: np.ndarray, hi: np.ndarray, distance: float) -> float:
     """The earliest finish of steps ``need`` (T, N) seconds on per-robot time lines, with regions' bounding boxes
     ``lo``, ``hi`` (T, N, d): step k of robot i and step k' of robot j whose boxes come within ``distance`` are
     ordered as in the discrete plan (k' < k: j's ends before i's starts) or, when k' = k, share one interval."""
+    from mrfswarm.continuous.regions import near_pairs
+
     T, N = need.shape
-    c, h = (0.5 * (lo + hi)).reshape(T * N, -1), (0.5 * (hi - lo)).reshape(T * N, -1)
-    reach = 2 * float(np.linalg.norm(h, axis=1).max()) + distance
-    pairs = cKDTree(c).query_pairs(reach, output_type="ndarray")
-    gap = np.abs(c[pairs[:, 0]] - c[pairs[:, 1]]) - h[pairs[:, 0]] - h[pairs[:, 1]]
-    pairs = pairs[np.linalg.norm(np.maximum(gap, 0.0), axis=1) < distance]
-    (k1, i1), (k2, i2) = np.divmod(pairs[:, 0], N), np.divmod(pairs[:, 1], N)
-    pairs = pairs[i1 != i2]
-    (k1, i1), (k2, i2) = np.divmod(pairs[:, 0], N), np.divmod(pairs[:, 1], N)
+    pairs = near_pairs(lo.reshape(T * N, -1), hi.reshape(T * N, -1), distance)  # over all (step, robot) boxes
+    pairs = pairs[pairs[:, 0] % N != pairs[:, 1] % N]  # a robot's own steps are ordered by its time line
+    k1, k2 = pairs[:, 0] // N, pairs[:, 1] // N
     same = k1 == k2
     graph = coo_matrix((np.ones(same.sum()), (pairs[same, 0], pairs[same, 1])), shape=(T * N, T * N))
     _, cls = connected_components(graph, directed=False)  # the classes sharing a step's interval
