@@ -11,6 +11,7 @@ import pytest
 import solvers.qp
 from mrfswarm.cli import main
 from mrfswarm.config import from_dict, load_config
+from mrfswarm.continuous import receding_horizon
 from mrfswarm.continuous.receding_horizon import QP_OPTIONS
 from mrfswarm.errors import ConfigError, DeprecatedKeyWarning
 from mrfswarm.pipeline import mrf_options, plan, qp_options, resolve_config
@@ -150,6 +151,8 @@ def test_qp_options_go_over_the_stages_own_and_reach_every_solve(monkeypatch):
         return solve(problem, backend, options)
 
     monkeypatch.setattr(solvers.qp, "solve", recording)
+    # without the stretched attempts (which run the smaller budget and fly this window) the cautious profile flies it
+    monkeypatch.setattr(receding_horizon, "STRETCH_POWERS", ())
     plan(cfg, progress=False, workers=1)
     # the bold and moderate attempts run a third of the budget PIQP gives (its cap of 120 under 777)
     optimistic = dataclasses.replace(expected, max_iter=40)

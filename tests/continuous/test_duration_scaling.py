@@ -148,7 +148,8 @@ def test_the_window_refinement_by_scaling_is_the_nlps_at_a_fraction_of_the_qps(m
 
 
 def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch):
-    """The bold and moderate attempts run PIQP at 40 of its 120 iterations, the cautious one at the full budget.
+    """The bold and moderate attempts (and the stretch's probe) run PIQP at 40 of its 120 iterations, the cautious
+    one at the full budget.
 
     Solves given the smaller budget are made to fail here: the window then flies the cautious profile, and every
     solve of it had the stage's full options."""
@@ -172,9 +173,10 @@ def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch
     a, c, b, start, _ = first_window(rh)
     _, rec = rh._plan_window(a, c, b, start, None)
     assert rec.attempt == "cautious"
-    assert [f.split(":")[0] for f in rec.failed] == ["nominal", "moderate"]
-    assert budgets[:2] == [int(np.ceil(cap / 3))] * 2
-    assert set(budgets[2:]) == {rh_mod.QP_OPTIONS.max_iter}
+    # the stretch's probe (the window without limit rows) runs the smaller budget too, and failing adds no attempt
+    assert [f.split(":")[0] for f in rec.failed] == ["nominal", "moderate", "stretch"]
+    assert budgets[:3] == [int(np.ceil(cap / 3))] * 3
+    assert set(budgets[3:]) == {rh_mod.QP_OPTIONS.max_iter}
 
 
 def test_the_refinements_trial_points_get_the_smaller_budget(monkeypatch):
