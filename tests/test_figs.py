@@ -199,7 +199,11 @@ def test_fig6_the_papers_seams_stop_and_start_ours_do_not():
     nums = trajectories.variant_numbers("corridor")
     assert all(max(nums[v]["stops_per_robot"]) == 0 for v in ("default", "refined"))
     assert nums["refined"]["makespan_s"] < nums["default"]["makespan_s"] < 0.6 * nums["paper"]["makespan_s"]
-    assert nums["default"]["snap_integral"] < 0.1 * nums["paper"]["snap_integral"]
+    # less snap in 2.8 times less time; at equal flight time (the integral of squared snap of a flight stretched
+    # in time by s is s^-7 times its own) far less: the paper's seams brake and restart, ours fly through
+    assert nums["default"]["snap_integral"] < 0.15 * nums["paper"]["snap_integral"]
+    at_equal_time = {v: nums[v]["snap_integral"] * nums[v]["makespan_s"] ** 7 for v in ("default", "paper")}
+    assert at_equal_time["default"] < 1e-3 * at_equal_time["paper"]
     assert all(nums[v]["certified"] and nums[v]["min_separation_m"] >= 0.5 for v in trajectories.VARIANTS)
     assert np.all(trajectories.time_series("free5").stops() == 0)
 

@@ -131,6 +131,17 @@ NOMINAL_ACCELERATION = 0.25
 #: of 50: makespan 1.57 x the bound against 2.00), the cautious one alone in every window of every map.
 CRUISE = 0.95
 ACCELERATION = 2.0
+#: A fast profile tried before the bold one, on the steps a window flies (its tail, planned and not flown, is the
+#: bold profile's): cruise at v_max, 1.5 times the bold acceleration. The QP keeps robots in their regions, not on
+#: the profile, so a robot may lag its cells by what the regions' growth leaves, and many windows take it.
+#: Measured (2026-11-27, flight-quality maps, with the stretched attempts; fq.py runs, one each): doorway 1.56 ->
+#: 1.41 x the bound, forest 1.64 -> 1.59, open field 1.31 -> 1.25, aisles30 1.67 -> 1.57, arena 1.78 -> 1.58,
+#: clutter40 2.41 -> 2.42. Fast on the whole window (its tail too): the same maps 1.46, 1.58, 1.25, 1.57, 1.60 and
+#: clutter40 2.34, but failed more often and planned the open field in 3 times the time. At 0.95 v_max and 3 times:
+#: clutter40 2.44, arena 1.63; at 0.95 and 4 times the arena's windows all failed it (1.78); as the bold profile
+#: itself (3 times, no fast one), its moderate profile became bolder too and clutter40 flew 2.67.
+FAST_CRUISE = 1.0
+FAST_ACCELERATION = 3.0
 CAUTIOUS_CRUISE = 0.9
 CAUTIOUS_ACCELERATION = 1.0
 #: Share of a cell's room (its side less the robot's diameter) a robot may drift through during a
@@ -146,12 +157,13 @@ DRIFT = 1.0
 #: big200 4.6 % later (3.33 x the bound against 3.18) and the refined arena 1.73 x against 1.62.
 CREEP_SPEED = 0.1
 CREEP_WAITS = 5
-#: The attempts' profiles in order: (name, cruise, acceleration); a moderate one between the bold and the
+#: The attempts' profiles in order: (name, cruise, acceleration): the fast one, the bold one (``"nominal"``: its
+#: durations are the window's nominal ones), and a moderate one between the bold and the
 #: cautious, whose durations the slower attempts start from. The moderate one gained 3 to 9 % of makespan in
 #: clutter (flight_quality bench: clutter40 3.38 -> 3.07 x the bound, aisles30 1.95 -> 1.84, forest 1.83 ->
 #: 1.78). Refinement skips it: refined from the moderate durations, a corridor window left the swarm in a
 #: state the next window could only leave at rest (27.8 s against 22.4 from the cautious ones).
-PROFILES = (("nominal", CRUISE, ACCELERATION), ("moderate", 0.5 * (CRUISE + CAUTIOUS_CRUISE),
+PROFILES = (("fast", FAST_CRUISE, FAST_ACCELERATION), ("nominal", CRUISE, ACCELERATION), ("moderate", 0.5 * (CRUISE + CAUTIOUS_CRUISE),
                                                  float(np.sqrt(ACCELERATION * CAUTIOUS_ACCELERATION))),
             ("cautious", CAUTIOUS_CRUISE, CAUTIOUS_ACCELERATION))
 
@@ -176,7 +188,7 @@ def flight_model(cfg: SmoothingConfig, resolution: float, radius: float) -> Flig
     """
     if cfg.speed is not None:
         return None
-    name, cruise, acc = PROFILES[1]
+    name, cruise, acc = next(p for p in PROFILES if p[0] == "moderate")
     return FlightModel(resolution, cruise * cfg.v_max, motion_acceleration(cfg.v_max, cfg.a_max, cfg.j_max, acc),
                        drift_room(resolution, radius))
 
@@ -224,12 +236,14 @@ REFERENCE_SPEED = 1.0
 #: of planning -> 8.1).
 OPTIMISTIC_BUDGET = 1 / 3
 #: Powers of the stretch (see RecedingHorizon._stretched) tried, in this order, before the cautious profile: a
-#: window whose bold and moderate attempts fail flies the bold durations stretched by half the stretch (in the
+#: window whose faster profiles fail flies the bold profile's durations stretched by half the stretch (in the
 #: logarithm), or by all of it, where their flown steps are shorter than the cautious profile's. Measured on the
-#: flight-quality bench (2026-11-27): forest 1.80 -> 1.64 x the bound, rooms 1.50 -> 1.49, aisles30 1.68 -> 1.67,
-#: open50 1.32 -> 1.31, clutter40 2.45 -> 2.41, the other maps the same. Tried before the moderate profile as
-#: well, clutter40 flew 2.50: a window flown faster left states the next windows could leave only at the cautious
-#: profile.
+#: flight-quality bench (2026-11-27, before the fast profile): forest 1.80 -> 1.64 x the bound, rooms 1.50 -> 1.49,
+#: aisles30 1.68 -> 1.67, open50 1.32 -> 1.31, clutter40 2.45 -> 2.41, the other maps the same. Tried before the
+#: moderate profile as well, clutter40 flew 2.50: a window flown faster left states the next windows could leave
+#: only at the cautious profile. Stretched from the fast profile's durations, two robots on a straight line of 24
+#: cells flew 1.29 x their time at v_max instead of 1.23 (the first window's stretch left the next only its
+#: previous plan); from the bold one's, 1.23, and the maps within 2 % (forest 1.62 against 1.59).
 STRETCH_POWERS = (0.5, 1.0)
 #: Factor by which new steps are slowed per attempt after the nominal ones fail.
 SLOWDOWN = 1.5
@@ -488,7 +502,7 @@ class RecedingHorizon:
                                             motion_acceleration(cfg.v_max, cfg.a_max, cfg.j_max, acc),
                                             drift if name != "cautious" else 0.0)
                              for name, cruise, acc in PROFILES]
-            self.nominal = self.profiles[0].durations
+            self.nominal = self.profiles[[name for name, _, _ in PROFILES].index("nominal")].durations
             moves = np.diff(self.X, axis=0)
             _, way, _ = drift_waits(moves, CREEP_WAITS)
             if drift > 0:
@@ -758,6 +772,11 @@ class RecedingHorizon:
         if self.profiles:  # the window ends at rest at step b: its last steps brake to it
             attempts = [(name, np.maximum(p.durations[a:b], p.window(a, b))) for (name, _, _), p in
                         zip(PROFILES, self.profiles) if not (self.cfg.time_refinement and name == "moderate")]
+            # the fast profile flies the flown steps only: the tail, planned and not flown, brakes as the bold one
+            names = [name for name, _ in attempts]
+            if "fast" in names:
+                fast, bold = attempts[names.index("fast")][1], attempts[names.index("nominal")][1]
+                attempts[names.index("fast")] = ("fast", np.concatenate([fast[:c - a], bold[c - a:]]))
             nominal = np.maximum(attempts[-1][1], nominal)  # the slower attempts start from the cautious profile
             attempts[-1] = (attempts[-1][0], nominal)
         # the profiles before the cautious one fail often (the bold one in most windows of clutter): a smaller
@@ -791,7 +810,7 @@ class RecedingHorizon:
                 name, durations = tries[k]
                 if name == PROFILES[-1][0] and len(tries) == len(attempts):
                     # the faster profiles failed: the bold durations stretched where the limits ask, if sooner
-                    tries[k:k] = self._stretched(a, c, b, start, tries[0][1], durations, rec, merged,
+                    tries[k:k] = self._stretched(a, c, b, start, dict(attempts)["nominal"], durations, rec, merged,
                                                  c if has_creep else None)
                     name, durations = tries[k]
                 # a drifting profile with the creep rows, then (where they make it fail) without them

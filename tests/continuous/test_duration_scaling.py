@@ -148,7 +148,7 @@ def test_the_window_refinement_by_scaling_is_the_nlps_at_a_fraction_of_the_qps(m
 
 
 def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch):
-    """The bold and moderate attempts (and the stretch's probe) run PIQP at 40 of its 120 iterations, the cautious
+    """The fast, bold and moderate attempts (and the stretch's probe) run PIQP at 40 of its 120 iterations, the cautious
     one at the full budget.
 
     Solves given the smaller budget are made to fail here: the window then flies the cautious profile, and every
@@ -169,14 +169,14 @@ def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch
 
     monkeypatch.setattr(rh_mod, "solve_window", spy)
     rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(), 0.25, workers=1)
-    assert [name for name, _, _ in rh_mod.PROFILES] == ["nominal", "moderate", "cautious"] and rh.profiles
+    assert [name for name, _, _ in rh_mod.PROFILES] == ["fast", "nominal", "moderate", "cautious"] and rh.profiles
     a, c, b, start, _ = first_window(rh)
     _, rec = rh._plan_window(a, c, b, start, None)
     assert rec.attempt == "cautious"
     # the stretch's probe (the window without limit rows) runs the smaller budget too, and failing adds no attempt
-    assert [f.split(":")[0] for f in rec.failed] == ["nominal", "moderate", "stretch"]
-    assert budgets[:3] == [int(np.ceil(cap / 3))] * 3
-    assert set(budgets[3:]) == {rh_mod.QP_OPTIONS.max_iter}
+    assert [f.split(":")[0] for f in rec.failed] == ["fast", "nominal", "moderate", "stretch"]
+    assert budgets[:4] == [int(np.ceil(cap / 3))] * 4
+    assert set(budgets[4:]) == {rh_mod.QP_OPTIONS.max_iter}
 
 
 def test_the_refinements_trial_points_get_the_smaller_budget(monkeypatch):

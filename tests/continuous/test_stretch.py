@@ -1,4 +1,5 @@
-"""The stretched attempts of a window (RecedingHorizon._stretched): the bold durations, longer where the limits ask."""
+"""The stretched attempts of a window (RecedingHorizon._stretched): the first profile's durations, longer where the
+limits ask."""
 
 from __future__ import annotations
 
@@ -22,6 +23,11 @@ def passing(**limits) -> RecedingHorizon:
     return RecedingHorizon(PASSING, GRID, SmoothingConfig(**limits), 0.25, workers=1)
 
 
+def bold(rh: RecedingHorizon, a: int, b: int) -> np.ndarray:
+    """The bold profile's durations of window a..b."""
+    return rh.profiles[[name for name, _, _ in rh_mod.PROFILES].index("nominal")].window(a, b)
+
+
 def peaks(rh: RecedingHorizon, sol) -> np.ndarray:
     """(3, M) the largest r-th derivative control point of any robot in each step over its limit (faces)."""
     faces, inner = limit_polytope(rh.dim)
@@ -34,7 +40,7 @@ def test_the_stretch_flies_a_window_whose_durations_are_too_short():
     and certifies, each step no shorter than before and the half stretch the geometric mean."""
     rh = passing(j_max=3.0)
     a, c, b, start, rec = first_window(rh)
-    short = 0.5 * rh.profiles[0].window(a, b)
+    short = 0.5 * bold(rh, a, b)
     assert rh._solve(a, b, start, short, WindowRecord(a, c, b))[0] is None
     rows = rh.limit_rows.copy()
     assert rows[a:b].any()  # the failed solve switched some on
@@ -60,7 +66,7 @@ def test_the_stretch_flies_a_window_whose_durations_are_too_short():
 def test_no_stretch_slower_than_the_cautious_profile():
     rh = passing(j_max=3.0)
     a, c, b, start, rec = first_window(rh)
-    short = 0.5 * rh.profiles[0].window(a, b)
+    short = 0.5 * bold(rh, a, b)
     assert rh._stretched(a, c, b, start, short, short, rec, None, None) == []
 
 
@@ -68,14 +74,14 @@ def test_a_probe_without_solution_adds_no_attempt(monkeypatch):
     rh = passing(j_max=3.0)
     a, c, b, start, rec = first_window(rh)
     monkeypatch.setattr(rh_mod, "solve_window", lambda *args, **kwargs: "no solution here")
-    short = 0.5 * rh.profiles[0].window(a, b)
+    short = 0.5 * bold(rh, a, b)
     assert rh._stretched(a, c, b, start, short, np.full(b - a, 1e3), rec, None, None) == []
     assert rec.failed == ["stretch: 2 robots: no solution here"]
 
 
 @pytest.fixture(scope="module")
 def forest():
-    """The first window of a 10-robot forest, where the bold and the moderate profiles have no solution."""
+    """The first window of a 10-robot forest, where the fast, the bold and the moderate profiles have no solution."""
     data = tomllib.loads((MAPS / "forest_01.toml").read_text())
     data["scenario"]["start"].update(n_robots=10, sigma=1.5)
     data["interaction"]["k"] = 7
@@ -90,7 +96,7 @@ def test_a_forest_window_flies_the_stretch_sooner_than_the_cautious_profile(fore
     rh, (a, c, b, start, _) = forest
     sol, rec = rh._plan_window(a, c, b, start, None)
     names = [f.split(":")[0].split(", ")[-1] for f in rec.failed]
-    assert names[:2] == ["nominal", "moderate"], rec.failed
+    assert names[:3] == ["fast", "nominal", "moderate"], rec.failed
     assert rec.attempt.startswith("stretched")
     cautious = rh.profiles[-1].window(a, b)
     assert sol.durations[:c - a].sum() < cautious[:c - a].sum() - 0.1
