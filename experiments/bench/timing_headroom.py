@@ -4,8 +4,9 @@ All robots fly one common time grid (:mod:`mrfswarm.continuous.regions`: the rel
 corridors hold between pieces of the same interval), so every step lasts what its slowest
 mover needs: a robot starting, stopping or turning slows the whole swarm for that step. Per
 case of ``flight_quality.py`` (its maps and settings, the working tree's code), from the
-discrete plan and the bold speed profile of the default time grid (``PROFILES[0]`` of
-:mod:`mrfswarm.continuous.receding_horizon`), all over the makespan's lower bound:
+discrete plan and the bold speed profile of the default time grid (``"nominal"`` in ``PROFILES`` of
+:mod:`mrfswarm.continuous.receding_horizon`; the fast profile before it is tried on a window's flown steps only),
+all over the makespan's lower bound:
 
 - ``flown``: the default flight, planned here (the continuous stage, simulation off);
 - ``shared``: the bold profile on the common grid (each step its slowest mover's need),
@@ -88,7 +89,7 @@ def measure(case: str) -> dict:
     paths = r.discrete.paths
     d = scn.distances
     bound = makespan_lower_bound(scn.grid.free, paths[0], paths[-1], res, sm.v_max, None if d is None else d.path)
-    _, cruise, acc = PROFILES[0]
+    _, cruise, acc = next(p for p in PROFILES if p[0] == "nominal")
     a = motion_acceleration(sm.v_max, sm.a_max, sm.j_max, acc)
     drift = drift_room(res, cfg.scenario.robot_radius)
     need, length = robot_needs(paths, res, cruise * sm.v_max, a, drift)
