@@ -163,8 +163,9 @@ CREEP_WAITS = 5
 #: clutter (flight_quality bench: clutter40 3.38 -> 3.07 x the bound, aisles30 1.95 -> 1.84, forest 1.83 ->
 #: 1.78). Refinement skips it: refined from the moderate durations, a corridor window left the swarm in a
 #: state the next window could only leave at rest (27.8 s against 22.4 from the cautious ones).
-PROFILES = (("fast", FAST_CRUISE, FAST_ACCELERATION), ("nominal", CRUISE, ACCELERATION), ("moderate", 0.5 * (CRUISE + CAUTIOUS_CRUISE),
-                                                 float(np.sqrt(ACCELERATION * CAUTIOUS_ACCELERATION))),
+PROFILES = (("fast", FAST_CRUISE, FAST_ACCELERATION),
+            ("nominal", CRUISE, ACCELERATION),
+            ("moderate", 0.5 * (CRUISE + CAUTIOUS_CRUISE), float(np.sqrt(ACCELERATION * CAUTIOUS_ACCELERATION))),
             ("cautious", CAUTIOUS_CRUISE, CAUTIOUS_ACCELERATION))
 
 
