@@ -69,7 +69,7 @@ def test_flown_corridor_keeps_the_separation_within_the_bound():
     # a jerk limit of 3 m/s^3 bounds the tracking error to 19.4 cm at 2 m/s, so that twice it leaves more than a
     # Crazyflie's diameter (10 cm) of the 0.5 m safety distance. At the default 4 m/s^3 the limits' bound is
     # 22.7 cm (4.5 cm of flown separation guaranteed); the default flight, since the fast speed profile, uses
-    # enough of the jerk limit for a bound of 21.1 cm (7.9 cm guaranteed), before it 17.3 cm
+    # enough of the jerk limit for a bound of 20.2 cm (9.7 cm guaranteed), before it 17.3 cm
     r = plan(mrfswarm.load_config(EXPERIMENTS / "corridor.toml", ["smoothing.j_max=3"]))
     f, c = r.flight, r.continuous
     assert f.tracking_bound == pytest.approx(tracking_bound(c.j_max, c.v_max))
