@@ -17,8 +17,8 @@ limit rows came to be switched on per face of the limit polytope and quarter of 
 octagon's four faces had come on at once, on all four quarters): the same paths and durations; coefficients
 within 2.4e-6, positions within 2.5e-6 m (the window QPs reach the same optimum with fewer rows, to their
 tolerance). Regenerated for the fast speed profile tried before the bold one and the stretched attempts (issue
-18): the same paths, corridor 22.38 -> 21.11 s, blocks 27.29 -> 25.79, single_obstacle 24.58 -> 21.91, free5
-and example5 as before (5.29, 4.39: the fast attempts fail there). A change that moves a 2-D plan fails here: if it is meant, regenerate the file
+18): the same paths, flown sooner (corridor 22.38 -> 21.13 s, free5 5.29 -> 4.84, blocks 27.29 -> 25.94,
+single_obstacle 24.58 -> 22.49, example5 4.39 -> 3.72). A change that moves a 2-D plan fails here: if it is meant, regenerate the file
 and say why in the commit.
 """
 

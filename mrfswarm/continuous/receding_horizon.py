@@ -132,18 +132,16 @@ NOMINAL_ACCELERATION = 0.25
 CRUISE = 0.95
 ACCELERATION = 2.0
 #: A fast profile tried before the bold one, on the steps a window flies (its tail, planned and not flown, is the
-#: bold profile's): cruise at v_max, twice the bold acceleration. The QP keeps robots in their regions, not on the
-#: profile, so a robot may lag its cells by what the regions' growth leaves, and many windows take it. Measured with
-#: the stretched attempts (flight-quality maps, 2026-11-27): at 3 times the jerk-limited acceleration, against
-#: c30ec68 in one run, doorway 1.56 -> 1.41 x the bound, forest 1.80 -> 1.62, rooms 1.50 -> 1.41, open field 1.32
-#: -> 1.24, aisles30 1.68 -> 1.57, arena 1.78 -> 1.58, clutter40 2.45 -> 2.43, at 1.0-2.1 times the planning; at 4
-#: times (this), in one fq run each against 3, 3.5, 5 and 6: 4 the best or within 1 % of it on every map but the
-#: arena (5: 1.47 against 1.51; corridor, doorway, rooms, open field worse). Fast on the whole window (its tail too,
-#: at 3): clutter40 2.34, but it failed more often and planned the open field in 3 times the time. At 0.95 v_max
-#: and 3 times: clutter40 2.44, arena 1.63; at 0.95 and 4 times (whole window) the arena's windows all failed it;
-#: as the bold profile itself (3 times, no fast one), its moderate profile became bolder too: clutter40 2.67.
+#: bold profile's): cruise at v_max, 1.5 times the bold acceleration. The QP keeps robots in their regions, not on
+#: the profile, so a robot may lag its cells by what the regions' growth leaves, and many windows take it.
+#: Measured with the stretched attempts against c30ec68 (flight-quality bench, 2026-11-27, one run): doorway 1.56 ->
+#: 1.41 x the bound, forest 1.80 -> 1.62, rooms 1.50 -> 1.41, open field 1.32 -> 1.24, aisles30 1.68 -> 1.57,
+#: arena 1.78 -> 1.58, clutter40 2.45 -> 2.43, at 1.0-2.1 times the planning. Fast on the whole window (its tail
+#: too): clutter40 2.34, but it failed more often and planned the open field in 3 times the time. At 0.95 v_max and 3
+#: times: clutter40 2.44, arena 1.63; at 0.95 and 4 times the arena's windows all failed it (1.78); as the bold
+#: profile itself (3 times, no fast one), its moderate profile became bolder too and clutter40 flew 2.67.
 FAST_CRUISE = 1.0
-FAST_ACCELERATION = 4.0
+FAST_ACCELERATION = 3.0
 CAUTIOUS_CRUISE = 0.9
 CAUTIOUS_ACCELERATION = 1.0
 #: Share of a cell's room (its side less the robot's diameter) a robot may drift through during a
