@@ -151,8 +151,12 @@ def test_qp_options_go_over_the_stages_own_and_reach_every_solve(monkeypatch):
         return solve(problem, backend, options)
 
     monkeypatch.setattr(solvers.qp, "solve", recording)
-    # without the stretched attempts (which run the smaller budget and fly this window) the cautious profile flies it
+    # the faster profiles rash (cruise 1.5 v_max, 4 times their acceleration: they have no solution) and no
+    # stretched attempts (which run the smaller budget and fly this window): the cautious profile flies it, on the
+    # whole budget (the default flies it fast, on the smaller one only)
     monkeypatch.setattr(receding_horizon, "STRETCH_POWERS", ())
+    monkeypatch.setattr(receding_horizon, "PROFILES", tuple(
+        p if p[0] == "cautious" else (p[0], 1.5, 4 * p[2]) for p in receding_horizon.PROFILES))
     plan(cfg, progress=False, workers=1)
     # the bold and moderate attempts run a third of the budget PIQP gives (its cap of 120 under 777)
     optimistic = dataclasses.replace(expected, max_iter=40)

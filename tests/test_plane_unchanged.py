@@ -18,7 +18,11 @@ octagon's four faces had come on at once, on all four quarters): the same paths 
 within 2.4e-6, positions within 2.5e-6 m (the window QPs reach the same optimum with fewer rows, to their
 tolerance). Regenerated for the fast speed profile tried before the bold one and the stretched attempts (issue
 18): the same paths, flown sooner (corridor 22.38 -> 21.13 s, free5 5.29 -> 4.84, blocks 27.29 -> 25.94,
-single_obstacle 24.58 -> 22.49, example5 4.39 -> 3.72). A change that moves a 2-D plan fails here: if it is meant, regenerate the file
+single_obstacle 24.58 -> 22.49, example5 4.39 -> 3.72). Regenerated for the limit 16-gon with vertices along the
+grid's moves, the fast profile at 4 times the jerk-limited acceleration, the jerk-limited stops of the windows and
+the velocity rows' room for the compressed export (issue 18): the same paths, corridor 21.13 -> 20.70 s, free5 4.84
+-> 4.67, blocks 25.94 -> 25.04, single_obstacle 22.49 -> 21.28, example5 3.72 -> 4.39 (its one window's fast attempt
+from rest fails at 4 times and the bold one flies it). A change that moves a 2-D plan fails here: if it is meant, regenerate the file
 and say why in the commit.
 """
 

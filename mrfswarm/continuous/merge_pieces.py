@@ -15,7 +15,7 @@ robot's flight splits into one polynomial per step, and on each step the proof o
 :mod:`mrfswarm.continuous.regions` applies unchanged: position control points in the
 step's region, relative control points of near pairs (both robots split at the same
 times, so their differences are the relative curve's) in the half-plane, derivative
-control points in the limit octagons. The certificate does exactly that: it splits the
+control points in the limit polygons. The certificate does exactly that: it splits the
 pieces at the steps (:func:`step_pieces`) and checks the split pieces
 (:func:`~mrfswarm.continuous.certificate.certify`). It would accept pieces merged
 differently per robot as well; the planner merges the same steps for every robot, so the

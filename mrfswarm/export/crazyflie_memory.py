@@ -148,6 +148,7 @@ def _compressed(result: Result, taus: np.ndarray,
                                          and within[i]),
             "compressed_clearance_lower_bound_m": float(clearance[i]) if on_grid else None,
             "compressed_separation_lower_bound_m": float(separation[i]) if on_grid else None,
+            "compressed_within_limits": bool(within[i]) if on_grid else None,
             "compressed_error_m": float(error[i]),
         })
     return {

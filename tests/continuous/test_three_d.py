@@ -20,7 +20,7 @@ from scipy.optimize import minimize
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous import RecedingHorizon
 from mrfswarm.continuous.certificate import certify, certify_pieces, control_point_stack, hull_distance_from_origin
-from mrfswarm.continuous.formulation import LIMIT_PARTS, OCTAGON, OCTAGON_INNER, limit_polytope, piece_maps
+from mrfswarm.continuous.formulation import LIMIT_PARTS, POLYGON, POLYGON_INNER, limit_polytope, piece_maps
 from mrfswarm.continuous.receding_horizon import exact_min_separation
 from mrfswarm.continuous.regions import (
     Regions,
@@ -353,7 +353,16 @@ def test_the_limit_polytope_lies_in_the_ball_and_holds_its_inner_ball():
     reach = inner / np.abs(v @ faces.T).max(axis=1)
     assert reach.max() <= 1.0 and reach.max() > 0.999  # inscribed: inside the unit ball, touching it
     assert reach.min() >= inner - 1e-12
-    assert limit_polytope(2) == (OCTAGON, OCTAGON_INNER)
+    faces, inner = limit_polytope(2)
+    assert faces is POLYGON and inner == POLYGON_INNER and faces.shape == (8, 2)
+    np.testing.assert_allclose(np.linalg.norm(faces, axis=1), 1.0)
+    theta = np.linspace(0.0, 2 * np.pi, 100001)
+    reach = inner / np.abs(np.stack([np.cos(theta), np.sin(theta)], axis=1) @ faces.T).max(axis=1)
+    assert reach.max() <= 1.0 + 1e-12 and reach.min() >= inner - 1e-12  # inscribed in the disc, holding its inner one
+    # the grid's eight moves (axes, diagonals) point at vertices: a straight run may fly at the limit itself
+    moves = np.array([[1, 0], [0, 1], [1, 1], [1, -1], [-1, 0], [0, -1], [-1, -1], [-1, 1]]) / np.array(
+        [1, 1, np.sqrt(2), np.sqrt(2), 1, 1, np.sqrt(2), np.sqrt(2)])[:, None]
+    np.testing.assert_allclose(inner / np.abs(moves @ faces.T).max(axis=1), 1.0, rtol=1e-12)
     with pytest.raises(ValueError, match="2 or 3"):
         limit_polytope(4)
 

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from mrfswarm.continuous.time_grid import motion_durations, motion_profile, segment_times
+from mrfswarm.continuous.time_grid import motion_durations, motion_profile, rest_times, segment_times
 
 
 def test_motion_durations_cruise_straight_and_slow_for_reversals():
@@ -55,3 +56,35 @@ def test_a_single_step_wait_drifts_instead_of_stopping_unless_the_robot_turns_ba
     long = [0, 1, 2, 3, 4, 4, 4, 5, 6, 7]  # two steps of waiting: no room to drift through
     assert np.allclose(motion_profile(pair(long), 1.0, 2.0, 1.0, 0.5).durations,
                        motion_profile(pair(long), 1.0, 2.0, 1.0, 0.0).durations)
+
+
+def test_rest_times_are_the_fastest_jerk_limited_start():
+    v, a, j = 2.0, 4.0, 4.0  # a triangle of acceleration: j t up to sqrt(v j) = 2.83 < a_max, then down
+    s = np.array([0.0, 0.01, 0.1, 0.2])  # within the first ramp (0.71 s, 0.24 m): s = j t^3 / 6
+    np.testing.assert_allclose(rest_times(s, v, a, j), np.cbrt(6 * s / j), atol=1e-5)
+    end = rest_times(np.array([v * np.sqrt(v / j)]), v, a, j)[0]  # reaches v_max after 2 sqrt(v / j) = 1.414 s,
+    assert end == pytest.approx(2 * np.sqrt(v / j), abs=1e-4)  # having covered v sqrt(v / j)
+    far = rest_times(np.array([10.0, 12.0]), v, a, j)
+    assert far[1] - far[0] == pytest.approx(2.0 / v)  # then cruise
+    # with a_max reached (j = 40): a ramp of 0.1 s, then a_max; the constant-acceleration trapezoid is a bound below
+    d = np.linspace(0.01, 3.0, 50)
+    fast = rest_times(d, v, a, 40.0)
+    trapezoid = segment_times(d, np.zeros_like(d), np.full_like(d, v), v, a)  # ends at v_max: at most
+    assert np.all(np.diff(fast) > 0) and np.all(fast >= np.minimum(trapezoid, np.sqrt(2 * d / a)) - 1e-9)
+    assert np.all(rest_times(d, v, a, 4.0) > fast)  # the lower the jerk, the slower
+
+
+def test_a_window_stop_keeps_to_the_jerk_limit_and_the_flights_end_does_not():
+    """With the limits, the steps before a window's stop at b < T last what a jerk-limited stop over the swarm's
+    progress takes at least; the flight's own end (b = T, flown) keeps the trapezoids."""
+    straight = np.array([[[i, 0]] for i in range(30)])
+    v, a, j = 2.0, 4.0, 4.0
+    plain = motion_profile(straight, 1.0, v, 5.6)  # the fast profile's acceleration: 4 x sqrt(v j) / 2
+    limited = motion_profile(straight, 1.0, v, 5.6, limits=(v, a, j))
+    win = limited.window(10, 18)
+    stop = -np.diff(rest_times(np.arange(8, -1, -1.0), v, a, j))  # 1 m steps, 8 .. 0 m before the stop
+    assert np.all(win >= stop - 1e-12) and np.any(win > plain.window(10, 18) + 0.1)  # the stop is longer
+    assert win[-3:].sum() >= rest_times(np.array([3.0]), v, a, j)[0] - 1e-12
+    np.testing.assert_allclose(win[:4], plain.window(10, 18)[:4])  # far from the stop: the same pace
+    np.testing.assert_allclose(limited.window(20, 29), plain.window(20, 29))  # the flight's end: no floor
+    np.testing.assert_allclose(limited.durations, plain.durations)

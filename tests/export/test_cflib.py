@@ -172,7 +172,9 @@ def test_report_per_robot_and_swarm(corridor, corridor_per_step):
 
 
 def test_a_compressed_flight_that_leaves_its_regions_is_reported(corridor_no_slack, monkeypatch):
-    """Break the region-aware rounding (nearest instead): the report must say the export is not certified."""
+    """Break the region-aware rounding (nearest instead): the report must say the export is not certified, and
+    why for each robot: its rounded control points leave its regions (clearance under the radius, by a hair), or
+    (nearest rounding ignores the limits as well) its rounded jerk exceeds j_max."""
     real = cflib_.compress
     monkeypatch.setattr(cflib_, "compress", lambda trs, alt, v, regions=None, *rest: real(trs, alt, v, None))
     from mrfswarm.export.crazyflie_memory import memory_report
@@ -182,8 +184,25 @@ def test_a_compressed_flight_that_leaves_its_regions_is_reported(corridor_no_sla
     assert comp["certificate"]["ok"] is False and comp["certificate"]["problems"]
     assert comp["not_certified_robots"]
     bad = [r for r in report["robots"] if not r["compressed_certified"]]
-    assert bad and all(r["compressed_clearance_lower_bound_m"] < 0.25 for r in bad)
+    leaving = [r for r in bad if r["compressed_clearance_lower_bound_m"] < 0.25]
+    assert leaving and any("leaves its region" in p for p in comp["certificate"]["problems"])
+    assert all(r in leaving or r["compressed_within_limits"] is False for r in bad)
     assert min(r["compressed_clearance_lower_bound_m"] for r in bad) > 0.25 - 1e-3
+    good = [r for r in report["robots"] if r["compressed_certified"]]
+    assert all(r["compressed_within_limits"] and r["compressed_clearance_lower_bound_m"] >= 0.25 for r in good)
+    # each robot's verdict is the certificate of its own rounded flight (regions and limits; the separation holds)
+    from mrfswarm.continuous.certificate import certify
+    from mrfswarm.continuous.merge_pieces import step_times
+
+    c = corridor_no_slack.smoothed()
+    comp = cflib_.compress(c.trajectories, corridor_no_slack.config.scenario.altitude, c.v_max, None)
+    assert all(r["compressed_separation_lower_bound_m"] >= 0.5 for r in report["robots"])
+    for i, r in enumerate(report["robots"]):
+        dec = [cflib_.decode_compressed(cflib_.pack_compressed(comp, i), comp.origin, 2)]
+        alone = certify(dec, step_times(dec[0].knots, c.knot_times, c.piece_steps), c.regions.window(0, c.regions.steps, np.array([i])), 0.5,
+                        _limits(corridor_no_slack))
+        assert r["compressed_certified"] is alone.ok, (i, alone.problems)
+        assert r["compressed_within_limits"] is not any("control points reach" in p for p in alone.problems)
 
 
 def test_flight_too_wide_is_refused_with_its_span():
