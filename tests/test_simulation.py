@@ -66,11 +66,11 @@ def test_the_linear_model_explains_rotorpys_tracking_error():
 
 @pytest.mark.slow
 def test_flown_corridor_keeps_the_separation_within_the_bound():
-    # a jerk limit of 3 m/s^3 bounds the tracking error to 19.4 cm at 2 m/s, so that twice it leaves more than a
-    # Crazyflie's diameter (10 cm) of the 0.5 m safety distance. At the default 4 m/s^3 the limits' bound is
-    # 22.7 cm (4.5 cm of flown separation guaranteed); the default flight, since the fast speed profile, uses
-    # enough of the jerk limit for a bound of 20.2 cm (9.7 cm guaranteed), before it 17.3 cm
-    r = plan(mrfswarm.load_config(EXPERIMENTS / "corridor.toml", ["smoothing.j_max=3"]))
+    # the default corridor: its flight's own maxima of jerk and speed bound the tracking error to 17.0 cm, so that
+    # twice it leaves more than a Crazyflie's diameter (10 cm) of the 0.5 m safety distance (the limits' own bound,
+    # 22.7 cm, would leave 4.5 cm). The fast profile at 3 x with the octagon limits used more jerk (a bound of
+    # 20.2 cm, 9.7 cm guaranteed) and this test planned with j_max = 3 for a while.
+    r = plan(mrfswarm.load_config(EXPERIMENTS / "corridor.toml"))
     f, c = r.flight, r.continuous
     assert f.tracking_bound == pytest.approx(tracking_bound(c.j_max, c.v_max))
     assert f.max_tracking_error <= f.tracking_bound
