@@ -141,3 +141,42 @@ def test_a_merge_that_lengthens_the_modelled_flight_is_not_kept():
     assert flight_time(every) > flight_time(raw) + 0.1  # the merges the model exists to refuse
     assert flight_time(kept) <= flight_time(raw) + 1e-9
     assert discrete_violations(kept, ~occ) == []
+
+
+def _clear_all_pairs(paths: np.ndarray, robot: int, first: int, last: int, scale: np.ndarray,
+                     own: np.ndarray) -> bool:
+    """The reference: every other robot, every step, the exact closest approach (no locality filter)."""
+    from mrfswarm.discrete.motion import min_distance_during_move
+
+    for s in range(first, last):
+        for j in range(paths.shape[1]):
+            if j == robot:
+                continue
+            d0 = (own[s] - paths[s, j]) * scale
+            v = ((own[s + 1] - own[s]) - (paths[s + 1, j] - paths[s, j])) * scale
+            if min_distance_during_move(d0, v) < 1.0 - 1e-9:
+                return False
+    return True
+
+
+@pytest.mark.parametrize("dim, reach", [(2, 1), (3, 1), (2, 2)])
+def test_the_local_separation_check_agrees_with_all_pairs(dim, reach):
+    """robot_clear tests only the (step, robot) pairs a step's moves can bring near; it must say what testing
+    every pair says, on crowded random walks where both answers occur (moves of up to ``reach`` cells per axis,
+    as ``mrf.order`` > 2 makes them)."""
+    rng = np.random.default_rng(dim + 10 * reach)
+    scale = np.ones(dim) if dim == 2 else np.array([1.0, 1.0, 0.5])
+    answers = []
+    for _ in range(600):
+        N, T = 7, int(rng.integers(2, 9))  # short spans too: a pair that meets only in the span's last step
+        steps = rng.integers(-reach, reach + 1, size=(T, N, dim)) * (rng.random((T, N, 1)) < 0.7)
+        paths = np.concatenate([rng.integers(0, 5, size=(1, N, dim)), steps]).cumsum(axis=0)
+        robot = int(rng.integers(N))
+        first, last = sorted(int(v) for v in rng.choice(T + 1, size=2, replace=False))
+        own = paths[:, robot].copy()  # another walk from the same cell, as a merge makes one
+        own[first + 1:] = own[first] + (rng.integers(-reach, reach + 1, size=(T - first, dim))
+                                         * (rng.random((T - first, 1)) < 0.7)).cumsum(axis=0)
+        want = _clear_all_pairs(paths, robot, first, last, scale, own)
+        assert robot_clear(paths, robot, first, last, scale, own) == want
+        answers.append(want)
+    assert 50 < sum(answers) < 550
