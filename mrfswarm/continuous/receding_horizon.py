@@ -927,7 +927,7 @@ class RecedingHorizon:
         """
         alloc = self.time_allocation(sol, a, start, rec, merged)
         if self.cfg.refinement == "scaling":
-            scaled = scale_durations(alloc.problem, alloc.weight, self.cfg.derivative)
+            scaled = scale_durations(alloc.problem, alloc.weight, self.cfg.derivative, total=sol.durations.sum())
             method, status = "scaling", scaled.status
         else:
             res = solvers.nlp.minimize(alloc.problem, self.cfg.nlp, NLP_OPTIONS)

@@ -54,6 +54,21 @@ def test_each_iteration_moves_a_step_by_at_most_the_clip():
     assert all(np.all(T >= 0.8 - 1e-12) and np.all(T <= 1.25 + 1e-12) for T in calls)
 
 
+def test_a_total_caps_every_point_evaluated_and_time_moves_to_the_steps_that_press():
+    """Step 0 presses (its minimizer is 2.35 s), step 1 costs little (0.26 s) and step 2 is between (1.21 s):
+    free, the scaling ends at 3.83 s in sum; capped at the start's 3 s it never evaluates a longer point and ends
+    with time moved from step 1 to step 0 (1.82, 0.21, 0.97), at a lower f than the start."""
+    c = np.array([400.0, 1e-5, 2.0])
+    x0 = np.ones(3)
+    free = scale_durations(separable(c, x0), W, Q, iterations=60, tol=1e-12)
+    assert free.x.sum() > 3.5
+    calls: list = []
+    out = scale_durations(separable(c, x0, calls=calls), W, Q, iterations=60, tol=1e-12, total=3.0)
+    assert len(calls) > 3 and max(T.sum() for T in calls) <= 3.0 + 1e-9
+    assert out.value < separable(c, x0).fun(x0)
+    assert out.x[0] > 1.2 and out.x[1] < 0.8
+
+
 def test_an_infeasible_trial_is_backtracked_and_never_kept():
     """Below 0.9 s the problem has no solution (NaN): the steps are halved and the result stays feasible."""
     c = np.array([1e-4, 1e-4, 1e-4])  # the minimizer (~0.25 s) lies in the infeasible part
