@@ -25,11 +25,13 @@ longer, and cannot reach far enough if it is shorter). On the 40 robots in clutt
 the flight-quality bench, 8 windows of 23 stayed blocked instead of 11 (makespan 76.4 s to 68.5).
 
 Why not the NLP backends alone: Ipopt on the same problem evaluated 73 points per window
-on the forest (12 iterations, infeasible trial points and all); this evaluates 4 to 9
-(forest 6) and stops when an iteration gains less than ``tol``. Measured with
-``experiments/bench/flight_quality.py`` (see the README): its makespans are within 1 to
-8 % of Ipopt's (clutter 69.2 s against 62.7, forest 28.0 against 26.0) at a fifth to a
-seventh of its planning time.
+on the forest (12 iterations, infeasible trial points and all); this evaluates 2 to 7
+per window on average (trap 2.9, forest 4.6, clutter 6.9, capped at the window's sum, see
+``total``) and stops when an
+iteration gains less than ``tol``. Measured with ``experiments/bench/flight_quality.py``
+(see the README): its makespans were within 1 to 8 % of Ipopt's (clutter 69.2 s against
+62.7, forest 28.0 against 26.0) at a fifth to a seventh of its planning time; capped,
+clutter 64.8 s, forest 26.3.
 """
 
 from __future__ import annotations
@@ -45,9 +47,10 @@ ITERATIONS = 8
 #: Per-iteration bound of each step's factor: within [CLIP, 1 / CLIP].
 CLIP = 0.8
 #: Halvings (in the logarithm) of a step that fails, before the iteration stops. With the windows' sum capped
-#: (``total``), 0 reached the makespans of 2 (within the run-to-run spread of clutter, 64 to 70 s) with a third to
-#: a half fewer QP solves (clutter40 220 -> 96 evaluations, forest 60 -> 38, trap 57 -> 21).
-BACKTRACKS = 0
+#: (``total``), 1 flew the flight-quality maps as 2 did or sooner (clutter40 69.8 -> 64.8 s, forest 26.7 -> 26.3)
+#: with a quarter to a half fewer QP solves (clutter40 220 -> 158 evaluations, forest 60 -> 46, trap 57 -> 29);
+#: 0 saved a fifth more and flew aisles30 3.5 % and the doorway 2 % later (one run each).
+BACKTRACKS = 1
 #: Relative gain in f below which an iteration is the last (0.03 saved few solves more and stopped 0.7 % above
 #: Ipopt's optimum of the passing window, test_duration_scaling).
 TOL = 0.01
@@ -91,7 +94,7 @@ def scale_durations(problem: NLPProblem, weight: float, derivative: int, iterati
     last ``total``, so it still moves time from the steps that cost little to those that
     press. The window refinement passes the QP's own durations, as it keeps no point that
     lasts longer than them: without the cap it kept nothing in 3 of 11 windows of the
-    rooms map and 8 of 10 of the trap (with it, and no backtracks, 2 and 5), spending their solves on longer
+    rooms map and 8 of 10 of the trap (with it 1 and 3), spending their solves on longer
     points.
 
     f and its gradient may be NaN where the window has no solution; such a point is never
