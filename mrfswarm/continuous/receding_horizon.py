@@ -630,9 +630,10 @@ class RecedingHorizon:
             for robots, out in zip(chunks, results):
                 Y[robots], B[robots], cost[robots], g = out
                 if grad is not None:
-                    if g is None:
-                        return None, f"{self.backend} gives no multipliers (needed for the duration gradient)"
-                    grad[robots] = g
+                    if g is None:  # the backend gives no multipliers: a solution without the gradient
+                        grad = None
+                    else:
+                        grad[robots] = g
             robots = np.flatnonzero(todo)
             for r, part in enumerate(self._control_points(Y[robots], B[robots], durations)):
                 cps[r][robots] = part
@@ -831,7 +832,8 @@ class RecedingHorizon:
                 creeps = [c, None] if name in drifting and has_creep else [None]
                 for creep in creeps:
                     sol, why = self._solve(a, b, start, durations, rec, merged=merged,
-                                           optimistic=k < optimistic + (len(tries) - len(attempts)), creep=creep)
+                                           optimistic=k < optimistic + (len(tries) - len(attempts)), creep=creep,
+                                           gradient=self.cfg.time_refinement)
                     if sol is not None:
                         cert = self._certify(sol, a)
                         if cert.ok:
@@ -889,6 +891,9 @@ class RecedingHorizon:
         base = (self.active.copy(), self.limit_rows.copy())
         solved: dict[bytes, _Solution | None] = {}
         rows: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+        if sol.gradient is not None:  # the start point is the accepted QP itself: no second solve of it
+            key = np.asarray(sol.durations, dtype=float).tobytes()
+            solved[key], rows[key] = sol, (base[0].copy(), base[1].copy())
 
         def at(T: np.ndarray) -> _Solution | None:
             key = np.asarray(T, dtype=float).tobytes()

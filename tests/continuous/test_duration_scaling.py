@@ -7,7 +7,7 @@ import pytest
 
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous.duration_scaling import scale_durations
-from mrfswarm.continuous.receding_horizon import RecedingHorizon
+from mrfswarm.continuous.receding_horizon import RecedingHorizon, WindowRecord
 from solvers.nlp import NLPProblem
 from support.passing import GRID, PASSING, first_window
 
@@ -160,6 +160,48 @@ def test_the_window_refinement_by_scaling_is_the_nlps_at_a_fraction_of_the_qps(m
     value, rounds = window("scaling")
     assert value == pytest.approx(nlp_value, rel=5e-3)
     assert rounds * 3 < nlp_rounds
+
+
+def test_the_refinement_starts_from_the_accepted_qp_without_solving_it_again(monkeypatch):
+    """A window solved with its gradient (as the attempts are when time_refinement is on) is the refinement's start
+    point: evaluating f and its gradient there solves no QP, and they are what a fresh solve at the same durations
+    gives."""
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, speed=1.25), 0.25)
+    a, c, b, start, rec = first_window(rh)
+    sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec, gradient=True)
+    assert sol is not None and sol.gradient is not None
+    alloc = rh.time_allocation(sol, a, start, rec)
+    solves: list = []
+    real = RecedingHorizon._solve
+    monkeypatch.setattr(RecedingHorizon, "_solve", lambda self, *args, **kw: solves.append(1) or real(self, *args, **kw))
+    x0 = np.array(alloc.problem.x0)
+    f0, g0 = alloc.problem.fun(x0), alloc.problem.grad(x0)
+    assert solves == []
+    fresh = alloc.problem.fun(x0 * (1 + 1e-12))  # another point: a solve, from the same rows
+    assert solves == [1]
+    again = rh._solve(a, b, start, x0.copy(), WindowRecord(a, c, b), gradient=True)[0]
+    assert again is not None and again.gradient is not None
+    assert f0 == pytest.approx(fresh, rel=1e-6)
+    np.testing.assert_allclose(g0, again.gradient + alloc.weight, rtol=1e-4, atol=1e-6 * np.abs(g0).max())
+
+
+def test_a_backend_without_multipliers_still_solves_the_window(monkeypatch):
+    """The attempts ask for the gradient when time_refinement is on; a QP backend that gives no multipliers must
+    still fly the window (its solution has no gradient, and the refinement then keeps it)."""
+    import mrfswarm.continuous.receding_horizon as rh_mod
+
+    real = rh_mod.solve_window
+
+    def no_multipliers(spec, durations, backend, options, gradient=False):
+        out = real(spec, durations, backend, options, gradient=False)
+        return out if isinstance(out, str) else (*out[:3], None)
+
+    monkeypatch.setattr(rh_mod, "solve_window", no_multipliers)
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, speed=1.25), 0.25, workers=1)
+    a, c, b, start, rec = first_window(rh)
+    sol, why = rh._solve(a, b, start, rh.nominal[a:b], rec, gradient=True)
+    assert why == "" and sol is not None and sol.gradient is None
+    assert rh._refine(sol, a, start, rec) is sol and not rec.refined
 
 
 def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch):
