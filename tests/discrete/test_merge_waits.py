@@ -99,7 +99,9 @@ def test_planned_paths_keep_their_cells_and_the_invariant(case):
     rows = ["".join("@" if occ[x, y] else "." for x in range(occ.shape[0])) for y in range(occ.shape[1])]
     data = {"scenario": {"map": {"kind": "ascii", "rows": rows},
                          "start": {"center": [4, 10], "n_robots": 12, "sigma": 1.5, "seed": 1}, "goal": [26, 10]},
-            "interaction": {"k": 5}, "smoothing": {"enabled": False}, "simulation": {"enabled": False}}
+            "interaction": {"k": 5}, "smoothing": {"enabled": False}, "simulation": {"enabled": False},
+            # the paper's Gamma: with the default 2 the clutter plan has no wait to merge
+            "obstacle_potential": {"gamma": 5.0}}
     plans = {m: plan(from_dict({**data, "mrf": {"merge_waits": m}}, Path(".")), progress=False) for m in (False, True)}
     raw, merged = plans[False].discrete, plans[True].discrete
     assert merged.merged_waits > 0 and raw.merged_waits == 0
@@ -114,8 +116,9 @@ def test_planned_paths_keep_their_cells_and_the_invariant(case):
 
 
 def test_a_merge_that_lengthens_the_modelled_flight_is_not_kept():
-    """The doorway of the flight-quality bench: merging every wait moves two robots' stops apart (15.2 s by the
-    time grid's model against 14.8 s unmerged); the model keeps only merges that do not cost time."""
+    """The doorway of the flight-quality bench with the paper's Gamma (with the default the plan has no wait):
+    merging every wait moves two robots' stops apart (15.2 s by the time grid's model against 14.8 s unmerged);
+    the model keeps only merges that do not cost time."""
     from mrfswarm.config import SmoothingConfig
     from mrfswarm.continuous.receding_horizon import flight_model
 
@@ -126,7 +129,7 @@ def test_a_merge_that_lengthens_the_modelled_flight_is_not_kept():
     data = {"scenario": {"map": {"kind": "ascii", "rows": rows},
                          "start": {"center": [6, 10], "n_robots": 5, "sigma": 1.0, "seed": 0}, "goal": [25, 10]},
             "interaction": {"k": 3}, "mrf": {"merge_waits": False}, "smoothing": {"enabled": False},
-            "simulation": {"enabled": False}}
+            "simulation": {"enabled": False}, "obstacle_potential": {"gamma": 5.0}}
     raw = plan(from_dict(data, Path(".")), progress=False).discrete.paths
     model = flight_model(SmoothingConfig(), 1.0, 0.25)
     assert model is not None

@@ -39,7 +39,7 @@ MAP_CONFIGS = sorted(p.stem for p in MAPS.glob("*.toml"))
 DISCRETE = ["smoothing.enabled=false"]
 #: The paper's field, and its label sets (no following into a cell a robot leaves: with it the swarm of forest_03
 #: files between the trees to the goal even on the straight-line field).
-EUCLIDEAN = ('goal_potential.distance="euclidean"', "mrf.follow=false")
+EUCLIDEAN = ('goal_potential.distance="euclidean"', "mrf.follow=false", "obstacle_potential.gamma=5")  # the paper's
 
 #: Maps whose swarm the paper's straight-line goal field leaves short of the goal (all of them).
 TRAPPED_BY_EUCLIDEAN = set(MAP_CONFIGS)
@@ -241,22 +241,24 @@ def doorway_map() -> tuple[np.ndarray, np.ndarray]:
     return occ, np.array([22, 10])
 
 
-def test_obstacle_potential_in_a_doorway_needs_the_climb_term():
-    """Gamma blurred by sigma raises rho_O in a doorway (to 1.6 here, 0.5 in front of it) more than
-    the goal potential falls over the same metres near the goal (0.15-0.3 per metre): without
+@pytest.mark.parametrize("gamma, front", [(5.0, (12, 10)), (2.0, (13, 10))])  # the paper's, the default
+def test_obstacle_potential_in_a_doorway_needs_the_climb_term(gamma, front):
+    """Gamma blurred by sigma raises rho_O in a doorway (to 1.6 here with the paper's 5, 0.5 in front of it)
+    more than the goal potential falls over the same metres near the goal (0.15-0.3 per metre): without
     counting the climb in the distance, the plain geodesic field has a local minimum in front
-    of the doorway that catches the whole far room."""
+    of the doorway that catches the whole far room (with Gamma 2 as well)."""
     occ, goal = doorway_map()
     free = ~occ
-    rho_o = obstacle_field(occ.astype(float), ObstaclePotentialConfig())
+    obstacle = ObstaclePotentialConfig(gamma=gamma)
+    rho_o = obstacle_field(occ.astype(float), obstacle)
     g = GoalPotentialConfig()
     plain = goal_distance(free, goal, 1.0, 2, rho_o, climb_weight=0.0)
     s_plain = np.where(free, goal_field(occ.shape, goal, 1.0, g, plain.field) + rho_o, np.inf)
     minima = local_minima(free, s_plain, 2)
-    assert tuple(goal) in minima and (12, 10) in minima  # just in front of the doorway
+    assert tuple(goal) in minima and front in minima  # just in front of the doorway
     caught = (descent_ends(free, s_plain, 2)[free] != goal).any(axis=1).sum()
     assert caught > 200
-    s = static_field(occ.astype(float), goal, 1.0, g, ObstaclePotentialConfig())
+    s = static_field(occ.astype(float), goal, 1.0, g, obstacle)
     assert local_minima(free, s, 2) == [tuple(goal)]
     assert np.all(np.isfinite(s[free]))
 
@@ -401,12 +403,13 @@ def test_new_config_keys_are_checked(key, value, match):
 def test_defaults_navigate_and_paper_configs_pin_the_papers_rules():
     cfg = load_config(None)
     assert (cfg.goal_potential.distance, cfg.mrf.contested, cfg.mrf.progress) == ("geodesic", "downhill", "static")
-    assert cfg.mrf.follow and cfg.mrf.arrival
+    assert cfg.mrf.follow and cfg.mrf.arrival and cfg.obstacle_potential.gamma == 2.0
     for name in ("corridor", "blocks", "corridor10", "blocks12", "free5", "free10", "example5", "single_obstacle",
                  "combined_field", "swarm_size"):
         c = load_config(EXPERIMENTS / f"{name}.toml")
         assert (c.goal_potential.distance, c.mrf.contested, c.mrf.progress) == ("euclidean", "nearest", "energy")
         assert not c.mrf.follow and not c.mrf.arrival
+        assert c.obstacle_potential.gamma == 5.0  # the paper's table
 
 
 def test_trim_backward_follows_the_free_path_with_the_geodesic_field():
