@@ -129,6 +129,10 @@ def limit_polytope(dim: int) -> tuple[np.ndarray, float]:
 #: sub-intervals: within 5 % of the true maximum of jerk for a rest-to-rest step, where
 #: the whole piece's control points overestimate it eightfold.
 LIMIT_PARTS = 4
+#: Metres: a region whose rows, tightened, leave less than this is a hold (a robot held still at its cell,
+#: :func:`~mrfswarm.continuous.regions.hold_arrived`): its rows become equalities at the box's centre, which a
+#: solver meets exactly (an interior-point solver runs out of iterations in a box a few micrometres wide).
+HOLD_WIDTH = 1e-4
 
 
 class PieceMaps:
@@ -443,9 +447,14 @@ class WindowFormulation:
         ridx = ((J * G + Gi) * (D + 1) + Mm) * dim + Kk
         cf = reg.axes[J, Gi, Kk, Dd]
         shift = np.einsum("mgka,ga->mgk", reg.axes, origin)[:, :, None, :]
+        r_lo = reg.lower[:, :, None, :] - shift + spec.margin + spec.slack
+        r_hi = reg.upper[:, :, None, :] - shift - spec.margin - spec.slack
+        hold = r_hi - r_lo < HOLD_WIDTH  # a held robot's box (regions.hold_arrived): equalities at its centre
+        if hold.any():
+            mid = 0.5 * (r_lo + r_hi)
+            r_lo, r_hi = np.where(hold, mid, r_lo), np.where(hold, mid, r_hi)
         add(shape_r, ridx, col(Gi, Dd, J, Aa), pm.k_index(J, 0, Mm, Aa), cf, pm.masks[0][Mm, Aa] & (cf != 0),
-            reg.lower[:, :, None, :] - shift + spec.margin + spec.slack,
-            reg.upper[:, :, None, :] - shift - spec.margin - spec.slack)
+            r_lo, r_hi)
         # limits: rows (j, g, m, face) per order, the faces switched on for (j, g) only
         faces, inner = limit_polytope(dim)
         nf = len(faces)

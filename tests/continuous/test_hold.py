@@ -1,0 +1,113 @@
+"""A robot that has arrived for good is held still at its cell while the others fly on.
+
+Robot 0 flies east along y = 1 for five steps and waits at x = 5 to the end of the plan;
+robot 1 flies east along y = 4 for all 16 steps. Without the hold, minimum snap lets robot 0
+carry its arrival speed through its grown box and back (measured: up to 0.30 m/s and 0.10 m
+from its cell after step 7, one stop); held (:func:`~mrfswarm.continuous.regions.arrival_holds`),
+it brakes within ``HOLD_SETTLE`` steps and stays at its cell's centre (the held box's rows are
+equalities: a box a few micrometres wide left it 1.9e-5 m off and moving). The same makespan.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mrfswarm.continuous.receding_horizon as rhm
+from mrfswarm.config import SmoothingConfig
+from mrfswarm.continuous.receding_horizon import HOLD_ROOM, HOLD_SETTLE, RecedingHorizon
+from mrfswarm.continuous.regions import arrival_holds
+from mrfswarm.flight_quality import count_stops
+from mrfswarm.maps import OccupancyGrid
+
+T = 16
+ARRIVED = 5  # robot 0's last move ends here
+PATHS = np.array([[(min(x, ARRIVED), 1), (x, 4)] for x in range(T + 1)])
+GRID = OccupancyGrid.from_occupied(np.zeros((20, 8), bool))
+
+
+def _flight(monkeypatch, hold: bool, max_pieces: int = 0):
+    if not hold:
+        monkeypatch.setattr(rhm, "arrival_holds", lambda paths, settle: np.zeros((len(paths) - 1, paths.shape[1]), bool))
+    return RecedingHorizon(PATHS, GRID, SmoothingConfig(max_pieces=max_pieces), 0.25, workers=1).run()
+
+
+def _after_arrival(plan) -> tuple[np.ndarray, np.ndarray]:
+    """Robot 0's speed and its distance from its cell's centre, sampled from its hold on."""
+    t = np.linspace(plan.knot_times[ARRIVED + HOLD_SETTLE], plan.knot_times[-1], 400)
+    tr = plan.trajectories[0]
+    return np.linalg.norm(tr.evaluate(t, 1), axis=-1), np.linalg.norm(tr.evaluate(t, 0) - [ARRIVED, 1], axis=-1)
+
+
+def test_which_steps_are_held():
+    held = arrival_holds(PATHS, 2)
+    assert held[:, 0].tolist() == [False] * (ARRIVED + 2) + [True] * (T - ARRIVED - 2)
+    assert not held[:, 1].any()  # moves to the end
+    still = np.repeat(PATHS[:1], 4, axis=0)  # nobody moves: held from the settle steps on
+    assert arrival_holds(still, 1).tolist() == [[False, False]] + [[True, True]] * 2
+    assert arrival_holds(PATHS[:1], 2).shape == (0, 2)
+
+
+@pytest.mark.parametrize("max_pieces", [0, 31])
+def test_an_arrived_robot_is_held_still_at_its_cell(monkeypatch, max_pieces):
+    plan = _flight(monkeypatch, True, max_pieces)
+    assert plan.certificate.ok and any(w.hold for w in plan.windows)
+    v, off = _after_arrival(plan)
+    assert v.max() < 1e-9 and off.max() < 1e-9  # equality rows: exactly at the centre
+    assert count_stops(plan.trajectories).per_robot.tolist() == [0, 0]
+
+
+def test_without_the_hold_it_drifts(monkeypatch):
+    held = _flight(monkeypatch, True)
+    plan = _flight(monkeypatch, False)
+    assert plan.certificate.ok and not any(w.hold for w in plan.windows)
+    v, off = _after_arrival(plan)
+    assert v.max() > 0.1 and off.max() > 0.05
+    assert count_stops(plan.trajectories).per_robot[0] >= 1
+    assert plan.makespan_s == pytest.approx(held.makespan_s, rel=1e-9)
+
+
+def test_the_hold_is_pinned_only_where_the_window_can_fly_it():
+    """Not in the window's first piece (its start state is given), not in a piece that also spans unheld
+    steps, and a robot that does not start at rest at its cell gets HOLD_SETTLE steps more."""
+    rh = RecedingHorizon(PATHS, GRID, SmoothingConfig(max_pieces=0), 0.25, workers=1)
+    a, b, robots = ARRIVED + HOLD_SETTLE, ARRIVED + HOLD_SETTLE + 8, np.array([0, 1])
+    at_rest = np.zeros((2, 4, 2))
+    at_rest[:, 0] = rh.X[a]
+    moving = at_rest.copy()
+    moving[0, 1] = [0.3, 0.0]
+
+    def pinned(start, merged=None) -> list[int]:
+        reg = rh._held_regions(a, b, robots, start, merged)
+        width = (reg.upper - reg.lower)[:, 0].max(axis=-1)  # robot 0's box, per step
+        assert (reg.upper - reg.lower)[:, 1].min() > 0.4  # robot 1 moves on: never held
+        return np.flatnonzero(width <= 2 * (rh.slack + HOLD_ROOM) + 1e-12).tolist()
+
+    assert pinned(at_rest) == [1]  # held from the window's start, pinned after its first piece
+    assert pinned(moving) == [HOLD_SETTLE]
+    two_step_pieces = np.array([True, False] * 3 + [True])
+    assert pinned(at_rest, two_step_pieces) == [2]
+    assert pinned(moving, two_step_pieces) == [2]
+    # a window from the arrival: held from its third step, which shares a piece with the unheld second
+    a, b = ARRIVED, ARRIVED + 8
+    at_rest[:, 0] = rh.X[a]
+    assert pinned(at_rest) == [HOLD_SETTLE]
+    assert pinned(at_rest, np.array([False, True, False, True, False, True, False])) == [3]
+    a, b = 0, ARRIVED + HOLD_SETTLE + 1  # held in its last step only: the window ends at rest there anyway
+    at_rest[:, 0] = rh.X[a]
+    assert pinned(at_rest) == []
+    assert rh._held_regions(0, 4, robots, at_rest, None).upper.tolist() == rh.regions.window(0, 4, robots).upper.tolist()
+
+
+def test_a_hold_on_an_oriented_region_is_refused():
+    """A wait's region is always a box; a held oriented one would be a bug upstream, and is not shrunk silently."""
+    from mrfswarm.continuous.regions import Regions, hold_regions
+
+    reg = Regions(np.broadcast_to(np.eye(2), (1, 1, 2, 2)).copy(), np.zeros((1, 1, 2)), np.ones((1, 1, 2)),
+                  np.array([[True]]), 0.25)
+    with pytest.raises(AssertionError, match="oriented"):
+        hold_regions(reg, np.array([[True]]), np.full((1, 1, 2), 0.5), 0.01)
+    box = Regions(reg.axes, reg.lower, reg.upper, np.array([[False]]), 0.25)
+    shrunk = hold_regions(box, np.array([[True]]), np.full((1, 1, 2), 0.5), 0.01)
+    np.testing.assert_allclose(shrunk.lower, 0.49)
+    np.testing.assert_allclose(shrunk.upper, 0.51)
