@@ -31,7 +31,7 @@ stage), and the robots' stop reasons.
 Writes ``OUT/navigation.csv`` (one row per run), ``OUT/navigation.md`` (the tables) and
 ``OUT/navigation.png``.
 
-    PYTHONPATH=. python experiments/navigation.py --out paper_figs           # 1728 runs, 42 min on 2 shared cores
+    PYTHONPATH=. python experiments/navigation.py --out paper_figs           # 1728 runs, 10 min on 2 shared cores
     PYTHONPATH=. python experiments/navigation.py --quick --out /tmp/nav     # 8 maps, ICM variants, 240 runs, ~2.5 min
 """
 
