@@ -13,7 +13,7 @@ continuous stage follows the discrete paths). Variants:
     The default with the paper's straight-line goal field.
 ``paper``
     The paper's rules throughout, as the paper's scenario configs set them
-    (``euclidean``, ``mrf.contested = "nearest"``, ``mrf.progress = "energy"``, Gamma = 5).
+    (``euclidean``, ``mrf.contested = "nearest"``, ``mrf.progress = "energy"``, Gamma = 5, no trimming).
 ``geodesic+nearest``, ``geodesic+energy``
     The default with one of its two other rules set back to the paper's: what each
     contributes.
@@ -60,7 +60,7 @@ ICM_VARIANTS: dict[str, tuple[tuple[str, ...], str]] = {
     "default": ((), "icm"),
     "euclidean": (('goal_potential.distance="euclidean"',), "icm"),
     "paper": (('goal_potential.distance="euclidean"', 'mrf.contested="nearest"', 'mrf.progress="energy"',
-               "obstacle_potential.gamma=5"), "icm"),
+               "obstacle_potential.gamma=5", "mrf.trim_backward=false"), "icm"),
     "geodesic+nearest": (('mrf.contested="nearest"',), "icm"),
     "geodesic+energy": (('mrf.progress="energy"',), "icm"),
 }

@@ -97,6 +97,7 @@ class Scenario:
             k=c.interaction.k,
             order=c.mrf.order,
             trim_backward=c.mrf.trim_backward,
+            trim_escape=c.mrf.trim_escape,
             contested=c.mrf.contested,
             follow=c.mrf.follow,
             goal_distance=self.distances.field if self.distances is not None and c.goal_potential.distance == "geodesic"

@@ -53,7 +53,8 @@ VARIANTS = {
 #: The paper's discrete rules, for every variant: the discrete paths are the same for the code
 #: before and now, so the table compares continuous stages only.
 PAPER_DISCRETE = {("goal_potential", "distance"): '"euclidean"', ("mrf", "contested"): '"nearest"',
-                  ("mrf", "progress"): '"energy"', ("obstacle_potential", "gamma"): "5.0"}
+                  ("mrf", "progress"): '"energy"', ("obstacle_potential", "gamma"): "5.0",
+                  ("mrf", "trim_backward"): "false"}
 
 
 def working_tree_flight_quality():

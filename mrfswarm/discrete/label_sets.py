@@ -137,7 +137,7 @@ def _shadowed(cell_id: np.ndarray, moving: np.ndarray, priority: np.ndarray, rob
 
 
 def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.ndarray | None = None,
-               trim_backward: bool = False, static: np.ndarray | None = None,
+               trim_backward: bool | np.ndarray = False, static: np.ndarray | None = None,
                contested: str = "nearest", goal_distance: np.ndarray | None = None, follow: bool = False,
                downwash: float = 1.0) -> LabelSets:
     """Build X_i^t for every robot.
@@ -156,7 +156,8 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
         Drop moves pointing away from the goal; "stay" is kept. Away: a negative dot
         product with the direction to the goal (the paper's), or, when ``goal_distance``
         is given, a larger distance to the goal along free paths (the straight direction
-        would cut the way around a wall).
+        would cut the way around a wall). A bool for every robot, or (N,) bool: the robots
+        it applies to (the planner lifts it for robots stuck in their cell, ``mrf.trim_escape``).
     static
         The static field rho_S over the grid; needed by ``contested = "downhill"``.
     contested
@@ -204,12 +205,13 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
         other = cell_values(robot_near.reshape(free.shape), clipped)
         ok &= (other == -1) | (other == np.arange(N)[:, None])
     # (c) the half that points away from the goal
-    if trim_backward and goal_cell is not None:
+    if np.any(trim_backward) and goal_cell is not None:
+        keep_all = ~np.broadcast_to(np.asarray(trim_backward, dtype=bool), (len(starts),))[:, None]
         if goal_distance is None:
             to_goal = np.asarray(goal_cell)[None, :] - starts  # (N, d)
-            ok &= (off[None, :, :] * to_goal[:, None, :]).sum(-1) >= 0
+            ok &= ((off[None, :, :] * to_goal[:, None, :]).sum(-1) >= 0) | keep_all
         else:
-            ok &= cell_values(goal_distance, clipped) <= cell_values(goal_distance, starts)[:, None]
+            ok &= (cell_values(goal_distance, clipped) <= cell_values(goal_distance, starts)[:, None]) | keep_all
     ok[:, 0] = True  # staying is always allowed (the cell is free and one's own)
     # (b) X_i ∩ X_j = ∅: a contested cell goes to one robot (the first in the sort below)
     r, s = np.nonzero(ok)

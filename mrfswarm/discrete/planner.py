@@ -81,6 +81,9 @@ class DiscreteProblem:
         Neighbours in the interaction graph; label-set order n.
     trim_backward, contested, follow
         Label-set rules (:func:`mrfswarm.discrete.label_sets.label_sets`).
+    trim_escape
+        With ``trim_backward``: a robot that has stayed in its cell for the last
+        ``trim_escape`` steps is not trimmed (0: every robot always is).
     goal_distance
         The distance the goal field uses when it is not the straight line (the
         geodesic one); ``trim_backward`` then drops moves that increase it.
@@ -114,6 +117,7 @@ class DiscreteProblem:
     k: int = 3
     order: int = 2
     trim_backward: bool = False
+    trim_escape: int = 0
     contested: str = "downhill"
     follow: bool = False
     goal_distance: np.ndarray | None = None
@@ -208,18 +212,18 @@ def graph_weights(positions: np.ndarray, k: int, timings: dict[str, float] | Non
 
 def mrf_step(problem: DiscreteProblem, positions: np.ndarray, method: str = "icm",
              options: mrf_solvers.Options | None = None, weights: CliqueWeights | None = None,
-             graph_timings: dict[str, float] | None = None) -> StepOutcome:
+             graph_timings: dict[str, float] | None = None, trim: np.ndarray | None = None) -> StepOutcome:
     """Run one MRF step from ``positions`` (N, d) cells.
 
     ``weights`` (with the ``graph_timings`` it took) may be passed when G(positions) is
-    already known.
+    already known; ``trim`` (N,) bool, which robots ``trim_backward`` applies to (None: all).
     """
     timings: dict[str, float] = {}
     if weights is None:
         weights = graph_weights(positions, problem.k, timings)
     else:
         timings.update(graph_timings or {"graph": 0.0, "cliques": 0.0})
-    labels, model = step_model(problem, positions, weights, timings)
+    labels, model = step_model(problem, positions, weights, timings, trim)
     t0 = time.perf_counter()
     res = mrf_solvers.minimize(model, method=method, options=options)
     timings["optimizer"] = time.perf_counter() - t0
@@ -235,7 +239,8 @@ def mrf_step(problem: DiscreteProblem, positions: np.ndarray, method: str = "icm
 
 
 def step_model(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueWeights,
-               timings: dict[str, float] | None = None) -> tuple[LabelSets, PairwiseMRF]:
+               timings: dict[str, float] | None = None,
+               trim: np.ndarray | None = None) -> tuple[LabelSets, PairwiseMRF]:
     """The MRF of one step from ``positions`` (N, d) cells on the graph ``weights`` = G(positions).
 
     The label sets X^t (:func:`problem_label_sets`) and the step's pairwise MRF over them
@@ -244,7 +249,7 @@ def step_model(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueW
     times go into ``timings`` (``"labels"``, ``"energy"``) when it is given.
     """
     t0 = time.perf_counter()
-    labels = problem_label_sets(problem, positions)
+    labels = problem_label_sets(problem, positions, trim)
     t1 = time.perf_counter()
     model = step_mrf(labels, weights, problem.static, problem.morse, problem.resolution, problem.downwash)
     if timings is not None:
@@ -253,10 +258,22 @@ def step_model(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueW
     return labels, model
 
 
-def problem_label_sets(problem: DiscreteProblem, positions: np.ndarray) -> LabelSets:
-    """X^t for the robots at ``positions`` under the problem's label-set rules."""
-    return label_sets(problem.free, positions, problem.order, problem.goal, problem.trim_backward, problem.static,
+def problem_label_sets(problem: DiscreteProblem, positions: np.ndarray, trim: np.ndarray | None = None) -> LabelSets:
+    """X^t for the robots at ``positions`` under the problem's label-set rules (``trim``: the robots
+    ``trim_backward`` applies to, None: all)."""
+    rule = problem.trim_backward if trim is None or not problem.trim_backward else trim
+    return label_sets(problem.free, positions, problem.order, problem.goal, rule, problem.static,
                       problem.contested, problem.goal_distance, problem.follow, problem.downwash)
+
+
+def trim_mask(problem: DiscreteProblem, paths: list[np.ndarray]) -> np.ndarray | None:
+    """(N,) the robots ``trim_backward`` applies to in the next step: all but those that have stayed in their
+    cell for the last ``trim_escape`` steps of ``paths`` (None: all)."""
+    E = problem.trim_escape
+    if not problem.trim_backward or E <= 0 or len(paths) <= E:
+        return None
+    last = np.stack(paths[-E - 1:])
+    return ~np.all(np.all(last == last[-1], axis=-1), axis=0)
 
 
 def _static_sum(problem: DiscreteProblem, positions: np.ndarray) -> float:
@@ -403,7 +420,7 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
             new = cong.fields(pos[stalled]) if stalled.any() else None
             problem = base if new is None else replace(base, static=new[0], goal_distance=new[1])
             congested += new is not None
-        out = mrf_step(problem, pos, method, options, weights, gt)
+        out = mrf_step(problem, pos, method, options, weights, gt, trim_mask(problem, paths))
         if t == 1:
             energy.append(out.energy_before)
             watch.best = out.energy_before

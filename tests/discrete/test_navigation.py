@@ -4,7 +4,7 @@ The maps and configs are ``experiments/maps/`` (written by its ``generate.py``):
 with 2-3-cell doorways, U/C traps facing the swarm, forests, mazes; 5-50 robots.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -39,7 +39,8 @@ MAP_CONFIGS = sorted(p.stem for p in MAPS.glob("*.toml"))
 DISCRETE = ["smoothing.enabled=false"]
 #: The paper's field, and its label sets (no following into a cell a robot leaves: with it the swarm of forest_03
 #: files between the trees to the goal even on the straight-line field).
-EUCLIDEAN = ('goal_potential.distance="euclidean"', "mrf.follow=false", "obstacle_potential.gamma=5")  # the paper's
+EUCLIDEAN = ('goal_potential.distance="euclidean"', "mrf.follow=false", "obstacle_potential.gamma=5",  # the paper's
+             "mrf.trim_backward=false")
 
 #: Maps whose swarm the paper's straight-line goal field leaves short of the goal (all of them).
 TRAPPED_BY_EUCLIDEAN = set(MAP_CONFIGS)
@@ -387,6 +388,39 @@ def test_stalled_robots_are_told_from_trapped_ones():
     assert r.discrete.stop_reason == "stalled"
 
 
+def test_trimmed_robots_stuck_in_their_cell_get_their_moves_back():
+    """Trimming the moves away from the goal takes from a crowd the sideways moves that make room: 50 robots in
+    rooms_01 (start seed 1) leave one robot stalled behind the others. With ``mrf.trim_escape`` (the default, 2)
+    a robot that has stayed in its cell for two steps gets its whole label set back, and all arrive (56 steps)."""
+    start = ("scenario.start.n_robots=50", "scenario.start.seed=1")
+    never = run_map("rooms_01", *start, "mrf.trim_escape=0")
+    assert [x.stop_reason for x in never.robots if not x.at_goal] == ["stalled"]
+    assert never.discrete.stop_reason == "trapped"
+    escaped = run_map("rooms_01", *start)
+    assert all(x.at_goal for x in escaped.robots) and escaped.discrete.stop_reason == "arrived"
+    assert discrete_violations(escaped.discrete.paths, escaped.scenario.grid.free) == []
+
+
+def test_the_trim_is_lifted_only_for_robots_that_stayed():
+    from mrfswarm.discrete.label_sets import label_sets
+    from mrfswarm.discrete.planner import trim_mask
+
+    problem = DiscreteProblem(free=np.ones((12, 12), bool), static=np.zeros((12, 12)), start=np.zeros((3, 2), int),
+                              goal=np.array([11, 5]), morse=Morse(0.7, 0.9, 14.0, 4.0), trim_backward=True,
+                              trim_escape=2)
+    moving = [np.array([[0, 0], [4, 4], [8, 8]]) + [t, 0] * np.array([[1], [0], [1]]) for t in range(3)]
+    assert trim_mask(problem, moving[:2]) is None  # not two steps yet
+    assert trim_mask(problem, moving).tolist() == [True, False, True]  # robot 1 stayed two steps
+    assert trim_mask(replace(problem, trim_escape=0), moving) is None
+    assert trim_mask(replace(problem, trim_backward=False), moving) is None
+    cells = np.array([[2, 2], [2, 8]])
+    away = np.array([-1, 0])  # a move west, away from the goal in the east
+    for trim, kept in (([True, True], [False, False]), ([True, False], [False, True]), (False, [True, True])):
+        ls = label_sets(np.ones((12, 12), bool), cells, 2, np.array([11, 5]), np.array(trim) if trim else trim)
+        offsets = ls.offsets  # (N, L, d), padded with the stay
+        assert [bool(np.any(np.all(offsets[i] == away, axis=-1))) for i in range(2)] == kept
+
+
 # --- config -------------------------------------------------------------------------------------
 
 
@@ -394,6 +428,7 @@ def test_stalled_robots_are_told_from_trapped_ones():
     ("goal_potential.distance", '"manhattan"', "must be one of geodesic, euclidean"),
     ("mrf.contested", '"random"', "must be one of downhill, nearest"),
     ("mrf.progress", '"never"', "must be one of static, energy"),
+    ("mrf.trim_escape", "-1", "must be >= 0"),
 ])
 def test_new_config_keys_are_checked(key, value, match):
     with pytest.raises(ConfigError, match=match):
@@ -404,12 +439,14 @@ def test_defaults_navigate_and_paper_configs_pin_the_papers_rules():
     cfg = load_config(None)
     assert (cfg.goal_potential.distance, cfg.mrf.contested, cfg.mrf.progress) == ("geodesic", "downhill", "static")
     assert cfg.mrf.follow and cfg.mrf.arrival and cfg.obstacle_potential.gamma == 2.0
+    assert cfg.mrf.trim_backward and cfg.mrf.trim_escape == 2
     for name in ("corridor", "blocks", "corridor10", "blocks12", "free5", "free10", "example5", "single_obstacle",
                  "combined_field", "swarm_size"):
         c = load_config(EXPERIMENTS / f"{name}.toml")
         assert (c.goal_potential.distance, c.mrf.contested, c.mrf.progress) == ("euclidean", "nearest", "energy")
         assert not c.mrf.follow and not c.mrf.arrival
         assert c.obstacle_potential.gamma == 5.0  # the paper's table
+        assert not c.mrf.trim_backward
 
 
 def test_trim_backward_follows_the_free_path_with_the_geodesic_field():
