@@ -175,10 +175,11 @@ class MrfConfig:
     when one optimizer run lowers the swarm energy by less than ``tol`` times its value
     (relative: converged), when the swarm energy has made no new minimum for ``patience``
     steps (stalled: the k-NN graph changes as the swarm moves, so the dynamics need not
-    settle), or after ``max_steps`` steps. ``trim_backward`` (default true) drops candidate cells that point
-    away from the goal (the paper's optional heuristic; its scenario configs set false), except for a robot
-    that has stayed in its cell for the last ``trim_escape`` steps (default 2; 0: never), which gets its
-    whole label set back: trimmed alone, a crowd loses the sideways moves that make room and strands robots.
+    settle), or after ``max_steps`` steps. ``trim_backward`` drops candidate cells that point away from the
+    goal (the paper's optional heuristic; off by default), except for a robot that has stayed in its cell for
+    the last ``trim_escape`` steps (default 2; 0: never), which gets its whole label set back: trimmed alone,
+    a crowd loses the sideways moves that make room and strands robots. On by default it stranded 3 of 1000
+    robots crossing an open field (README, "Limits worth knowing").
     ``contested`` says which of several equally near robots
     gets a cell they could all move to (label sets are disjoint; the nearest robot gets
     it): ``"downhill"`` (default), the one whose static field it lowers most;
@@ -206,7 +207,7 @@ class MrfConfig:
     max_steps: int = 300
     tol: float = 1e-6
     patience: int = 20
-    trim_backward: bool = True
+    trim_backward: bool = False
     trim_escape: int = 2
     contested: str = "downhill"
     follow: bool = True

@@ -390,9 +390,9 @@ def test_stalled_robots_are_told_from_trapped_ones():
 
 def test_trimmed_robots_stuck_in_their_cell_get_their_moves_back():
     """Trimming the moves away from the goal takes from a crowd the sideways moves that make room: 50 robots in
-    rooms_01 (start seed 1) leave one robot stalled behind the others. With ``mrf.trim_escape`` (the default, 2)
+    rooms_01 (start seed 1) leave one robot stalled behind the others. With ``mrf.trim_escape`` (its default, 2)
     a robot that has stayed in its cell for two steps gets its whole label set back, and all arrive (56 steps)."""
-    start = ("scenario.start.n_robots=50", "scenario.start.seed=1")
+    start = ("scenario.start.n_robots=50", "scenario.start.seed=1", "mrf.trim_backward=true")
     never = run_map("rooms_01", *start, "mrf.trim_escape=0")
     assert [x.stop_reason for x in never.robots if not x.at_goal] == ["stalled"]
     assert never.discrete.stop_reason == "trapped"
@@ -439,7 +439,7 @@ def test_defaults_navigate_and_paper_configs_pin_the_papers_rules():
     cfg = load_config(None)
     assert (cfg.goal_potential.distance, cfg.mrf.contested, cfg.mrf.progress) == ("geodesic", "downhill", "static")
     assert cfg.mrf.follow and cfg.mrf.arrival and cfg.obstacle_potential.gamma == 2.0
-    assert cfg.mrf.trim_backward and cfg.mrf.trim_escape == 2
+    assert not cfg.mrf.trim_backward and cfg.mrf.trim_escape == 2
     for name in ("corridor", "blocks", "corridor10", "blocks12", "free5", "free10", "example5", "single_obstacle",
                  "combined_field", "swarm_size"):
         c = load_config(EXPERIMENTS / f"{name}.toml")
