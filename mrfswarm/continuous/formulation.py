@@ -130,7 +130,7 @@ def limit_polytope(dim: int) -> tuple[np.ndarray, float]:
 #: the whole piece's control points overestimate it eightfold.
 LIMIT_PARTS = 4
 #: Metres: a region whose rows, tightened, leave less than this is a hold (a robot held still at its cell,
-#: :func:`~mrfswarm.continuous.regions.hold_arrived`): its rows become equalities at the box's centre, which a
+#: :func:`~mrfswarm.continuous.regions.hold_regions`): its rows become equalities at the box's centre, which a
 #: solver meets exactly (an interior-point solver runs out of iterations in a box a few micrometres wide).
 HOLD_WIDTH = 1e-4
 
@@ -449,7 +449,7 @@ class WindowFormulation:
         shift = np.einsum("mgka,ga->mgk", reg.axes, origin)[:, :, None, :]
         r_lo = reg.lower[:, :, None, :] - shift + spec.margin + spec.slack
         r_hi = reg.upper[:, :, None, :] - shift - spec.margin - spec.slack
-        hold = r_hi - r_lo < HOLD_WIDTH  # a held robot's box (regions.hold_arrived): equalities at its centre
+        hold = r_hi - r_lo < HOLD_WIDTH  # a held robot's box (regions.hold_regions): equalities at its centre
         if hold.any():
             mid = 0.5 * (r_lo + r_hi)
             r_lo, r_hi = np.where(hold, mid, r_lo), np.where(hold, mid, r_hi)

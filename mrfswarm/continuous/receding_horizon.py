@@ -170,12 +170,12 @@ DRIFT = 1.0
 #: through those runs (not only single waits) flew most maps 2-3 % sooner and clutter40 with 0.75 stops, but
 #: big200 4.6 % later (3.33 x the bound against 3.18) and the refined arena 1.73 x against 1.62.
 CREEP_SPEED = 0.1
+CREEP_WAITS = 5
 #: Steps an arrived robot has to brake to rest at its final cell before it is held there
-#: (:func:`~mrfswarm.continuous.regions.hold_arrived`), and the metres its held box leaves it besides the rows'
-#: tightening.
+#: (:func:`~mrfswarm.continuous.regions.arrival_holds`; 1 and 3 flew the same flight-quality maps as soon, with
+#: stops within noise of 2), and the metres its held box leaves it besides the rows' tightening.
 HOLD_SETTLE = 2
 HOLD_ROOM = 2e-5
-CREEP_WAITS = 5
 #: The attempts' profiles in order: (name, cruise, acceleration): the fast one, the bold one (``"nominal"``: its
 #: durations are the window's nominal ones), and a moderate one between the bold and the
 #: cautious, whose durations the slower attempts start from. The moderate one gained 3 to 9 % of makespan in
@@ -624,8 +624,7 @@ class RecedingHorizon:
         if not held.any():
             return regions
         M = b - a
-        piece = np.zeros(M, dtype=np.int64) if M == 0 else np.concatenate(
-            [[0], np.cumsum(~np.asarray(merged, dtype=bool))]) if merged is not None else np.arange(M)
+        piece = np.arange(M) if merged is None else np.concatenate([[0], np.cumsum(~np.asarray(merged, dtype=bool))])
         s = start[robots]  # (G, q, d): position and derivatives at a
         still = (np.abs(s[:, 0] - self.X[a, robots]).max(axis=-1) <= HOLD_ROOM) & (np.abs(s[:, 1:]).max(axis=(1, 2)) <= 1e-6)
         held[:HOLD_SETTLE, ~still] = False

@@ -497,7 +497,6 @@ def interaction_groups(n_robots: int, seps: Separations) -> list[np.ndarray]:
     return np.split(order, np.cumsum(np.bincount(labels, minlength=n))[:-1])
 
 
-
 def arrival_holds(paths: np.ndarray, settle: int) -> np.ndarray:
     """(T, N) bool: the steps in which each robot is held still at its final cell.
 
