@@ -143,7 +143,7 @@ class GoalPotentialConfig:
 
 #: The default ``obstacle_potential.gamma`` (the paper's table: 5). Measured (flight_quality bench, defaults,
 #: makespan over the bound, 5 -> 2): 40 robots on 64 x 64 with 10 % clutter, seven maps, mean 1.92 -> 1.66 in
-#: 86 -> 77 MRF steps, stops 0.82 -> 0.54 per robot; 200 robots in 15 % clutter 2.71 -> 2.49; 3 and 1.5 did less.
+#: 86 -> 76 MRF steps, stops 0.82 -> 0.54 per robot; 200 robots in 15 % clutter 2.71 -> 2.49; 3 and 1.5 did less.
 GAMMA = 2.0
 
 
