@@ -175,11 +175,14 @@ class MrfConfig:
     when one optimizer run lowers the swarm energy by less than ``tol`` times its value
     (relative: converged), when the swarm energy has made no new minimum for ``patience``
     steps (stalled: the k-NN graph changes as the swarm moves, so the dynamics need not
-    settle), or after ``max_steps`` steps. ``trim_backward`` drops candidate cells that point away from the
-    goal (the paper's optional heuristic; off by default), except for a robot that has stayed in its cell for
-    the last ``trim_escape`` steps (default 2; 0: never), which gets its whole label set back: trimmed alone,
-    a crowd loses the sideways moves that make room and strands robots. On by default it stranded 3 of 1000
-    robots crossing an open field (README, "Limits worth knowing").
+    settle), or after ``max_steps`` steps. ``trim_backward`` (default true) drops candidate cells that point
+    away from the goal (the paper's optional heuristic; its scenario configs set false): with the geodesic
+    goal field, the moves that raise a robot's free-path distance to the goal by more than ``trim_slack``
+    cells (default 0.5: a sideways move, square to the way, raises it by 0.41-0.59 cell on the 8-connected
+    grid, and the paper's dot-product rule keeps it; 0 trimmed those too and left 3 of 1000 robots crossing
+    an open field outside the goal after 300 steps), except for a robot that has stayed in its cell for the
+    last ``trim_escape`` steps (default 2; 0: never), which gets its whole label set back: trimmed alone, a
+    crowd loses the moves that make room and strands robots (README, "Time allocation and fast flight").
     ``contested`` says which of several equally near robots
     gets a cell they could all move to (label sets are disjoint; the nearest robot gets
     it): ``"downhill"`` (default), the one whose static field it lowers most;
@@ -207,8 +210,9 @@ class MrfConfig:
     max_steps: int = 300
     tol: float = 1e-6
     patience: int = 20
-    trim_backward: bool = False
+    trim_backward: bool = True
     trim_escape: int = 2
+    trim_slack: float = 0.5
     contested: str = "downhill"
     follow: bool = True
     arrival: bool = True
@@ -468,6 +472,7 @@ def _validate(cfg: Config) -> None:
     need(m.tol >= 0, "mrf.tol", m.tol, "must be >= 0")
     need(m.patience >= 1, "mrf.patience", m.patience, "must be >= 1")
     need(m.trim_escape >= 0, "mrf.trim_escape", m.trim_escape, "must be >= 0")
+    need(m.trim_slack >= 0, "mrf.trim_slack", m.trim_slack, "must be >= 0")
     need(m.progress in PROGRESS_RULES, "mrf.progress", m.progress, f"must be one of {', '.join(PROGRESS_RULES)}")
     need(m.contested in CONTESTED_RULES, "mrf.contested", m.contested, f"must be one of {', '.join(CONTESTED_RULES)}")
     sm = cfg.smoothing

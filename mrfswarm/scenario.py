@@ -98,6 +98,7 @@ class Scenario:
             order=c.mrf.order,
             trim_backward=c.mrf.trim_backward,
             trim_escape=c.mrf.trim_escape,
+            trim_slack=c.mrf.trim_slack,
             contested=c.mrf.contested,
             follow=c.mrf.follow,
             goal_distance=self.distances.field if self.distances is not None and c.goal_potential.distance == "geodesic"

@@ -139,7 +139,7 @@ def _shadowed(cell_id: np.ndarray, moving: np.ndarray, priority: np.ndarray, rob
 def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.ndarray | None = None,
                trim_backward: bool | np.ndarray = False, static: np.ndarray | None = None,
                contested: str = "nearest", goal_distance: np.ndarray | None = None, follow: bool = False,
-               downwash: float = 1.0) -> LabelSets:
+               downwash: float = 1.0, trim_slack: float = 0.0) -> LabelSets:
     """Build X_i^t for every robot.
 
     Parameters
@@ -155,9 +155,10 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     trim_backward
         Drop moves pointing away from the goal; "stay" is kept. Away: a negative dot
         product with the direction to the goal (the paper's), or, when ``goal_distance``
-        is given, a larger distance to the goal along free paths (the straight direction
-        would cut the way around a wall). A bool for every robot, or (N,) bool: the robots
-        it applies to (the planner lifts it for robots stuck in their cell, ``mrf.trim_escape``).
+        is given, a distance to the goal along free paths larger by more than ``trim_slack``
+        (the straight direction would cut the way around a wall). A bool for every robot, or
+        (N,) bool: the robots it applies to (the planner lifts it for robots stuck in their
+        cell, ``mrf.trim_escape``).
     static
         The static field rho_S over the grid; needed by ``contested = "downhill"``.
     contested
@@ -177,6 +178,11 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
     downwash
         c >= 1: rule (a) also removes the cells within c - 1 voxels right above or below
         another robot (3-D; see the module docstring).
+    trim_slack
+        With ``goal_distance``: how much (its units) a kept move may raise it. The distance
+        is measured over 8 (26) move directions, so a sideways move, square to the way to
+        the goal, raises it by 0.41 to 0.59 cell; half a cell keeps most of them, as the
+        paper's dot-product rule keeps every square move (``mrf.trim_slack``).
     """
     if contested not in CONTESTED_RULES:
         raise ValueError(f"contested = {contested!r}: must be one of {', '.join(CONTESTED_RULES)}")
@@ -211,7 +217,8 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
             to_goal = np.asarray(goal_cell)[None, :] - starts  # (N, d)
             ok &= ((off[None, :, :] * to_goal[:, None, :]).sum(-1) >= 0) | keep_all
         else:
-            ok &= (cell_values(goal_distance, clipped) <= cell_values(goal_distance, starts)[:, None]) | keep_all
+            rise = cell_values(goal_distance, clipped) - cell_values(goal_distance, starts)[:, None]
+            ok &= (rise <= trim_slack) | keep_all
     ok[:, 0] = True  # staying is always allowed (the cell is free and one's own)
     # (b) X_i ∩ X_j = ∅: a contested cell goes to one robot (the first in the sort below)
     r, s = np.nonzero(ok)

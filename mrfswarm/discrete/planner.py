@@ -84,6 +84,9 @@ class DiscreteProblem:
     trim_escape
         With ``trim_backward``: a robot that has stayed in its cell for the last
         ``trim_escape`` steps is not trimmed (0: every robot always is).
+    trim_slack
+        With ``trim_backward`` and ``goal_distance``: a move that raises the goal distance
+        by at most this many cells is kept (``mrf.trim_slack``).
     goal_distance
         The distance the goal field uses when it is not the straight line (the
         geodesic one); ``trim_backward`` then drops moves that increase it.
@@ -118,6 +121,7 @@ class DiscreteProblem:
     order: int = 2
     trim_backward: bool = False
     trim_escape: int = 0
+    trim_slack: float = 0.0
     contested: str = "downhill"
     follow: bool = False
     goal_distance: np.ndarray | None = None
@@ -263,7 +267,8 @@ def problem_label_sets(problem: DiscreteProblem, positions: np.ndarray, trim: np
     ``trim_backward`` applies to, None: all)."""
     rule = problem.trim_backward if trim is None or not problem.trim_backward else trim
     return label_sets(problem.free, positions, problem.order, problem.goal, rule, problem.static,
-                      problem.contested, problem.goal_distance, problem.follow, problem.downwash)
+                      problem.contested, problem.goal_distance, problem.follow, problem.downwash,
+                      problem.trim_slack * problem.resolution)
 
 
 def trim_mask(problem: DiscreteProblem, paths: list[np.ndarray]) -> np.ndarray | None:

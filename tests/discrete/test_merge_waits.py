@@ -100,9 +100,10 @@ def test_planned_paths_keep_their_cells_and_the_invariant(case):
     data = {"scenario": {"map": {"kind": "ascii", "rows": rows},
                          "start": {"center": [4, 10], "n_robots": 12, "sigma": 1.5, "seed": 1}, "goal": [26, 10]},
             "interaction": {"k": 5}, "smoothing": {"enabled": False}, "simulation": {"enabled": False},
-            # the paper's Gamma: with the default 2 the clutter plan has no wait to merge
+            # the paper's Gamma, untrimmed: with the defaults (2, trimmed) the clutter plan has no wait to merge
             "obstacle_potential": {"gamma": 5.0}}
-    plans = {m: plan(from_dict({**data, "mrf": {"merge_waits": m}}, Path(".")), progress=False) for m in (False, True)}
+    plans = {m: plan(from_dict({**data, "mrf": {"merge_waits": m, "trim_backward": False}}, Path(".")), progress=False)
+             for m in (False, True)}
     raw, merged = plans[False].discrete, plans[True].discrete
     assert merged.merged_waits > 0 and raw.merged_waits == 0
     assert discrete_violations(merged.paths, ~occ) == []
@@ -116,7 +117,8 @@ def test_planned_paths_keep_their_cells_and_the_invariant(case):
 
 
 def test_a_merge_that_lengthens_the_modelled_flight_is_not_kept():
-    """The doorway of the flight-quality bench with the paper's Gamma (with the default the plan has no wait):
+    """The doorway of the flight-quality bench with the paper's Gamma and no trim (with the defaults the plan has
+    no wait):
     merging every wait moves two robots' stops apart (15.2 s by the time grid's model against 14.8 s unmerged);
     the model keeps only merges that do not cost time."""
     from mrfswarm.config import SmoothingConfig
@@ -128,7 +130,7 @@ def test_a_merge_that_lengthens_the_modelled_flight_is_not_kept():
     rows = ["".join("@" if occ[x, y] else "." for x in range(30)) for y in range(20)]
     data = {"scenario": {"map": {"kind": "ascii", "rows": rows},
                          "start": {"center": [6, 10], "n_robots": 5, "sigma": 1.0, "seed": 0}, "goal": [25, 10]},
-            "interaction": {"k": 3}, "mrf": {"merge_waits": False}, "smoothing": {"enabled": False},
+            "interaction": {"k": 3}, "mrf": {"merge_waits": False, "trim_backward": False}, "smoothing": {"enabled": False},
             "simulation": {"enabled": False}, "obstacle_potential": {"gamma": 5.0}}
     raw = plan(from_dict(data, Path(".")), progress=False).discrete.paths
     model = flight_model(SmoothingConfig(), 1.0, 0.25)

@@ -389,16 +389,18 @@ def test_stalled_robots_are_told_from_trapped_ones():
 
 
 def test_trimmed_robots_stuck_in_their_cell_get_their_moves_back():
-    """Trimming the moves away from the goal takes from a crowd the sideways moves that make room: 50 robots in
-    rooms_01 (start seed 1) leave one robot stalled behind the others. With ``mrf.trim_escape`` (its default, 2)
-    a robot that has stayed in its cell for two steps gets its whole label set back, and all arrive (56 steps)."""
+    """Trimming every move that lengthens the way to the goal (``mrf.trim_slack = 0``) takes from a crowd the
+    sideways moves that make room: 50 robots in rooms_01 (start seed 1) leave one robot stalled behind the
+    others. Either guard brings it home: ``mrf.trim_escape`` (default 2: a robot that has stayed in its cell for
+    two steps gets its whole label set back), or the default slack (sideways moves kept)."""
     start = ("scenario.start.n_robots=50", "scenario.start.seed=1", "mrf.trim_backward=true")
-    never = run_map("rooms_01", *start, "mrf.trim_escape=0")
+    never = run_map("rooms_01", *start, "mrf.trim_escape=0", "mrf.trim_slack=0")
     assert [x.stop_reason for x in never.robots if not x.at_goal] == ["stalled"]
     assert never.discrete.stop_reason == "trapped"
-    escaped = run_map("rooms_01", *start)
-    assert all(x.at_goal for x in escaped.robots) and escaped.discrete.stop_reason == "arrived"
-    assert discrete_violations(escaped.discrete.paths, escaped.scenario.grid.free) == []
+    for guard in (("mrf.trim_slack=0",), ("mrf.trim_escape=0",)):
+        escaped = run_map("rooms_01", *start, *guard)
+        assert all(x.at_goal for x in escaped.robots) and escaped.discrete.stop_reason == "arrived", guard
+        assert discrete_violations(escaped.discrete.paths, escaped.scenario.grid.free) == []
 
 
 def test_the_trim_is_lifted_only_for_robots_that_stayed():
@@ -421,6 +423,29 @@ def test_the_trim_is_lifted_only_for_robots_that_stayed():
         assert [bool(np.any(np.all(offsets[i] == away, axis=-1))) for i in range(2)] == kept
 
 
+def test_the_trim_slack_keeps_the_sideways_moves_of_the_papers_rule():
+    """In open space the free-path distance is measured over 8 directions, so a move square to the way raises
+    it by 0.41 cell (straight way) or 0.59 (diagonal way): the default slack, half a cell, keeps the sideways
+    moves of a straight way, which the paper's dot-product rule keeps, and 0 drops them; every move that
+    raises the distance by a cell or more is trimmed either way."""
+    from mrfswarm.discrete.label_sets import label_sets
+
+    free = np.ones((21, 21), bool)
+    goal = np.array([18, 10])
+    d = goal_distances(np.zeros(free.shape), goal, 1.0, GoalPotentialConfig(), ObstaclePotentialConfig())
+    cell = np.array([[6, 10]])  # west of the goal: the way is east
+
+    def kept(slack: float) -> set[tuple[int, ...]]:
+        ls = label_sets(free, cell, 2, goal, True, goal_distance=d.field, trim_slack=slack)
+        return {tuple(o) for o in ls.offsets[0, :ls.count[0]].tolist()}
+
+    forward = {(0, 0), (1, -1), (1, 0), (1, 1)}
+    assert kept(0.0) == forward
+    assert kept(0.5) == forward | {(0, -1), (0, 1)}
+    assert kept(0.5) == {tuple(o) for o in label_sets(free, cell, 2, goal, True).offsets[0].tolist()}  # the paper's
+    assert kept(0.99) == kept(0.5)  # back and back-diagonal moves raise it by >= 1
+
+
 # --- config -------------------------------------------------------------------------------------
 
 
@@ -429,6 +454,7 @@ def test_the_trim_is_lifted_only_for_robots_that_stayed():
     ("mrf.contested", '"random"', "must be one of downhill, nearest"),
     ("mrf.progress", '"never"', "must be one of static, energy"),
     ("mrf.trim_escape", "-1", "must be >= 0"),
+    ("mrf.trim_slack", "-0.5", "must be >= 0"),
 ])
 def test_new_config_keys_are_checked(key, value, match):
     with pytest.raises(ConfigError, match=match):
@@ -439,7 +465,7 @@ def test_defaults_navigate_and_paper_configs_pin_the_papers_rules():
     cfg = load_config(None)
     assert (cfg.goal_potential.distance, cfg.mrf.contested, cfg.mrf.progress) == ("geodesic", "downhill", "static")
     assert cfg.mrf.follow and cfg.mrf.arrival and cfg.obstacle_potential.gamma == 2.0
-    assert not cfg.mrf.trim_backward and cfg.mrf.trim_escape == 2
+    assert cfg.mrf.trim_backward and cfg.mrf.trim_escape == 2 and cfg.mrf.trim_slack == 0.5
     for name in ("corridor", "blocks", "corridor10", "blocks12", "free5", "free10", "example5", "single_obstacle",
                  "combined_field", "swarm_size"):
         c = load_config(EXPERIMENTS / f"{name}.toml")
