@@ -53,7 +53,11 @@ derivative in their durations. ``smoothing.refinement = "scaling"`` (default) sh
 them by a few QP solves that rescale each step by its multipliers
 (:mod:`mrfswarm.continuous.duration_scaling`); ``"nlp"`` solves the NLP by the backend
 ``smoothing.nlp`` of :data:`solvers.nlp.BACKENDS` (Ipopt by default). The refined solution
-is accepted if it certifies and lowers that cost.
+is accepted if it certifies and lowers that cost. Refining one window at a time is greedy: a
+window refined can leave the swarm faster than the next window's profiles can take over from,
+so that the next one flies the previous window's braking tail (:func:`fell_back`); that next
+window is then planned again from the unrefined solution, and the pair that flies sooner is
+kept (``RecedingHorizon._undo_refinement``).
 """
 
 from __future__ import annotations
@@ -570,6 +574,9 @@ class RecedingHorizon:
         self._pool: ProcessPoolExecutor | None = None
         # robots of the chunk whose QP failed last: solved first, so a failing attempt costs one chunk
         self._hard = np.zeros(self.N, dtype=bool)
+        #: After a window's time refinement kept a point: the window's solution before it and the rows
+        #: (``active``, ``limit_rows``, ``_hard``) that went with it (None otherwise); see ``_run``.
+        self.unrefined: tuple[_Solution, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         self.regions_s = time.perf_counter() - t0
         self._check_s = 0.0
 
@@ -994,6 +1001,7 @@ class RecedingHorizon:
         and so on down to ``sol``). Without the last condition a point of lower snap but
         longer steps was kept: the corridor refined flew 22.4 s, now 20.4.
         """
+        self.unrefined = None
         alloc = self.time_allocation(sol, a, start, rec, merged)
         if self.cfg.refinement == "scaling":
             scaled = scale_durations(alloc.problem, alloc.weight, self.cfg.derivative, total=sol.durations.sum())
@@ -1010,6 +1018,7 @@ class RecedingHorizon:
             best = found[key]
             if best.durations.sum() <= sol.durations.sum() and self._certify(best, a).ok:
                 rec.refined = True
+                self.unrefined = (sol, (alloc.base[0], alloc.base[1], self._hard.copy()))
                 self.active, self.limit_rows = alloc.rows[key]
                 return best
         self.active, self.limit_rows = alloc.base
@@ -1055,6 +1064,14 @@ class RecedingHorizon:
         if cfg.max_pieces and not merge:
             log.warning("%d windows of %d steps cannot fit smoothing.max_pieces = %d pieces: one piece per step",
                         len(windows), T, cfg.max_pieces)
+
+        def commit(a: int, c: int, b: int, sol: _Solution) -> tuple | None:
+            Y[a:c + 1] = sol.Y[:, :c - a + 1].transpose(1, 0, 2, 3)
+            B[a:c] = sol.B[:, :c - a].transpose(1, 0, 2, 3)
+            durations[a:c] = sol.durations[:c - a]
+            return (a, b, sol) if c < b else None
+
+        before = None  # the last window, when refined: (a, c, b, its solution, the one unrefined, its rows)
         for a, c, b in windows:
             if not merge:
                 pieces = None
@@ -1063,11 +1080,11 @@ class RecedingHorizon:
             else:
                 pieces = window_pieces(c - a, last - a, cfg.max_pieces - used - reserve)
             sol, rec = self._plan_window(a, c, b, Y[a], prev, pieces)
+            if before is not None and fell_back(rec.attempt):
+                sol, rec = self._undo_refinement(before, (a, c, b), sol, rec, Y, commit, pieces, records[-1])
             used += rec.pieces
-            Y[a:c + 1] = sol.Y[:, :c - a + 1].transpose(1, 0, 2, 3)
-            B[a:c] = sol.B[:, :c - a].transpose(1, 0, 2, 3)
-            durations[a:c] = sol.durations[:c - a]
-            prev = (a, b, sol) if c < b else None
+            prev = commit(a, c, b, sol)
+            before = None if self.unrefined is None else (a, c, b, sol, *self.unrefined)
             records.append(rec)
             if on_window is not None:
                 on_window(rec)
@@ -1076,6 +1093,35 @@ class RecedingHorizon:
         sizes = [g for rec in records for g in rec.piece_steps]
         return self._finish(merge_trajectories(trajectories, np.array(sizes), q), knots, records, tic,
                             np.concatenate([[0], np.cumsum(sizes)]))
+
+    def _undo_refinement(self, before: tuple, window: tuple[int, int, int], sol: _Solution, rec: WindowRecord,
+                         Y: np.ndarray, commit: Callable[[int, int, int, _Solution], tuple | None], pieces: int | None,
+                         refined_rec: WindowRecord) -> tuple[_Solution, WindowRecord]:
+        """The window after a refined one fell back to braking (:func:`fell_back`): plan it again from the
+        refined window's solution before the refinement, and keep whichever pair flies its flown steps sooner.
+
+        The refinement shortens one window alone: it can leave the swarm faster than the next window's
+        profiles can take over from (forest of the flight-quality bench: 2 of 9 windows flew the previous
+        window's braking tail after a refined one, and the refined flight took 26.3 s against 26.1 unrefined).
+        Called only on such a fall back, so it costs one window's planning where it happens.
+        """
+        ka, kc, kb, ksol, unrefined, rows = before
+        a, c, b = window
+        after = (self.active.copy(), self.limit_rows.copy(), self._hard.copy(), self.unrefined)
+        self.active, self.limit_rows, self._hard = (x.copy() for x in rows)
+        prev = commit(ka, kc, kb, unrefined)
+        again, again_rec = self._plan_window(a, c, b, Y[a], prev, pieces)
+        refined_s = float(ksol.durations[:kc - ka].sum() + sol.durations[:c - a].sum())
+        unrefined_s = float(unrefined.durations[:kc - ka].sum() + again.durations[:c - a].sum())
+        if unrefined_s < refined_s:
+            log.info("window %d..%d: refinement undone (the next window fell back to %s: %.2f s against %.2f)",
+                     ka, kb, rec.attempt, refined_s, unrefined_s)
+            refined_rec.refined, refined_rec.cost, refined_rec.durations = False, unrefined.cost, unrefined.durations
+            again_rec.failed[:0] = [f"after window {ka}..{kb} refined: fell back to {rec.attempt}"]
+            return again, again_rec
+        self.active, self.limit_rows, self._hard, self.unrefined = after
+        commit(ka, kc, kb, ksol)
+        return sol, rec
 
     def _finish(self, trajectories: list[PiecewisePolynomial], knots: np.ndarray, records: list[WindowRecord],
                 tic: float, piece_steps: np.ndarray) -> ContinuousPlan:
@@ -1104,6 +1150,12 @@ class RecedingHorizon:
         return ContinuousPlan(trajectories, knots, regions, self.seps, records, cert, v, acc, jerk, min_sep, clearance,
                               sampled, {"regions": self.regions_s, "smoothing": smoothing_s, "checking": check_s},
                               np.asarray(piece_steps), max_pieces, pieces, self.downwash)
+
+
+def fell_back(attempt: str) -> bool:
+    """Whether a window flew none of its own attempts but the previous window's braking tail, or slower
+    (:class:`WindowRecord` ``attempt``)."""
+    return attempt == "previous" or attempt == "witness" or attempt.startswith("slower")
 
 
 def solve_window(spec: WindowSpec, durations: np.ndarray, backend: str, options: QPOptions,
