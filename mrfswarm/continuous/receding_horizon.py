@@ -839,6 +839,24 @@ class RecedingHorizon:
             B[:, :pb - a] = psol.B[:, a - pa:]
         return _Solution(Y, B, durations)
 
+    def _profile_attempts(self, a: int, c: int, b: int) -> list[tuple[str, np.ndarray]]:
+        """The durations of steps a..b (flying a..c) a window tries first, fastest first: the profiles' (the
+        moderate one skipped with the time refinement), or the nominal ones without profiles."""
+        nominal = self.nominal[a:b]
+        if not self.profiles:
+            return [("nominal", nominal)]
+        # the window ends at rest at step b: its last steps brake to it
+        attempts = [(name, np.maximum(p.durations[a:b], p.window(a, b))) for (name, _, _), p in
+                    zip(PROFILES, self.profiles) if not (self.cfg.time_refinement and name == "moderate")]
+        # the fast profile flies the flown steps only: the tail, planned and not flown, brakes as the bold one
+        names = [name for name, _ in attempts]
+        if "fast" in names:
+            fast, bold = attempts[names.index("fast")][1], attempts[names.index("nominal")][1]
+            attempts[names.index("fast")] = ("fast", np.concatenate([fast[:c - a], bold[c - a:]]))
+        # the slower attempts start from the cautious profile
+        attempts[-1] = (attempts[-1][0], np.maximum(attempts[-1][1], nominal))
+        return attempts
+
     def _plan_window(self, a: int, c: int, b: int, start: np.ndarray, prev: tuple | None,
                      pieces: int | None = None) -> tuple[_Solution, WindowRecord]:
         """Plan steps a..b (fly a..c) in ``pieces`` polynomial pieces over a..c (default: one per step).
@@ -849,18 +867,9 @@ class RecedingHorizon:
         """
         rec = WindowRecord(a=a, c=c, b=b)
         tic = time.perf_counter()
-        nominal, slow = self.nominal[a:b], self.witness[a:b]
-        attempts = [("nominal", nominal)]
-        if self.profiles:  # the window ends at rest at step b: its last steps brake to it
-            attempts = [(name, np.maximum(p.durations[a:b], p.window(a, b))) for (name, _, _), p in
-                        zip(PROFILES, self.profiles) if not (self.cfg.time_refinement and name == "moderate")]
-            # the fast profile flies the flown steps only: the tail, planned and not flown, brakes as the bold one
-            names = [name for name, _ in attempts]
-            if "fast" in names:
-                fast, bold = attempts[names.index("fast")][1], attempts[names.index("nominal")][1]
-                attempts[names.index("fast")] = ("fast", np.concatenate([fast[:c - a], bold[c - a:]]))
-            nominal = np.maximum(attempts[-1][1], nominal)  # the slower attempts start from the cautious profile
-            attempts[-1] = (attempts[-1][0], nominal)
+        slow = self.witness[a:b]
+        attempts = self._profile_attempts(a, c, b)
+        nominal = attempts[-1][1]
         # the profiles before the cautious one fail often (the bold one in most windows of clutter): a smaller
         # iteration budget (OPTIMISTIC_BUDGET) lets them fail sooner
         optimistic = len(attempts) - 1 if self.profiles else 0
@@ -1105,15 +1114,20 @@ class RecedingHorizon:
         profiles can take over from (forest of the flight-quality bench: 2 of 9 windows flew the previous
         window's braking tail after a refined one, and the refined flight took 26.3 s against 26.1 unrefined;
         window3d's last window fell from the fast profile to the bold one, 12.4 s against 12.0). Called only
-        then, so it costs one window's planning where it happens.
+        then, and planned again only when the unrefined window and the next one's fastest attempt would fly
+        sooner than the refined pair (aisles30 refined: 13.8 -> 12.0 s of planning, the same flight), so it
+        costs one window's planning where it may pay.
         """
         ka, kc, kb, ksol, unrefined, rows = before
         a, c, b = window
+        refined_s = float(ksol.durations[:kc - ka].sum() + sol.durations[:c - a].sum())
+        fastest = self._profile_attempts(a, c, b)[0][1]
+        if unrefined.durations[:kc - ka].sum() + fastest[:c - a].sum() >= refined_s:
+            return sol, rec  # even its fastest attempt would not make up for the refinement
         after = (self.active.copy(), self.limit_rows.copy(), self._hard.copy(), self.unrefined)
         self.active, self.limit_rows, self._hard = (x.copy() for x in rows)
         prev = commit(ka, kc, kb, unrefined)
         again, again_rec = self._plan_window(a, c, b, Y[a], prev, pieces)
-        refined_s = float(ksol.durations[:kc - ka].sum() + sol.durations[:c - a].sum())
         unrefined_s = float(unrefined.durations[:kc - ka].sum() + again.durations[:c - a].sum())
         if unrefined_s < refined_s:
             log.info("window %d..%d: refinement undone (the next window fell back to %s: %.2f s against %.2f)",
