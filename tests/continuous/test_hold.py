@@ -111,3 +111,17 @@ def test_a_hold_on_an_oriented_region_is_refused():
     shrunk = hold_regions(box, np.array([[True]]), np.full((1, 1, 2), 0.5), 0.01)
     np.testing.assert_allclose(shrunk.lower, 0.49)
     np.testing.assert_allclose(shrunk.upper, 0.51)
+
+
+def test_where_the_creep_rows_fail_the_holds_are_tried_alone(monkeypatch):
+    """Robot 1 waits one step on its straight run (creep rows keep it moving there); with a creep speed no
+    robot can fly, every attempt with the creep rows fails, and the holds are then tried without them:
+    robot 0 is still held at its cell."""
+    waits = np.array([[(min(x, ARRIVED), 1), (min(x, 7) if x <= 8 else x - 1, 4)] for x in range(T + 1)])
+    monkeypatch.setattr(rhm, "CREEP_SPEED", 50.0)  # over v_max: the creep rows are infeasible
+    plan = RecedingHorizon(waits, GRID, SmoothingConfig(max_pieces=0), 0.25, workers=1).run()
+    assert plan.certificate.ok
+    tried = [w for w in plan.windows if any("with creep rows with holds" in f for f in w.failed)]
+    assert tried and all(w.hold and not w.creep for w in tried)
+    v, off = _after_arrival(plan)
+    assert v.max() < 1e-9 and off.max() < 1e-9
