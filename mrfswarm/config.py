@@ -179,7 +179,7 @@ class MrfConfig:
     away from the goal (the paper's optional heuristic; its scenario configs set false): with the geodesic
     goal field, the moves that raise a robot's free-path distance to the goal by more than ``trim_slack``
     cells (default 0.5: a sideways move, square to the way, raises it by 0.41-0.59 cell on the 8-connected
-    grid, and the paper's dot-product rule keeps it; 0 trimmed those too and left 3 of 1000 robots crossing
+    grid, up to 0.68 on voxels, and the paper's dot-product rule keeps it; 0 trimmed those too and left 3 of 1000 robots crossing
     an open field outside the goal after 300 steps), except for a robot that has stayed in its cell for the
     last ``trim_escape`` steps (default 2; 0: never), which gets its whole label set back: trimmed alone, a
     crowd loses the moves that make room and strands robots (README, "Time allocation and fast flight").
