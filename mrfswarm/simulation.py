@@ -60,7 +60,7 @@ import importlib.util
 import logging
 import os
 import sys
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,6 +69,7 @@ from mrfswarm.errors import ConfigError, SolverNotFound
 from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.metrics import min_pair_distances, obstacle_clearance
+from mrfswarm.pools import process_pool
 from mrfswarm.trajectory import PiecewisePolynomial
 
 log = logging.getLogger(__name__)
@@ -396,7 +397,7 @@ def fly_swarm(trajectories: list[PiecewisePolynomial], altitude: float, grid: Oc
                 flights.append(_fly_job(j))
                 bar.update(1)
         else:
-            with ProcessPoolExecutor(max_workers=workers) as ex:
+            with process_pool(workers) as ex:  # Ctrl-C stops the flights still running
                 futures = [ex.submit(_fly_job, j) for j in jobs]
                 for f in as_completed(futures):
                     f.result()

@@ -24,7 +24,6 @@ import math
 import numbers
 import os
 import re
-import signal
 import sys
 import time
 import uuid
@@ -35,6 +34,7 @@ from typing import Any
 
 from mrfswarm.config import Config, current_key, load_config, parse_override
 from mrfswarm.errors import ConfigError, MrfswarmError, PlanError, SolversError
+from mrfswarm.pools import process_pool
 
 log = logging.getLogger(__name__)
 
@@ -248,11 +248,6 @@ def _slug(values: dict[str, Any], seed: int | None, limit: int = 60) -> str:
 # --- one point -----------------------------------------------------------------------------
 
 
-def _ignore_sigint() -> None:
-    """Pool workers leave Ctrl-C to the parent, which stops them (no traceback per worker)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
 def _run_point(task: _Task) -> dict:
     """Plan one point in a worker; return ``{"summary", "error", "wall_s"}`` (JSON-able).
 
@@ -322,8 +317,7 @@ def _run_local(tasks: list[_Task], workers: int, done: Callable[[int, dict], Non
 
     # spawn, not fork: the caller may hold threads (a progress bar, a Dask client, a GUI)
     ctx = multiprocessing.get_context("spawn")
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_ignore_sigint)
-    try:
+    with process_pool(workers, ctx) as pool:  # an error or Ctrl-C stops the points still running too
         futures = {pool.submit(_run_point, t): i for i, t in enumerate(tasks)}
         for f in cf.as_completed(futures):
             try:
@@ -334,13 +328,6 @@ def _run_local(tasks: list[_Task], workers: int, done: Callable[[int, dict], Non
                     "that started the sweep lacks `if __name__ == \"__main__\":` (worker processes are spawned "
                     "and import the main script)") from e
             done(futures[f], out)
-    except BaseException:
-        running = list((getattr(pool, "_processes", None) or {}).values())
-        pool.shutdown(wait=False, cancel_futures=True)
-        for proc in running:  # stop the points still running too: the sweep is over
-            proc.terminate()
-        raise
-    pool.shutdown(wait=True)
 
 
 def _run_dask(tasks: list[_Task], client: Any, done: Callable[[int, dict], None]) -> None:

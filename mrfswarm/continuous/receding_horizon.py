@@ -119,6 +119,7 @@ from mrfswarm.errors import UnsafeTrajectoryError
 from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.maps.obstacles import ObstacleIndex
+from mrfswarm.pools import process_pool
 from mrfswarm.trajectory import PiecewisePolynomial
 from mrfswarm.trajectory.bernstein import control_point_matrix
 from mrfswarm.trajectory.piece_stack import map_coefficients
@@ -1042,14 +1043,13 @@ class RecedingHorizon:
     # ------------------------------------------------------------------ run
     def run(self, on_window: Callable[[WindowRecord], None] | None = None) -> ContinuousPlan:
         """Plan every window; returns the assembled, certified trajectories."""
-        if self.workers > 1 and self.N >= PARALLEL_ROBOTS:
-            self._pool = ProcessPoolExecutor(self.workers)
-        try:
+        if not (self.workers > 1 and self.N >= PARALLEL_ROBOTS):
             return self._run(on_window)
+        try:
+            with process_pool(self.workers) as self._pool:  # Ctrl-C stops the chunks still being solved
+                return self._run(on_window)
         finally:
-            if self._pool is not None:
-                self._pool.shutdown()
-                self._pool = None
+            self._pool = None
 
     def _run(self, on_window: Callable[[WindowRecord], None] | None) -> ContinuousPlan:
         cfg, N, T = self.cfg, self.N, self.T

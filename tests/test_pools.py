@@ -1,0 +1,48 @@
+"""Process pools stop with the run (mrfswarm.pools): Ctrl-C in the parent ends the workers' tasks too."""
+
+from __future__ import annotations
+
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+from mrfswarm.pools import process_pool
+
+SLOW_S = 3.0
+
+
+def _slow_then_mark(path: str) -> None:
+    time.sleep(SLOW_S)
+    Path(path).write_text("finished")
+
+
+def _started(path: str) -> None:
+    Path(path).write_text("started")
+
+
+def test_workers_leave_ctrl_c_to_the_parent():
+    with process_pool(1) as pool:
+        assert pool.submit(signal.getsignal, signal.SIGINT).result() == signal.SIG_IGN
+
+
+def test_an_interrupted_block_terminates_the_tasks_still_running(tmp_path):
+    """The flight simulation runs one robot per process for tens of seconds: interrupted, the run must not wait
+    for them (it hung after printing "interrupted")."""
+    started, finished = tmp_path / "started", tmp_path / "finished"
+    with pytest.raises(KeyboardInterrupt):
+        with process_pool(1) as pool:
+            pool.submit(_started, str(started)).result()  # the worker is up
+            pool.submit(_slow_then_mark, str(finished))
+            time.sleep(0.5)  # it has picked the slow task up
+            raise KeyboardInterrupt
+    time.sleep(SLOW_S + 1.0)  # longer than the task: had it been left running, it would have finished by now
+    assert started.exists() and not finished.exists()
+
+
+def test_a_block_that_ends_normally_waits_for_its_tasks(tmp_path):
+    finished = tmp_path / "finished"
+    with process_pool(1) as pool:
+        pool.submit(_slow_then_mark, str(finished))
+    assert finished.exists()
