@@ -29,9 +29,12 @@ at its cell from :data:`HOLD_SETTLE` steps after its last move: the drifting att
 tried first with its box shrunk to the cell's centre (equality rows) and the creep rows, then
 with the holds alone, and without the holds where they fail, so a hold never slows a window. Without them minimum snap let arrived robots
 drift through their boxes while the swarm arrived, with a near-stop at every turn (flight_quality
-bench, stops per robot: open field 0.12 -> 0.06, aisles30 0.27 -> 0.17, the same makespans;
-clutter40's late windows, of merged pieces, fail with holds at their fast durations and fly
-without them, 0.45 either way).
+bench, stops per robot: open field 0.12 -> 0.06, aisles30 0.27 -> 0.17, the same makespans).
+Where the holds fail and the window flies without them, the robots that its solution brings
+against a corridor's plane (a held robot cannot make way for a neighbour swinging back past it),
+then also those not at rest at the window's start, are released and the others held
+(:meth:`RecedingHorizon._releases`): clutter40's late windows, of two steps per piece, failed
+with every hold, and its stops went 0.25 -> 0.12 per robot with the same flight.
 
 Pieces per robot (``smoothing.max_pieces``, :mod:`mrfswarm.continuous.merge_pieces`): when
 the steps left exceed the pieces left, a window flies its E steps in fewer pieces (its
@@ -181,6 +184,9 @@ CREEP_WAITS = 5
 #: stops within noise of 2), and the metres its held box leaves it besides the rows' tightening.
 HOLD_SETTLE = 2
 HOLD_ROOM = 2e-5
+#: Metres: a held robot that a solution without the holds brings this close to a corridor's plane (beyond the
+#: corridor's distance and slack) is released where the holds fail (RecedingHorizon._released).
+RELEASE_GAP = 0.01
 #: The attempts' profiles in order: (name, cruise, acceleration): the fast one, the bold one (``"nominal"``: its
 #: durations are the window's nominal ones), and a moderate one between the bold and the
 #: cautious, whose durations the slower attempts start from. The moderate one gained 3 to 9 % of makespan in
@@ -304,6 +310,8 @@ class WindowRecord:
     hold
         The accepted solution holds the robots that have arrived for good still at their cells
         (:func:`~mrfswarm.continuous.regions.arrival_holds`; tried with the creep rows, then without them).
+    released
+        The arrived robots not held where the holds failed (:meth:`RecedingHorizon._released`).
     piece_steps
         Steps of each polynomial piece the window flies (all ones: one piece per step;
         :mod:`mrfswarm.continuous.merge_pieces`).
@@ -323,6 +331,7 @@ class WindowRecord:
     refined: bool = False
     creep: bool = False
     hold: bool = False
+    released: list[int] = field(default_factory=list)
     cost: float = 0.0
     solve_s: float = 0.0
     durations: np.ndarray | None = None
@@ -593,18 +602,19 @@ class RecedingHorizon:
         return out
 
     def _spec(self, a: int, b: int, robots: np.ndarray, start: np.ndarray, pairs: np.ndarray,
-              merged: np.ndarray | None = None, creep: int | None = None, hold: bool = False) -> WindowSpec:
+              merged: np.ndarray | None = None, creep: int | None = None, hold: bool = False,
+              release: np.ndarray | None = None) -> WindowSpec:
         """The problem data of ``robots`` over steps a..b with the corridors ``pairs`` (indices into the plan's),
         the knots ``merged`` inside pieces that span several steps and, with ``creep`` = c (the window flies
         a..c), the drifting waits' rows: in the flown steps, and in the others of runs whose way out is in the
         window (the window ends at rest at b); with ``hold``, the arrived robots held still
-        (:meth:`_held_regions`)."""
+        (:meth:`_held_regions`) but those of ``release``."""
         cfg = self.cfg
         local = np.full(self.N, -1)
         local[robots] = np.arange(len(robots))
         seps = self.seps.select(pairs)
         return WindowSpec(
-            degree=cfg.degree, derivative=cfg.derivative, regions=(self._held_regions(a, b, robots, start, merged) if hold
+            degree=cfg.degree, derivative=cfg.derivative, regions=(self._held_regions(a, b, robots, start, merged, release) if hold
                                                                      else self.regions.window(a, b, robots)),
             pair_step=seps.step - a, pair_first=local[seps.first], pair_second=local[seps.second],
             pair_normal=seps.normal, distance=self.distance, start=start[robots], end=self.X[b, robots],
@@ -614,7 +624,7 @@ class RecedingHorizon:
             creep=None if creep is None else self._creep_rows(a, b, creep)[:, robots])
 
     def _held_regions(self, a: int, b: int, robots: np.ndarray, start: np.ndarray,
-                      merged: np.ndarray | None) -> Regions:
+                      merged: np.ndarray | None, release: np.ndarray | None = None) -> Regions:
         """The regions of ``robots`` over steps a..b, the arrived robots held still at their cells
         (:func:`~mrfswarm.continuous.regions.arrival_holds`) where the window can fly it.
 
@@ -626,15 +636,17 @@ class RecedingHorizon:
         ends at rest at the cell anyway), and a robot that does not start the window at rest
         at its cell gets :data:`HOLD_SETTLE` steps more to brake. Pinning every held step
         repeated the knots' shared states in equality rows, and piqp ran out of iterations.
+        The robots of ``release`` (N,) bool are not held (:meth:`_released`).
         """
         regions = self.regions.window(a, b, robots)
         held = self.held[a:b, robots].copy()
+        if release is not None:
+            held[:, release[robots]] = False
         if not held.any():
             return regions
         M = b - a
         piece = np.arange(M) if merged is None else np.concatenate([[0], np.cumsum(~np.asarray(merged, dtype=bool))])
-        s = start[robots]  # (G, q, d): position and derivatives at a
-        still = (np.abs(s[:, 0] - self.X[a, robots]).max(axis=-1) <= HOLD_ROOM) & (np.abs(s[:, 1:]).max(axis=(1, 2)) <= 1e-6)
+        still = self._still(start, a)[robots]
         held[:HOLD_SETTLE, ~still] = False
         held[piece == 0] = False
         for k in np.unique(piece):
@@ -647,6 +659,39 @@ class RecedingHorizon:
         pin[first[cols], cols] = True
         return hold_regions(regions, pin, self.X[a:b, robots], self.slack + HOLD_ROOM)
 
+    def _still(self, start: np.ndarray, a: int) -> np.ndarray:
+        """(N,) bool: the robots whose ``start`` state (N, q, d) at step a is at rest at their cells."""
+        return (np.abs(start[:, 0] - self.X[a]).max(axis=-1) <= HOLD_ROOM) & (np.abs(start[:, 1:]).max(axis=(1, 2)) <= 1e-6)
+
+    def _releases(self, sol: _Solution, a: int, b: int, start: np.ndarray) -> list[np.ndarray]:
+        """The robots to release from their holds where the holds of steps a..b failed, (N,) bool each, fewest
+        first: those that ``sol`` (the window's solution without the holds) brings within :data:`RELEASE_GAP` of
+        a corridor's plane with another robot in a held step, then those and every robot that does not start
+        the window at rest at its cell. Neither if it releases none or all of the held robots.
+
+        A robot held still at its cell cannot make way for a neighbour that swings past it (a reversal next to
+        it, at the fast durations), and one that starts the window away from its cell may not brake there in
+        the window's first piece: the holds of the whole window fail, and every arrived robot drifts.
+        """
+        held = self.held[a:b]
+        some = held.any(axis=0)
+        if sol.cps is None or not some.any():
+            return []
+        cand = np.flatnonzero((self.seps.step >= a) & (self.seps.step < b) & self.active)
+        seps = self.seps.select(cand)
+        j = seps.step - a
+        gap = np.einsum("pmk,pk->pm", sol.cps[0][seps.first, j] - sol.cps[0][seps.second, j], seps.normal).min(axis=1)
+        tight = gap < self.distance + self.slack + RELEASE_GAP
+        release = np.zeros(self.N, dtype=bool)
+        release[seps.first[tight & held[j, seps.first]]] = True
+        release[seps.second[tight & held[j, seps.second]]] = True
+        still = self._still(start, a)
+        out: list[np.ndarray] = []
+        for mask in (release, release | ~still):
+            if mask[some].any() and not mask[some].all() and not any(np.array_equal(mask, m) for m in out):
+                out.append(mask)
+        return out
+
     def _creep_rows(self, a: int, b: int, c: int) -> np.ndarray:
         """(b - a, N, d) the creep rows of a window that plans a..b and flies a..c: in the flown steps, and in the
         others of runs whose way out is in the window (it ends at rest at b)."""
@@ -655,7 +700,8 @@ class RecedingHorizon:
     def _solve(self, a: int, b: int, start: np.ndarray, durations: np.ndarray, rec: WindowRecord,
                gradient: bool = False, merged: np.ndarray | None = None,
                optimistic: bool = False, creep: int | None = None,
-               limits: bool = True, hold: bool = False) -> tuple[_Solution | None, str]:
+               limits: bool = True, hold: bool = False,
+               release: np.ndarray | None = None) -> tuple[_Solution | None, str]:
         """The window's QP at ``durations``, its corridor and limit rows added lazily (without ``limits``, none of
         the limit rows: the caller clears them).
 
@@ -688,7 +734,7 @@ class RecedingHorizon:
                 mine = np.zeros(self.N, dtype=bool)
                 mine[robots] = True
                 specs.append(self._spec(a, b, robots, start, cand[self.active[cand] & mine[seps.first]], merged, creep,
-                                        hold))
+                                        hold, release))
             results, why = self._solve_chunks(chunks, specs, durations, gradient, optimistic)
             rec.rounds += 1
             if why:
@@ -915,14 +961,26 @@ class RecedingHorizon:
                     softs.append((False, True))
                 for with_creep, hold in softs + [(False, False)]:
                     creep = c if with_creep else None
-                    sol, why = self._solve(a, b, start, durations, rec, merged=merged,
-                                           optimistic=k < optimistic + (len(tries) - len(attempts)), creep=creep,
+                    hopeful = k < optimistic + (len(tries) - len(attempts))
+                    sol, why = self._solve(a, b, start, durations, rec, merged=merged, optimistic=hopeful, creep=creep,
                                            gradient=self.cfg.time_refinement, hold=hold)
+                    release = None
+                    if sol is not None and softs and has_hold and not hold:
+                        # the holds failed: hold the arrived robots that this solution keeps clear of the others
+                        for release in self._releases(sol, a, b, start):
+                            part = self._solve(a, b, start, durations, rec, merged=merged, optimistic=hopeful,
+                                               gradient=self.cfg.time_refinement, hold=True, release=release)[0]
+                            if part is not None and self._certify(part, a).ok:
+                                sol, hold = part, True
+                                break
+                        else:
+                            release = None
                     if sol is not None:
                         cert = self._certify(sol, a)
                         if cert.ok:
                             chosen, rec.attempt, rec.piece_steps = sol, name, [int(g) for g in sizes]
                             rec.creep, rec.hold = creep is not None, hold
+                            rec.released = [] if release is None else [int(i) for i in np.flatnonzero(release)]
                             break
                         why = "; ".join(cert.problems[:2])
                     what = name + (" with creep rows" if creep is not None else "") + (" with holds" if hold else "")
@@ -979,6 +1037,11 @@ class RecedingHorizon:
             key = np.asarray(sol.durations, dtype=float).tobytes()
             solved[key], rows[key] = sol, (base[0].copy(), base[1].copy())
 
+        release = None
+        if rec.released:
+            release = np.zeros(self.N, dtype=bool)
+            release[rec.released] = True
+
         def at(T: np.ndarray) -> _Solution | None:
             key = np.asarray(T, dtype=float).tobytes()
             if key not in solved:
@@ -987,7 +1050,7 @@ class RecedingHorizon:
                 self.active, self.limit_rows = base[0].copy(), base[1].copy()
                 solved[key] = self._solve(a, b, start, np.asarray(T, dtype=float), rec, gradient=True,
                                           merged=merged, optimistic=True, creep=rec.c if rec.creep else None,
-                                          hold=rec.hold)[0]
+                                          hold=rec.hold, release=release)[0]
                 rows[key] = (self.active, self.limit_rows)
             return solved[key]
 
