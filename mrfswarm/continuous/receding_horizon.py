@@ -185,7 +185,7 @@ CREEP_WAITS = 5
 HOLD_SETTLE = 2
 HOLD_ROOM = 2e-5
 #: Metres: a held robot that a solution without the holds brings this close to a corridor's plane (beyond the
-#: corridor's distance and slack) is released where the holds fail (RecedingHorizon._released).
+#: corridor's distance and slack) is released where the holds fail (RecedingHorizon._releases).
 RELEASE_GAP = 0.01
 #: The attempts' profiles in order: (name, cruise, acceleration): the fast one, the bold one (``"nominal"``: its
 #: durations are the window's nominal ones), and a moderate one between the bold and the
@@ -311,7 +311,7 @@ class WindowRecord:
         The accepted solution holds the robots that have arrived for good still at their cells
         (:func:`~mrfswarm.continuous.regions.arrival_holds`; tried with the creep rows, then without them).
     released
-        The arrived robots not held where the holds failed (:meth:`RecedingHorizon._released`).
+        The arrived robots not held where the holds failed (:meth:`RecedingHorizon._releases`).
     piece_steps
         Steps of each polynomial piece the window flies (all ones: one piece per step;
         :mod:`mrfswarm.continuous.merge_pieces`).
@@ -636,7 +636,7 @@ class RecedingHorizon:
         ends at rest at the cell anyway), and a robot that does not start the window at rest
         at its cell gets :data:`HOLD_SETTLE` steps more to brake. Pinning every held step
         repeated the knots' shared states in equality rows, and piqp ran out of iterations.
-        The robots of ``release`` (N,) bool are not held (:meth:`_released`).
+        The robots of ``release`` (N,) bool are not held (:meth:`_releases`).
         """
         regions = self.regions.window(a, b, robots)
         held = self.held[a:b, robots].copy()
