@@ -54,3 +54,39 @@ def test_the_fast_attempt_flies_its_steps_and_brakes_as_the_bold_one(doorway, mo
     # where the windows flew it, faster than the bold profile
     flown = sum(w.durations[:w.c - w.a].sum() for w in fast_windows)
     assert flown < 0.95 * sum(profile(rh, "nominal", w.a, w.b)[:w.c - w.a].sum() for w in fast_windows)
+
+
+def _arena() -> RecedingHorizon:
+    """8 robots of radius 0.1 m through a 6 x 3.5 m arena of 0.25 m cells between two pillars (the
+    flight-quality bench's arena8)."""
+    occ = np.zeros((24, 14), dtype=bool)
+    occ[11:13, 0:5] = True
+    occ[11:13, 9:14] = True
+    rows = ["".join("@" if occ[x, y] else "." for x in range(24)) for y in range(14)]
+    starts = [[0.5, y] for y in (0.75, 1.5, 2.25, 3.0)] + [[1.0, y] for y in (0.75, 1.5, 2.25, 3.0)]
+    scn = {"map": {"kind": "ascii", "rows": rows, "resolution": 0.25}, "start": {"positions": starts},
+           "goal": [5.25, 1.75], "robot_radius": 0.1, "goal_radius": 0.75}
+    cfg = from_dict({"scenario": scn, "interaction": {"k": 3}, "smoothing": {"enabled": False, "v_max": 1.0},
+                     "simulation": {"enabled": False}})
+    result = mrfswarm.plan(cfg, progress=False)
+    return RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
+                           workers=1)
+
+
+def test_the_last_window_brakes_a_little_longer_before_it_falls_back(monkeypatch):
+    """The arena's last window is infeasible at its fast durations by a few per cent of its final braking step;
+    the bold durations, every step longer, flew its last four steps in 1.95 s. With that step longer it flies
+    the fast durations otherwise."""
+    rh = _arena()
+    plan = rh.run()
+    last = plan.windows[-1]
+    assert plan.certificate.ok and last.b == rh.T
+    assert last.failed and last.failed[0].startswith("fast")  # the fast attempt itself fails
+    factor = rh_mod.FINAL_BRAKING[0]
+    assert last.attempt == f"fast, braking x{factor:g}"
+    fast = profile(rh, "fast", last.a, last.b)
+    np.testing.assert_allclose(last.durations, np.concatenate([fast[:-1], fast[-1:] * factor]))
+    monkeypatch.setattr(rh_mod, "FINAL_BRAKING", ())
+    before = _arena().run()
+    assert before.windows[-1].attempt == "nominal"
+    assert plan.makespan_s < before.makespan_s - 0.2
