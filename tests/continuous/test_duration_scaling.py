@@ -205,7 +205,7 @@ def test_a_backend_without_multipliers_still_solves_the_window(monkeypatch):
 
 
 def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch):
-    """The fast, bold and moderate attempts (and the stretch's probe) run PIQP at 40 of its 120 iterations, the cautious
+    """The fast (and its slower variants), bold and moderate attempts (and the stretch's probe) run PIQP at 40 of its 120 iterations, the cautious
     one at the full budget.
 
     Solves given the smaller budget are made to fail here: the window then flies the cautious profile, and every
@@ -231,9 +231,11 @@ def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch
     _, rec = rh._plan_window(a, c, b, start, None)
     assert rec.attempt == "cautious"
     # the stretch's probe (the window without limit rows) runs the smaller budget too, and failing adds no attempt
-    assert [f.split(":")[0] for f in rec.failed] == ["fast", "nominal", "moderate", "stretch"]
-    assert budgets[:4] == [int(np.ceil(cap / 3))] * 4
-    assert set(budgets[4:]) == {rh_mod.QP_OPTIONS.max_iter}
+    slower = [f"fast x{f:g}" for f in rh_mod.FAST_SLOWER]
+    assert [f.split(":")[0] for f in rec.failed] == ["fast", *slower, "nominal", "moderate", "stretch"]
+    n = 4 + len(slower)
+    assert budgets[:n] == [int(np.ceil(cap / 3))] * n
+    assert set(budgets[n:]) == {rh_mod.QP_OPTIONS.max_iter}
 
 
 def test_the_refinements_trial_points_get_the_smaller_budget(monkeypatch):

@@ -7,8 +7,9 @@ import pytest
 
 import mrfswarm
 import mrfswarm.continuous.receding_horizon as rh_mod
-from mrfswarm.config import from_dict
+from mrfswarm.config import from_dict, load_config
 from mrfswarm.continuous.receding_horizon import RecedingHorizon
+from support.repository import EXPERIMENTS
 
 
 def profile(rh: RecedingHorizon, name: str, a: int, b: int) -> np.ndarray:
@@ -90,3 +91,30 @@ def test_the_last_window_brakes_a_little_longer_before_it_falls_back(monkeypatch
     before = _arena().run()
     assert before.windows[-1].attempt == "nominal"
     assert plan.makespan_s < before.makespan_s - 0.2
+
+
+def _rooms() -> RecedingHorizon:
+    """experiments/maps/rooms_01.toml: 5 robots through the doors of a room map."""
+    cfg = load_config(EXPERIMENTS / "maps" / "rooms_01.toml", ["smoothing.enabled=false", "simulation.enabled=false"])
+    result = mrfswarm.plan(cfg, progress=False)
+    return RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
+                           workers=1)
+
+
+def test_a_window_tries_its_fast_durations_a_little_longer_before_the_bold_ones(monkeypatch):
+    """The rooms' first window is infeasible at its fast durations; the bold ones (half the fast acceleration)
+    fly its first steps longer than the fast ones do 10 % longer."""
+    rh = _rooms()
+    plan = rh.run()
+    first = plan.windows[0]
+    assert plan.certificate.ok and first.failed[0].split("pieces, ")[-1].startswith("fast:")  # fast failed
+    names = [f"fast x{f:g}" for f in rh_mod.FAST_SLOWER]
+    assert first.attempt in names
+    factor = rh_mod.FAST_SLOWER[names.index(first.attempt)]
+    fast, bold = profile(rh, "fast", first.a, first.b), profile(rh, "nominal", first.a, first.b)
+    flown = first.c - first.a
+    np.testing.assert_allclose(first.durations, np.concatenate([fast[:flown] * factor, bold[flown:]]))
+    monkeypatch.setattr(rh_mod, "FAST_SLOWER", ())
+    before = _rooms().run()
+    assert before.windows[0].attempt not in names
+    assert plan.makespan_s < before.makespan_s - 0.1

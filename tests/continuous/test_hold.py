@@ -31,6 +31,10 @@ GRID = OccupancyGrid.from_occupied(np.zeros((20, 8), bool))
 
 
 def _flight(monkeypatch, hold: bool, max_pieces: int = 0):
+    # the fast durations made longer (FAST_SLOWER) fly the second window only without the hold, sooner than the
+    # bold ones with it, and a hold never slows a window (test_a_hold_never_slows_a_window): these tests take
+    # the ladder without them, where the hold is flown
+    monkeypatch.setattr(rhm, "FAST_SLOWER", ())
     if not hold:
         monkeypatch.setattr(rhm, "arrival_holds", lambda paths, settle: np.zeros((len(paths) - 1, paths.shape[1]), bool))
     return RecedingHorizon(PATHS, GRID, SmoothingConfig(max_pieces=max_pieces), 0.25, workers=1).run()
@@ -69,6 +73,23 @@ def test_without_the_hold_it_drifts(monkeypatch):
     assert v.max() > 0.1 and off.max() > 0.05
     assert count_stops(plan.trajectories).per_robot[0] >= 1
     assert plan.makespan_s == pytest.approx(held.makespan_s, rel=1e-9)
+
+
+def test_a_hold_never_slows_a_window():
+    """With the fast durations 5 and 10 % longer in the ladder, the second window flies them without the hold (with
+    it they fail): its steps sooner than the bold durations that hold robot 0, which then drifts. (The whole
+    toy flight is not sooner for it: 9.944 s against 9.937, the later windows starting from another state.)"""
+    plan = RecedingHorizon(PATHS, GRID, SmoothingConfig(max_pieces=0), 0.25, workers=1).run()
+    second = plan.windows[1]
+    assert second.attempt in {f"fast x{f:g}" for f in rhm.FAST_SLOWER} and not second.hold
+    assert any("with holds" in f for f in second.failed)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(rhm, "FAST_SLOWER", ())
+        held_plan = RecedingHorizon(PATHS, GRID, SmoothingConfig(max_pieces=0), 0.25, workers=1).run()
+    bold = held_plan.windows[1]
+    assert bold.hold and not bold.attempt.startswith("fast")
+    flown = slice(0, second.c - second.a)  # the same first window before: the same start
+    assert second.durations[flown].sum() < bold.durations[flown].sum()
 
 
 def test_the_hold_is_pinned_only_where_the_window_can_fly_it():
@@ -123,6 +144,7 @@ def test_where_the_creep_rows_fail_the_holds_are_tried_alone(monkeypatch):
     robot 0 is still held at its cell."""
     waits = np.array([[(min(x, ARRIVED), 1), (min(x, 7) if x <= 8 else x - 1, 4)] for x in range(T + 1)])
     monkeypatch.setattr(rhm, "CREEP_SPEED", 50.0)  # over v_max: the creep rows are infeasible
+    monkeypatch.setattr(rhm, "FAST_SLOWER", ())  # as in _flight
     plan = RecedingHorizon(waits, GRID, SmoothingConfig(max_pieces=0), 0.25, workers=1).run()
     assert plan.certificate.ok
     tried = [w for w in plan.windows if any("with creep rows with holds" in f for f in w.failed)]
