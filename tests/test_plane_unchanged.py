@@ -22,7 +22,7 @@ single_obstacle 24.58 -> 22.49, example5 4.39 -> 3.72). Regenerated for the limi
 grid's moves, the fast profile at 4 times the jerk-limited acceleration, the jerk-limited stops of the windows and
 the velocity rows' room for the compressed export (issue 18): the same paths, corridor 21.13 -> 20.70 s, free5 4.84
 -> 4.67, blocks 25.94 -> 25.04, single_obstacle 22.49 -> 21.28, example5 3.72 -> 4.39 (its one window's fast attempt
-from rest fails at 4 times and the bold one flies it). Regenerated for the holds of arrived robots (issue 18): single_obstacle's robot 3, at its final cell from step 21, drifted there at up to 0.079 m/s and is now held still from step 23 (2e-10 m/s); the same paths, durations and makespans, the other robots within 1.3e-7. A change that moves a 2-D plan fails here: if it is meant, regenerate the file
+from rest fails at 4 times and the bold one flies it). Regenerated for the holds of arrived robots (issue 18): single_obstacle's robot 3, at its final cell from step 21, drifted there at up to 0.079 m/s and is now held still from step 23 (2e-10 m/s); the same paths, durations and makespans, the other robots within 1.3e-7. Regenerated for the fast durations tried 5 and 10 % longer before the bold ones, and the last window's final braking step 10 and 25 % longer (issue 18): the same paths, corridor 20.70 -> 20.51 s (its last window), blocks 25.04 -> 24.62 (its first), example5 4.39 -> 3.48 (its one window brakes 10 % longer instead of flying the bold profile), free5 and single_obstacle unchanged. A change that moves a 2-D plan fails here: if it is meant, regenerate the file
 and say why in the commit.
 """
 
