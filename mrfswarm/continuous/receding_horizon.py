@@ -984,6 +984,11 @@ class RecedingHorizon:
                 softs = [(has_creep, has_hold)] if name in drifting and (has_creep or has_hold) else []
                 if softs and has_creep and has_hold:
                     softs.append((False, True))
+                if name == "previous" and has_hold:
+                    # the previous window's durations (where the profiles failed, as after a refined window) hold
+                    # the arrived robots where they can: flown unheld, the refined open field's robots drifted
+                    # (0.2 stops per robot, none held)
+                    softs = [(False, True)]
                 for with_creep, hold in softs + [(False, False)]:
                     creep = c if with_creep else None
                     hopeful = k < optimistic + (len(tries) - len(attempts))
