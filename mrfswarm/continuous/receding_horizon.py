@@ -994,19 +994,20 @@ class RecedingHorizon:
                     hopeful = k < optimistic + (len(tries) - len(attempts))
                     sol, why = self._solve(a, b, start, durations, rec, merged=merged, optimistic=hopeful, creep=creep,
                                            gradient=self.cfg.time_refinement, hold=hold)
-                    release = None
+                    release, cert = None, None
                     if sol is not None and softs and has_hold and not hold:
                         # the holds failed: hold the arrived robots that this solution keeps clear of the others
                         for release in self._releases(sol, a, b, start):
                             part = self._solve(a, b, start, durations, rec, merged=merged, optimistic=hopeful,
                                                gradient=self.cfg.time_refinement, hold=True, release=release)[0]
-                            if part is not None and self._certify(part, a).ok:
-                                sol, hold = part, True
+                            held_cert = None if part is None else self._certify(part, a)
+                            if held_cert is not None and held_cert.ok:
+                                sol, hold, cert = part, True, held_cert
                                 break
                         else:
                             release = None
                     if sol is not None:
-                        cert = self._certify(sol, a)
+                        cert = cert or self._certify(sol, a)
                         if cert.ok:
                             chosen, rec.attempt, rec.piece_steps = sol, name, [int(g) for g in sizes]
                             rec.creep, rec.hold = creep is not None, hold
