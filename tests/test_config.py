@@ -144,13 +144,13 @@ def test_qp_options_go_over_the_stages_own_and_reach_every_solve(monkeypatch):
     assert qp_options(cfg) == expected and expected.eps_rel == QP_OPTIONS.eps_rel != expected.eps_abs
     assert qp_options(load_config(None)) == QP_OPTIONS
     seen = []
-    solve = solvers.qp.solve
+    solve = solvers.qp.PreparedQP.solve
 
-    def recording(problem, backend=None, options=None):
-        seen.append(options)
-        return solve(problem, backend, options)
+    def recording(self, warm_start=None):  # every solve, set up afresh or updated in place (window_cache)
+        seen.append(self.options)
+        return solve(self, warm_start)
 
-    monkeypatch.setattr(solvers.qp, "solve", recording)
+    monkeypatch.setattr(solvers.qp.PreparedQP, "solve", recording)
     # the faster profiles rash (cruise 1.5 v_max, 4 times their acceleration: they have no solution) and no
     # stretched attempts (which run the smaller budget and fly this window): the cautious profile flies it, on the
     # whole budget (the default flies it fast, on the smaller one only)

@@ -407,8 +407,10 @@ class WindowFormulation:
     def __init__(self, spec: WindowSpec) -> None:
         self.spec = spec
         pm = self.maps = piece_maps(spec.degree, spec.derivative)
-        self._k_key: bytes | None = None
-        self._k_val = np.zeros(0)
+        # the last durations' coefficients, one tuple (read and replaced whole: a cached formulation may serve
+        # two threads at once)
+        self._k_last: tuple[bytes, np.ndarray] = (b"", np.zeros(0))
+        self._gradient_maps: list[tuple[np.ndarray, ...]] | None = None  # duration_gradient's, on first use
         M, G, D, q, nz = spec.steps, spec.robots, spec.degree, spec.derivative, pm.nz
         self.per_dim = (M + 1) * pm.stride - (pm.stride - q)  # y_0, b_0, ..., y_M
         dim = self.dim = spec.regions.axes.shape[-1]
@@ -546,9 +548,10 @@ class WindowFormulation:
     def _k(self, durations: np.ndarray) -> np.ndarray:
         """The pieces' coefficients at ``durations`` (the last ones kept: a solve asks for the QP, then the costs)."""
         key = np.asarray(durations, dtype=float).tobytes()
-        if self._k_key != key:
-            self._k_key, self._k_val = key, self.maps.evaluate(self.normalized(durations))
-        return self._k_val
+        last = self._k_last
+        if last[0] != key:
+            last = self._k_last = (key, self.maps.evaluate(self.normalized(durations)))
+        return last[1]
 
     def normalized(self, durations: np.ndarray) -> np.ndarray:
         """Durations (seconds) in the window's time unit."""
@@ -590,18 +593,38 @@ class WindowFormulation:
         """
         spec, pm = self.spec, self.maps
         M, G = spec.steps, spec.robots
-        dk = pm.evaluate_derivative(self.normalized(durations))  # (M, size)
-        # DK: column j holds d k / d T_j (only piece j's block is nonzero; the constant has none)
-        DK = sp.csc_matrix((dk.ravel(), np.arange(M * pm.size), np.arange(M + 1) * pm.size),
-                           shape=(M * pm.size + 1, M))
-        out = np.zeros((G, M))
-        for (idx, ptr, S), half in ((self._A, False), (self._P, True)):
-            cols = np.repeat(np.arange(len(ptr) - 1), np.diff(ptr))
+        dk = pm.evaluate_derivative(self.normalized(durations)).ravel()  # (M * size,): d k / d T_j, piece j's block
+        if self._gradient_maps is None:
+            self._gradient_maps = [self._gradient_map(*m) for m in (self._A, self._P)]
+        out = np.zeros(G * M)
+        for (idx, cols, starts, k, coef, rows, slot), half in zip(self._gradient_maps, (False, True)):
             w = (0.5 * x[idx] if half else y[idx]) * x[cols]  # the Lagrangian's weight of each nonzero
-            credit = sp.csr_matrix((w, (cols // (self.dim * self.per_dim), np.arange(len(w)))), shape=(G, len(w)))
-            out += (credit @ (S @ DK)).toarray()
+            # each nonzero's derivative in each of its pieces' durations, credited to the robot of its column:
+            # summed in the order of the sparse products credit @ (S @ dK), to the last bit
+            dnz = np.add.reduceat(coef * dk[k], starts) if len(k) else np.zeros(0)
+            out += np.bincount(slot, w[rows] * dnz, minlength=G * M)
         # normalized -> physical: J = Ts^(1-2q) J~ and T~ = T / Ts
-        return out * spec.time_scale ** (-2 * spec.derivative)
+        return out.reshape(G, M) * spec.time_scale ** (-2 * spec.derivative)
+
+    def _gradient_map(self, idx: np.ndarray, ptr: np.ndarray, S) -> tuple[np.ndarray, ...]:
+        """The terms of :meth:`duration_gradient` for one matrix map ``(indices, indptr, S)``: each nonzero's row
+        ``idx`` and column; S's entries that depend on a piece's duration (their coefficient index ``k`` and
+        value), grouped by nonzero and piece (a cost entry of a knot's variables has two pieces) in their
+        stored order; where each group starts, its nonzero and the (robot, step) it is credited to."""
+        M, size = self.spec.steps, self.maps.size
+        cols = np.repeat(np.arange(len(ptr) - 1), np.diff(ptr))
+        S = S.tocsr()
+        entry = np.repeat(np.arange(S.shape[0]), np.diff(S.indptr))
+        k = S.indices.astype(np.int64)
+        keep = k < M * size  # the constant (last) coefficient has no derivative
+        entry, k, coef = entry[keep], k[keep], S.data[keep]
+        group = entry * M + k // size
+        order = np.argsort(group, kind="stable")
+        group, k, coef = group[order], k[order], coef[order]
+        starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]]) if len(group) else np.zeros(0, dtype=np.int64)
+        rows, piece = np.divmod(group[starts], M)
+        slot = (cols[rows] // (self.dim * self.per_dim)) * M + piece
+        return idx, cols, starts, k, coef, rows, slot
 
     def exact_ends(self, x: np.ndarray) -> np.ndarray:
         """``x`` with its start state and end rest set exactly (a solver meets them only to tolerance)."""

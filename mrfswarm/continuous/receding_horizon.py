@@ -84,7 +84,6 @@ from mrfswarm.continuous.duration_scaling import scale_durations
 from mrfswarm.continuous.formulation import (
     LIMIT_ORDERS,
     LIMIT_PARTS,
-    WindowFormulation,
     WindowSpec,
     hermite_trajectory,
     limit_polytope,
@@ -118,6 +117,7 @@ from mrfswarm.continuous.time_grid import (
     nominal_durations,
     witness_durations,
 )
+from mrfswarm.continuous.window_cache import WINDOWS
 from mrfswarm.errors import UnsafeTrajectoryError
 from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import OccupancyGrid
@@ -1272,11 +1272,12 @@ def solve_window(spec: WindowSpec, durations: np.ndarray, backend: str, options:
     the backend gives multipliers) each robot's share of the gradient in the durations; or why it failed.
 
     A plain function of picklable data, so chunks can be solved in worker processes (or,
-    later, on a cluster).
+    later, on a cluster). The process's :data:`~mrfswarm.continuous.window_cache.WINDOWS`
+    keeps the problems of the last specs: solved again at other durations, they reuse
+    their formulation and setup.
     """
-    form = WindowFormulation(spec)
     try:
-        sol = solvers.qp.solve(form.qp(durations), backend, options)
+        form, sol = WINDOWS.solve(spec, durations, backend, options)
     except SolverError as e:
         return str(e)
     x = form.exact_ends(sol.x)

@@ -195,14 +195,14 @@ def test_a_solver_that_returns_garbage_is_caught_and_the_flight_stays_safe(monke
     makes the windows fall back (down to the rest-to-rest witness), and the flight is still certified."""
     import solvers.qp
 
-    real = solvers.qp.solve
+    real = solvers.qp.PreparedQP.solve
 
-    def noisy(problem, backend, options=None, **kw):
-        sol = real(problem, backend, options, **kw)
+    def noisy(self, warm_start=None):  # every solve, set up afresh or updated in place (window_cache)
+        sol = real(self, warm_start)
         x = sol.x + np.random.default_rng(len(sol.x)).normal(scale=2.0, size=sol.x.shape)
         return type(sol)(**{**sol.__dict__, "x": x})
 
-    monkeypatch.setattr(solvers.qp, "solve", noisy)
+    monkeypatch.setattr(solvers.qp.PreparedQP, "solve", noisy)
     r = plan(mrfswarm.load_config(EXPERIMENTS / "free5.toml", NO_SIM))
     c = r.continuous
     assert "witness" in {w.attempt for w in c.windows}

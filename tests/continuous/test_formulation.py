@@ -83,6 +83,46 @@ def test_every_backend_solves_the_window_qp_to_the_reference(window_qp, backend)
     np.testing.assert_allclose(sol.x, ref.x, atol=1e-3 * np.abs(ref.x).max())
 
 
+def test_duration_gradient_sums_as_the_sparse_products_do():
+    """The gradient's precomputed terms (built once per formulation, which the window cache reuses) give the
+    numbers of the plain sparse products credit @ (S @ dK), to the last bit: the time refinement follows a
+    path that a last-bit change moves (a CLI test's L-BFGS-B refinement kept nothing after one). Corridor
+    normals off the axes (coefficients other than +-1, where the order of a product shows) and merged pieces;
+    any point (x, y) will do."""
+    import dataclasses
+
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(), 0.25)
+    a, _, b = rh.windows()[0]
+    start = np.zeros((rh.N, 4, 2))
+    start[:, 0] = rh.X[0]
+    pairs = np.flatnonzero(rh.seps.step < b)
+    merged = np.zeros(b - a - 1, dtype=bool)
+    merged[2:4] = True
+    rng = np.random.default_rng(5)
+    for m in (None, merged):
+        spec = rh._spec(a, b, np.arange(rh.N), start, pairs, merged=m)
+        turn = rng.uniform(0.1, 0.5, len(spec.pair_normal))
+        c, s_ = np.cos(turn), np.sin(turn)
+        n = spec.pair_normal
+        form = WindowFormulation(dataclasses.replace(
+            spec, pair_normal=np.stack([c * n[:, 0] - s_ * n[:, 1], s_ * n[:, 0] + c * n[:, 1]], axis=1)))
+        durations = rh.nominal[a:b] * rng.uniform(0.7, 1.5, b - a)
+        x, y = 1e-5 * rng.normal(size=form.n), 1e5 * rng.normal(size=form.m)  # the rows' terms as large as the cost's
+        pm = form.maps
+        M, G = b - a, rh.N
+        dk = pm.evaluate_derivative(form.normalized(durations))
+        DK = sp.csc_matrix((dk.ravel(), np.arange(M * pm.size), np.arange(M + 1) * pm.size), shape=(M * pm.size + 1, M))
+        ref = np.zeros((G, M))
+        for (idx, ptr, S), half in ((form._A, False), (form._P, True)):
+            cols = np.repeat(np.arange(len(ptr) - 1), np.diff(ptr))
+            w = (0.5 * x[idx] if half else y[idx]) * x[cols]
+            credit = sp.csr_matrix((w, (cols // (form.dim * form.per_dim), np.arange(len(w)))), shape=(G, len(w)))
+            ref += (credit @ (S @ DK)).toarray()
+        ref *= form.spec.time_scale ** (-2 * form.spec.derivative)
+        for _ in range(2):  # the terms built on the first call, reused on the second
+            assert np.array_equal(form.duration_gradient(x, y, durations), ref)
+
+
 def test_duration_gradient_is_the_derivative_of_the_optimal_snap():
     """Envelope theorem: the gradient from the QP's multipliers matches finite differences of the optimum."""
     rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(), 0.25)
