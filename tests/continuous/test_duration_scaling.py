@@ -266,3 +266,29 @@ def test_the_iteration_budget_is_the_smaller_of_the_cap_and_max_iter():
     free = QPCapabilities(inequalities=True, warm_start=True, detects_infeasibility=True, sparse=True)
     assert free.iteration_budget(50000) == 50000  # a first-order method runs what it is given
     assert "iteration_cap=120" in capped.flags() and "warm_start" not in capped.flags()
+
+
+def test_a_window_whose_flown_steps_the_scaling_would_only_lengthen_is_not_refined(monkeypatch):
+    """The scaling's first step is read off the accepted QP's gradient: where it lengthens every flown step, the
+    window is kept as it is without a QP solve (its refinement could only move time within the tail, planned
+    again by the next window); where it shortens one, the refinement runs."""
+    import dataclasses
+
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, speed=1.25), 0.25, workers=1)
+    a, c, b, start, rec = first_window(rh)
+    sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec, gradient=True)
+    assert sol is not None and sol.gradient is not None and 0 < c - a < b - a
+    w = rh.cfg.time_weight * rh.N
+    q = rh.cfg.derivative
+    solves: list = []
+    real = RecedingHorizon._solve
+    monkeypatch.setattr(RecedingHorizon, "_solve", lambda self, *args, **kw: solves.append(1) or real(self, *args, **kw))
+    # -dJ/dT_j = w s^(2q): the scaling's model asks step j for s times its duration
+    press = np.full(b - a, w * 0.9 ** (2 * q))
+    press[:c - a] = w * 1.2 ** (2 * q)  # the flown steps press: longer, even capped at the sum
+    kept = rh._refine(dataclasses.replace(sol, gradient=-press), a, start, rec)
+    assert kept.gradient is not None and np.array_equal(kept.gradient, -press)
+    assert solves == [] and not rec.refined
+    press[:c - a], press[c - a:] = w * 0.9 ** (2 * q), w * 1.2 ** (2 * q)  # the tail presses: flown steps shorter
+    rh._refine(dataclasses.replace(sol, gradient=-press), a, start, rec)
+    assert solves  # the refinement ran its trial points
