@@ -83,6 +83,13 @@ class ScalingResult:
     status: str
 
 
+def step_factors(g: np.ndarray, weight: float, derivative: int, clip: float = CLIP) -> np.ndarray:
+    """Each step's factor in one iteration of the scaling: :math:`(-g_j / w)^{1/(2q)}` within [clip, 1 / clip],
+    ``g`` being dJ*/dT (the gradient of f less the weight)."""
+    return np.clip((np.maximum(-np.asarray(g, dtype=float), 1e-300) / weight) ** (1.0 / (2 * derivative)), clip,
+                   1.0 / clip)
+
+
 def scale_durations(problem: NLPProblem, weight: float, derivative: int, iterations: int = ITERATIONS,
                     clip: float = CLIP, backtracks: int = BACKTRACKS, tol: float = TOL,
                     total: float | None = None) -> ScalingResult:
@@ -107,7 +114,6 @@ def scale_durations(problem: NLPProblem, weight: float, derivative: int, iterati
     T = np.asarray(problem.x0, dtype=float).copy()
     lo = np.broadcast_to(np.asarray(problem.lower, dtype=float), T.shape)
     hi = np.broadcast_to(np.asarray(problem.upper, dtype=float), T.shape)
-    power = 1.0 / (2 * derivative)
     f = float(problem.fun(T))
     evaluations = 1
     if not np.isfinite(f):
@@ -118,7 +124,7 @@ def scale_durations(problem: NLPProblem, weight: float, derivative: int, iterati
         g = np.asarray(problem.grad(T), dtype=float) - weight  # dJ*/dT
         if not np.all(np.isfinite(g)):
             return ScalingResult(T, f, done, evaluations, "blocked")
-        log_ratio = np.log(np.clip((np.maximum(-g, 1e-300) / weight) ** power, clip, 1.0 / clip))
+        log_ratio = np.log(step_factors(g, weight, derivative, clip))
         log_ratio[:hold] = 0.0
         if np.abs(log_ratio).max() < 1e-12:  # the model's minimizer
             return ScalingResult(T, f, done, evaluations, "converged")

@@ -80,7 +80,7 @@ import solvers.nlp
 import solvers.qp
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous.certificate import Certificate, certify, certify_pieces
-from mrfswarm.continuous.duration_scaling import CLIP, scale_durations
+from mrfswarm.continuous.duration_scaling import scale_durations, step_factors
 from mrfswarm.continuous.formulation import (
     LIMIT_ORDERS,
     LIMIT_PARTS,
@@ -1152,8 +1152,7 @@ class RecedingHorizon:
         T = np.asarray(sol.durations, dtype=float)
         assert sol.gradient is not None
         w = self.cfg.time_weight * self.N
-        ratio = np.clip((np.maximum(-sol.gradient, 1e-300) / w) ** (1.0 / (2 * self.cfg.derivative)), CLIP, 1 / CLIP)
-        trial = T * ratio
+        trial = T * step_factors(sol.gradient, w, self.cfg.derivative)
         if trial.sum() > T.sum():
             trial *= T.sum() / trial.sum()
         flown = rec.c - rec.a
