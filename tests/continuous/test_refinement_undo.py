@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from mrfswarm.config import load_config
 from mrfswarm.continuous.receding_horizon import RecedingHorizon
 from mrfswarm.pipeline import plan
@@ -19,12 +21,19 @@ from support.repository import EXPERIMENTS
 FOREST = ("scenario.start.n_robots=10", "scenario.start.sigma=1.5", "interaction.k=7", "simulation.enabled=false")
 
 
+def old_attempts(monkeypatch) -> None:
+    """Every window refined and its attempts with the profiles' own first step, as when the undo was needed:
+    since the windows whose flown steps the scaling would only lengthen are kept unrefined
+    (``RecedingHorizon._shortens_flown``) and the attempts after a window fly its planned first step
+    (``RecedingHorizon._follow``), neither the forest's nor window3d's refined flight needs one."""
+    monkeypatch.setattr(RecedingHorizon, "_shortens_flown", lambda self, sol, rec: True)
+    monkeypatch.setattr(RecedingHorizon, "_follow", staticmethod(lambda attempts, previous: attempts))
+
+
 def test_a_refinement_the_next_window_cannot_follow_is_undone(monkeypatch):
     """On the forest two refined windows left the next one only the previous window's braking tail: refined,
-    the flight took 26.3 s against 26.1 unrefined; undoing those two refinements it takes 24.8 s. Every window
-    refined, as then: since the windows whose flown steps the scaling would only lengthen are kept unrefined
-    (``RecedingHorizon._shortens_flown``), the forest's refined flight needs no undo."""
-    monkeypatch.setattr(RecedingHorizon, "_shortens_flown", lambda self, sol, rec: True)
+    the flight took 26.3 s against 26.1 unrefined; undoing those two refinements it takes 24.8 s."""
+    old_attempts(monkeypatch)
     path: Path = EXPERIMENTS / "maps" / "forest_01.toml"
     default = plan(load_config(path, list(FOREST)), progress=False).continuous
     refined = plan(load_config(path, [*FOREST, "smoothing.time_refinement=true"]), progress=False).continuous
@@ -35,12 +44,55 @@ def test_a_refinement_the_next_window_cannot_follow_is_undone(monkeypatch):
     assert refined.makespan_s < 0.97 * default.makespan_s
 
 
-def test_refining_window3d_flies_no_later_than_its_default():
+@pytest.mark.parametrize("attempts", ["old", "now"])
+def test_refining_window3d_flies_no_later_than_its_default(monkeypatch, attempts):
     """window3d's last window missed the fast profile after its refined predecessor (12.4 s against 12.0 s
-    unrefined); planned again from the unrefined window it flies as the default does."""
+    unrefined); planned again from the unrefined window it flies as the default does. Now its attempts
+    follow the refined window's first step, and it needs no undo."""
+    if attempts == "old":
+        old_attempts(monkeypatch)
     path: Path = EXPERIMENTS / "window3d.toml"
     default = plan(load_config(path, ["simulation.enabled=false"]), progress=False).continuous
     refined = plan(load_config(path, ["simulation.enabled=false", "smoothing.time_refinement=true"]),
                    progress=False).continuous
-    assert any(f.startswith("after window") for w in refined.windows for f in w.failed)
+    undone = any(f.startswith("after window") for w in refined.windows for f in w.failed)
+    assert undone == (attempts == "old")
+    assert refined.certificate.ok
     assert refined.makespan_s <= default.makespan_s + 1e-9
+
+
+def test_after_a_refined_window_every_attempt_flies_the_first_step_as_planned(monkeypatch):
+    """A window starts in the state the window before left (speed, acceleration), which pins its first step:
+    with the time refinement every attempt keeps that step's duration from the window before. The forest's
+    profiles did not fit after a refined window (they fell back to the previous window's durations, 2-3 failed
+    attempts each): now no window of it flies those."""
+    attempts: list[tuple[int, float]] = []
+    solve, refine = RecedingHorizon._solve, RecedingHorizon._refine
+    refining = []
+
+    def recording(self, a, b, start, durations, *args, **kwargs):
+        if not refining:
+            attempts.append((a, float(durations[0])))
+        return solve(self, a, b, start, durations, *args, **kwargs)
+
+    def flagged(self, *args, **kwargs):
+        refining.append(True)
+        try:
+            return refine(self, *args, **kwargs)
+        finally:
+            refining.pop()
+
+    monkeypatch.setattr(RecedingHorizon, "_solve", recording)
+    monkeypatch.setattr(RecedingHorizon, "_refine", flagged)
+    path: Path = EXPERIMENTS / "maps" / "forest_01.toml"
+    refined = plan(load_config(path, [*FOREST, "smoothing.time_refinement=true"]), progress=False).continuous
+    assert refined.certificate.ok
+    windows = refined.windows
+    assert sum(w.refined for w in windows) >= 2
+    planned = {n.a: w.durations[n.a - w.a] for w, n in zip(windows, windows[1:])}
+    tried = [(a, d) for a, d in attempts if a in planned]
+    assert len({a for a, _ in tried}) == len(planned)
+    for a, d in tried:
+        assert d == planned[a], f"window at step {a}: an attempt's first step {d} s, planned {planned[a]} s"
+    assert not any(w.attempt == "previous" for w in windows)
+
