@@ -1052,6 +1052,8 @@ class RecedingHorizon:
             rec.attempt = "witness"
         if self.cfg.time_refinement and rec.attempt != "witness":
             chosen = self._refine(chosen, a, start, rec, merged)
+        else:
+            self.unrefined = None  # nothing for the undo to take back (and not the window before's)
         rec.cost, rec.durations = chosen.cost, chosen.durations
         rec.solve_s = time.perf_counter() - tic
         return chosen, rec

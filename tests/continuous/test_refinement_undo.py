@@ -96,3 +96,30 @@ def test_after_a_refined_window_every_attempt_flies_the_first_step_as_planned(mo
         assert d == planned[a], f"window at step {a}: an attempt's first step {d} s, planned {planned[a]} s"
     assert not any(w.attempt == "previous" for w in windows)
 
+
+def test_a_window_flown_as_its_witness_leaves_nothing_to_undo(monkeypatch):
+    """A window whose attempts all fail flies its witness, unrefined: the undo must not take the refined window
+    before it for this one (it would commit that window's solution in this one's steps)."""
+    solve, plan_window = RecedingHorizon._solve, RecedingHorizon._plan_window
+    after_refined: list[bool] = []
+
+    def failing(self, a, b, start, durations, *args, **kwargs):
+        if a == 8:
+            return None, "made to fail"
+        return solve(self, a, b, start, durations, *args, **kwargs)
+
+    def checked(self, a, c, b, *args, **kwargs):
+        if a == 8:
+            after_refined.append(self.unrefined is not None)
+        sol, rec = plan_window(self, a, c, b, *args, **kwargs)
+        if a == 8:
+            assert rec.attempt == "witness" and self.unrefined is None
+        return sol, rec
+
+    monkeypatch.setattr(RecedingHorizon, "_solve", failing)
+    monkeypatch.setattr(RecedingHorizon, "_plan_window", checked)
+    path: Path = EXPERIMENTS / "maps" / "forest_01.toml"
+    refined = plan(load_config(path, [*FOREST, "smoothing.time_refinement=true"]), progress=False).continuous
+    assert after_refined[0], "the window before the witness was not refined: nothing to leave"
+    assert refined.windows[2].attempt == "witness"
+    assert refined.certificate.ok
