@@ -22,6 +22,7 @@ from mrfswarm.continuous.regions import arrival_holds
 from mrfswarm.flight_quality import count_stops
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.pipeline import plan, qp_options
+from support.attempts import unfollowed
 from support.repository import EXPERIMENTS
 
 T = 16
@@ -33,8 +34,10 @@ GRID = OccupancyGrid.from_occupied(np.zeros((20, 8), bool))
 def _flight(monkeypatch, hold: bool, max_pieces: int = 0):
     # the fast durations made longer (FAST_SLOWER) fly the second window only without the hold, sooner than the
     # bold ones with it, and a hold never slows a window (test_a_hold_never_slows_a_window): these tests take
-    # the ladder without them, where the hold is flown
+    # the ladder without them, where the hold is flown; so does the fast attempt with its first step as the
+    # window before planned it (RecedingHorizon._follow), in the second window
     monkeypatch.setattr(rhm, "FAST_SLOWER", ())
+    unfollowed(monkeypatch)
     if not hold:
         monkeypatch.setattr(rhm, "arrival_holds", lambda paths, settle: np.zeros((len(paths) - 1, paths.shape[1]), bool))
     return RecedingHorizon(PATHS, GRID, SmoothingConfig(max_pieces=max_pieces), 0.25, workers=1).run()
@@ -76,15 +79,18 @@ def test_without_the_hold_it_drifts(monkeypatch):
 
 
 def test_a_hold_never_slows_a_window():
-    """With the fast durations 5 and 10 % longer in the ladder, the second window flies them without the hold (with
-    it they fail): its steps sooner than the bold durations that hold robot 0, which then drifts. (The whole
-    toy flight is not sooner for it: 9.944 s against 9.937, the later windows starting from another state.)"""
+    """With the fast durations 5 and 10 % longer in the ladder, or the fast ones with the first step as the first
+    window planned it, the second window flies them without the hold (with it they fail): its steps sooner than
+    the bold durations that hold robot 0, which then drifts. (The whole toy flight is not sooner for it: 9.944 s
+    against 9.937, the later windows starting from another state.)"""
     plan = RecedingHorizon(PATHS, GRID, SmoothingConfig(max_pieces=0), 0.25, workers=1).run()
     second = plan.windows[1]
-    assert second.attempt in {f"fast x{f:g}" for f in rhm.FAST_SLOWER} and not second.hold
+    faster = {f"fast x{f:g}" for f in rhm.FAST_SLOWER} | {"fast" + rhm.FOLLOWED}
+    assert second.attempt in faster and not second.hold
     assert any("with holds" in f for f in second.failed)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(rhm, "FAST_SLOWER", ())
+        unfollowed(mp)
         held_plan = RecedingHorizon(PATHS, GRID, SmoothingConfig(max_pieces=0), 0.25, workers=1).run()
     bold = held_plan.windows[1]
     assert bold.hold and not bold.attempt.startswith("fast")
@@ -145,6 +151,7 @@ def test_where_the_creep_rows_fail_the_holds_are_tried_alone(monkeypatch):
     waits = np.array([[(min(x, ARRIVED), 1), (min(x, 7) if x <= 8 else x - 1, 4)] for x in range(T + 1)])
     monkeypatch.setattr(rhm, "CREEP_SPEED", 50.0)  # over v_max: the creep rows are infeasible
     monkeypatch.setattr(rhm, "FAST_SLOWER", ())  # as in _flight
+    unfollowed(monkeypatch)
     plan = RecedingHorizon(waits, GRID, SmoothingConfig(max_pieces=0), 0.25, workers=1).run()
     assert plan.certificate.ok
     tried = [w for w in plan.windows if any("with creep rows with holds" in f for f in w.failed)]
@@ -191,7 +198,7 @@ def test_the_previous_windows_durations_hold_the_arrived_robots(monkeypatch):
     and flew the previous window's durations; flown without the holds there, 10 of its 50 arrived robots drifted
     (one stop each). With the holds tried on those durations, none stops. The attempts with the profiles' own
     first step, as then: now they follow the refined window's (``RecedingHorizon._follow``) and fly a profile."""
-    monkeypatch.setattr(RecedingHorizon, "_follow", staticmethod(lambda attempts, previous: attempts))
+    unfollowed(monkeypatch)
     sys.path.insert(0, str(EXPERIMENTS / "bench"))
     from flight_quality import case_config
 

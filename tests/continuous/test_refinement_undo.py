@@ -15,6 +15,7 @@ import pytest
 from mrfswarm.config import load_config
 from mrfswarm.continuous.receding_horizon import RecedingHorizon
 from mrfswarm.pipeline import plan
+from support.attempts import unfollowed
 from support.repository import EXPERIMENTS
 
 # the forest of experiments/bench/flight_quality.py: 10 robots, k = 7
@@ -27,7 +28,7 @@ def old_attempts(monkeypatch) -> None:
     (``RecedingHorizon._shortens_flown``) and the attempts after a window fly its planned first step
     (``RecedingHorizon._follow``), neither the forest's nor window3d's refined flight needs one."""
     monkeypatch.setattr(RecedingHorizon, "_shortens_flown", lambda self, sol, rec: True)
-    monkeypatch.setattr(RecedingHorizon, "_follow", staticmethod(lambda attempts, previous: attempts))
+    unfollowed(monkeypatch)
 
 
 def test_a_refinement_the_next_window_cannot_follow_is_undone(monkeypatch):
