@@ -124,3 +124,17 @@ def test_a_window_flown_as_its_witness_leaves_nothing_to_undo(monkeypatch):
     assert after_refined[0], "the window before the witness was not refined: nothing to leave"
     assert refined.windows[2].attempt == "witness"
     assert refined.certificate.ok
+
+
+def test_without_profiles_the_attempts_keep_their_own_first_step(monkeypatch):
+    """With the durations of a given ``smoothing.speed`` (no profiles) the refined corridor flew 20.75 s with the
+    attempts' own first step and 20.99 s following the window before's: the attempts are not followed there."""
+
+    def never(attempts, previous):
+        raise AssertionError("attempts followed without profiles")
+
+    monkeypatch.setattr(RecedingHorizon, "_follow", staticmethod(never))
+    cfg = load_config(EXPERIMENTS / "corridor.toml",
+                      ["simulation.enabled=false", "smoothing.speed=1.25", "smoothing.time_refinement=true"])
+    flight = plan(cfg, progress=False).continuous
+    assert flight.certificate.ok and len(flight.windows) > 1 and any(w.refined for w in flight.windows)
