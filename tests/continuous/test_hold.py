@@ -81,7 +81,7 @@ def test_without_the_hold_it_drifts(monkeypatch):
 def test_a_hold_never_slows_a_window():
     """With the fast durations 5 and 10 % longer in the ladder, or the fast ones with the first step as the first
     window planned it, the second window flies them without the hold (with it they fail): its steps sooner than
-    the bold durations that hold robot 0, which then drifts. (The whole toy flight is not sooner for it: 9.944 s
+    the bold durations that hold robot 0, which then drifts. (The whole toy flight is not sooner for it: 9.945 s
     against 9.937, the later windows starting from another state.)"""
     plan = RecedingHorizon(PATHS, GRID, SmoothingConfig(max_pieces=0), 0.25, workers=1).run()
     second = plan.windows[1]
