@@ -194,18 +194,65 @@ def test_where_some_holds_fail_the_other_robots_are_still_held(monkeypatch):
 
 
 def test_the_previous_windows_durations_hold_the_arrived_robots(monkeypatch):
-    """The refined open field of the flight-quality bench: its windows after a refined one failed every profile
-    and flew the previous window's durations; flown without the holds there, 10 of its 50 arrived robots drifted
-    (one stop each). With the holds tried on those durations, none stops. The attempts with the profiles' own
-    first step, as then: now they follow the refined window's (``RecedingHorizon._follow``) and fly a profile."""
-    unfollowed(monkeypatch)
-    sys.path.insert(0, str(EXPERIMENTS / "bench"))
-    from flight_quality import case_config
+    """Where every profile fails and a window flies the previous window's durations, the arrived robots are held
+    there too: flown unheld, the refined open field's windows that did so let 10 of its 50 arrived robots drift (one
+    stop each). No bench map flies the previous durations since the held pieces' rows fix their variables
+    (``formulation.WindowFormulation``), so here the toy flight's profiles are made too fast to fly in the steps
+    every window shares with the one before (a tenth of their durations), and nothing else."""
+    original = RecedingHorizon._profile_attempts
+    overlap = SmoothingConfig().horizon - round(SmoothingConfig().horizon * SmoothingConfig().execution)
 
-    data, base = case_config("open50")
-    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "smoothing.time_refinement=true"]), base)
-    flight = plan(cfg, progress=False).continuous
+    def too_fast(self, a, c, b):
+        attempts = original(self, a, c, b)
+        if a == 0:
+            return attempts
+        return [(name, np.concatenate([0.1 * d[:overlap], d[overlap:]])) for name, d in attempts]
+
+    monkeypatch.setattr(RecedingHorizon, "_profile_attempts", too_fast)
+    flight = _flight(monkeypatch, True)
     previous = [w for w in flight.windows if w.attempt == "previous"]
-    assert previous and all(w.hold for w in previous), "no window flew the previous durations: not covered"
+    assert previous and all(w.hold for w in previous), [(w.a, w.attempt, w.hold) for w in flight.windows]
     assert flight.certificate.ok
-    assert count_stops(flight.trajectories).per_robot.sum() == 0
+    v, off = _after_arrival(flight)
+    assert v.max() < 1e-9 and off.max() < 1e-9
+    assert count_stops(flight.trajectories).per_robot.tolist() == [0, 0]
+
+
+def test_a_held_piece_is_fixed_by_one_row_per_variable():
+    """The pinned step's piece: its own variables (both knots' derivatives, its bubbles) each fixed by one
+    equality row (the position at the cell's centre, the rest 0), and none of its control-point region rows
+    (repeating the same equalities in another basis left piqp short of iterations in clutter's late windows);
+    solved, robot 0 rests exactly at its cell through the whole pinned step."""
+    from mrfswarm.continuous.formulation import WindowFormulation, piece_maps
+
+    rh = RecedingHorizon(PATHS, GRID, SmoothingConfig(max_pieces=0), 0.25, workers=1)
+    a, b, robots = ARRIVED + HOLD_SETTLE, ARRIVED + HOLD_SETTLE + 4, np.array([0, 1])
+    start = np.zeros((2, rh.cfg.derivative, 2))
+    start[:, 0] = rh.X[a]
+    start[1, 1] = [1.0, 0.0]
+    free_spec = rh._spec(a, b, robots, start, np.zeros(0, dtype=int))
+    held_spec = rh._spec(a, b, robots, start, np.zeros(0, dtype=int), hold=True)
+    durations = rh.nominal[a:b]
+    qp_free, qp_held = WindowFormulation(free_spec).qp(durations), WindowFormulation(held_spec).qp(durations)
+    pm = piece_maps(rh.cfg.degree, rh.cfg.derivative)
+    form = WindowFormulation(held_spec)
+    eq = np.flatnonzero(qp_held.l == qp_held.u)
+    A = qp_held.A.tocsr()
+    singles = [i for i in eq if A[i].nnz == 1]
+    cols = sorted(int(A[i].indices[0]) for i in singles)
+    # robot 0 (first in the window), step 1 (the pinned one), both coordinates: knot 1's and knot 2's derivatives
+    # and piece 1's bubbles; knot 0 and the window's end are fixed by the ends' rows already
+    expected = sorted(d * form.per_dim + pm.stride + k for d in range(2) for k in range(pm.stride + rh.cfg.derivative))
+    assert set(expected) <= set(cols) and len(cols) - len(set(cols)) == 0
+    values = {int(A[i].indices[0]): qp_held.l[i] for i in singles}
+    centre = rh.X[a + 1, 0] - rh.X[a, 0]  # the variables are relative to the window's start
+    assert [values[d * form.per_dim + pm.stride] for d in range(2)] == pytest.approx(centre.tolist(), abs=1e-12)
+    assert [values[d * form.per_dim + 2 * pm.stride] for d in range(2)] == pytest.approx(centre.tolist(), abs=1e-12)
+    # the held step's region rows are free (no entries, infinite bounds); robot 1's and the other steps' stay
+    assert qp_held.A.shape[0] == qp_free.A.shape[0] + len(expected)
+    assert np.isinf(qp_held.l).sum() - np.isinf(qp_free.l).sum() == (pm.rows[0]) * 2
+    import solvers.qp
+
+    sol = solvers.qp.solve(qp_held, backend="piqp")
+    Y, _ = form.unpack(sol.x)
+    assert np.abs(Y[0, 1:3, 1:]).max() < 1e-9 and np.abs(Y[0, 1:3, 0] - rh.X[a + 1, 0]).max() < 1e-9  # unpacked: absolute
