@@ -199,6 +199,10 @@ class MrfConfig:
     run's end once the paths are planned, where safe (same cells, same order; fewer stops
     and starts to fly, :mod:`mrfswarm.discrete.merge_waits`); false keeps the MRF's timing,
     as the paper's scenario configs do.
+    ``drop_loops`` (default true) makes a robot that comes back to a cell it left wait there
+    instead, where it stays one cell from every other robot (its cells a subsequence of
+    the MRF's; no reversal to fly, :mod:`mrfswarm.discrete.loops`); false keeps the MRF's
+    paths, as the paper's scenario configs do.
     ``progress`` says what resets the patience: ``"static"`` (default), a new minimum of
     the swarm energy or of the robots' static field sum; ``"energy"``, of the swarm
     energy only (the paper's scenario configs), which jumps whenever the k-NN graph's
@@ -217,6 +221,7 @@ class MrfConfig:
     follow: bool = True
     arrival: bool = True
     merge_waits: bool = True
+    drop_loops: bool = True
     progress: str = "static"
     options: dict[str, Any] = field(default_factory=dict)
 

@@ -188,6 +188,7 @@ class Result:
             "mrf_step_time_s": {k: float(np.mean(v)) if len(v) else 0.0 for k, v in self.discrete.timings.items()},
             "mrf_repaired": int(sum(s["repaired"] for s in self.discrete.steps)),
             "merged_waits": self.discrete.merged_waits,
+            "dropped_loops": self.discrete.dropped_loops,
             "congested_fields": self.discrete.congested_fields,
             "timings_s": {k: float(v) for k, v in self.timings_s.items()},
             "failure": self.failure,

@@ -108,6 +108,7 @@ class Scenario:
             downwash=c.scenario.downwash,
             congestion=self.congestion_field(),
             merge_waits=c.mrf.merge_waits,
+            drop_loops=c.mrf.drop_loops,
             flight=flight_model(c.smoothing, self.grid.resolution, c.scenario.robot_radius) if c.smoothing.enabled
             else None,
         )

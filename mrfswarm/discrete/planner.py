@@ -39,6 +39,7 @@ from mrfswarm.config import PROGRESS_RULES
 from mrfswarm.discrete.congestion import CongestionField
 from mrfswarm.discrete.interaction_graph import CliqueWeights, clique_weights_of_graph, knn_edges, update_clique_weights
 from mrfswarm.discrete.label_sets import LabelSets, label_sets
+from mrfswarm.discrete.loops import drop_loops
 from mrfswarm.discrete.merge_waits import FlightTime, merge_waits
 from mrfswarm.discrete.motion import MIN_SEPARATION, cell_values, step_min_separation
 from mrfswarm.discrete.potentials import Morse
@@ -107,6 +108,9 @@ class DiscreteProblem:
     merge_waits
         Merge each robot's waits between runs of moves once the paths are planned
         (:mod:`mrfswarm.discrete.merge_waits`).
+    drop_loops
+        Once the paths are planned (before the waits are merged), a robot that comes back
+        to a cell waits there instead where safe (:mod:`mrfswarm.discrete.loops`).
     flight
         The flight-time model a merge must not lengthen (None: every safe merge is made).
     """
@@ -130,6 +134,7 @@ class DiscreteProblem:
     downwash: float = 1.0
     congestion: CongestionField | None = None
     merge_waits: bool = False
+    drop_loops: bool = False
     flight: FlightTime | None = None
 
 
@@ -156,8 +161,8 @@ class DiscretePlan:
     Attributes
     ----------
     paths
-        (T + 1, N, d) cells, x^0 .. x^T: the MRF's configurations, with each robot's waits
-        merged when ``merge_waits`` is on.
+        (T + 1, N, d) cells, x^0 .. x^T: the MRF's configurations, with each robot's loops
+        dropped when ``drop_loops`` is on and its waits merged when ``merge_waits`` is on.
     energy
         (T + 1,) swarm energy of each of the MRF's configurations on its own graph (and,
         with congestion, the goal field of its step).
@@ -175,6 +180,8 @@ class DiscretePlan:
         Per-step optimizer facts: iterations, repaired, lower bound, moved robots.
     merged_waits
         Waits moved by :func:`~mrfswarm.discrete.merge_waits.merge_waits` (0 when off).
+    dropped_loops
+        Loops replaced by waits by :func:`~mrfswarm.discrete.loops.drop_loops` (0 when off).
     congested_fields
         Goal fields recomputed around stalled robots (:mod:`mrfswarm.discrete.congestion`).
     """
@@ -186,6 +193,7 @@ class DiscretePlan:
     steps: list[dict] = field(default_factory=list)
     stop_reason: str = "max_steps"
     merged_waits: int = 0
+    dropped_loops: int = 0
     congested_fields: int = 0
 
     @property
@@ -471,7 +479,9 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         converged, reason = False, "trapped"
     log.info("discrete stage: %d steps, %s", len(paths) - 1, reason)
     stacked = np.stack(paths)
-    merged = 0
+    merged = dropped = 0
+    if problem.drop_loops:
+        stacked, dropped = drop_loops(stacked, problem.downwash)
     if problem.merge_waits:
         stacked, merged = merge_waits(stacked, problem.downwash, problem.flight)
     bad = discrete_violations(stacked, problem.free, downwash=problem.downwash)
@@ -485,5 +495,6 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         steps=steps,
         stop_reason=reason,
         merged_waits=merged,
+        dropped_loops=dropped,
         congested_fields=congested,
     )

@@ -1,0 +1,129 @@
+"""Dropping a robot's loops: back in a cell it left, it waits there instead (``mrf.drop_loops``)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from mrfswarm.config import apply_overrides, from_dict
+from mrfswarm.discrete.loops import drop_loops, returns
+from mrfswarm.discrete.safety import discrete_violations
+from mrfswarm.pipeline import plan
+
+EXPERIMENTS = Path(__file__).resolve().parents[2] / "experiments"
+
+
+def cells(paths: np.ndarray, robot: int) -> list[tuple[int, ...]]:
+    """The robot's cells in order, waits dropped."""
+    out: list[tuple[int, ...]] = []
+    for c in paths[:, robot]:
+        if not out or out[-1] != tuple(c):
+            out.append(tuple(int(v) for v in c))
+    return out
+
+
+def subsequence(short: list, long: list) -> bool:
+    it = iter(long)
+    return all(c in it for c in short)
+
+
+def test_returns_are_the_later_steps_back_in_a_cell_after_leaving_it():
+    # A A B A C A: from step 0 (and 1, the same visit) the robot comes back at 3 and 5; a wait is no loop
+    col = np.array([[0, 0], [0, 0], [1, 0], [0, 0], [0, 1], [0, 0]])
+    assert returns(col) == [[5, 3], [5, 3], [], [5], [], []]
+
+
+def test_a_lone_robots_round_trip_becomes_a_wait():
+    # A -> B -> C -> B -> A -> D: the whole round from A is dropped
+    col = np.array([[0, 0], [1, 0], [2, 0], [1, 0], [0, 0], [0, 1]])
+    out, dropped = drop_loops(col[:, None])
+    assert dropped == 1
+    np.testing.assert_array_equal(out[:, 0], [[0, 0]] * 5 + [[0, 1]])
+
+
+def stepping_aside() -> np.ndarray:
+    """Robot 0 steps aside from (2, 2) to (2, 3) and back while robot 1 passes through (2, 2) along y = 2."""
+    r0 = [(2, 2), (2, 3), (2, 3), (2, 3), (2, 3), (2, 2)]
+    r1 = [(0, 2), (1, 2), (2, 2), (3, 2), (4, 2), (5, 2)]
+    return np.array([r0, r1]).transpose(1, 0, 2)
+
+
+def test_a_loop_that_makes_way_for_a_neighbour_is_kept():
+    paths, free = stepping_aside(), np.ones((7, 6), dtype=bool)
+    assert discrete_violations(paths, free) == []
+    out, dropped = drop_loops(paths)
+    assert dropped == 0
+    np.testing.assert_array_equal(out, paths)
+
+
+def test_the_guard_alone_keeps_the_drop_safe(monkeypatch):
+    """With the separation check switched off, the kept loop above is dropped and the robots collide."""
+    import mrfswarm.discrete.loops as lp
+
+    monkeypatch.setattr(lp, "robot_clear", lambda *a: True)
+    unguarded, dropped = lp.drop_loops(stepping_aside())
+    assert dropped == 1
+    assert discrete_violations(unguarded, np.ones((7, 6), dtype=bool)) != []
+
+
+def test_where_the_long_loop_is_blocked_the_loop_inside_it_is_dropped():
+    # robot 0: A = (2, 2) -> (2, 3) -> (2, 4) -> (2, 3) -> (2, 3) -> A; robot 1 passes through A while robot 0
+    # is away, so the loop from A stays, but the round (2, 3) -> (2, 4) -> (2, 3) inside it goes
+    r0 = [(2, 2), (2, 3), (2, 4), (2, 3), (2, 3), (2, 2)]
+    r1 = [(0, 2), (0, 2), (1, 2), (2, 2), (3, 2), (4, 2)]
+    paths = np.array([r0, r1]).transpose(1, 0, 2)
+    assert discrete_violations(paths, np.ones((6, 6), dtype=bool)) == []
+    out, dropped = drop_loops(paths)
+    assert dropped == 1
+    np.testing.assert_array_equal(out[:, 0], [(2, 2), (2, 3), (2, 3), (2, 3), (2, 3), (2, 2)])
+    np.testing.assert_array_equal(out[:, 1], paths[:, 1])
+
+
+def test_downwash_counts_in_the_check():
+    # robot 0 leaves A = (2, 0, 0) for (3, 0, 0) and comes back; meanwhile robot 1 flies over A, 2 voxels up.
+    # Waiting at A instead: 2 voxels below robot 1, apart in the plain metric, 2 / 3 of a voxel with c = 3
+    r0 = np.array([[2, 0, 0], [3, 0, 0], [3, 0, 0], [3, 0, 0], [2, 0, 0]])
+    r1 = np.array([[0, 0, 2], [1, 0, 2], [2, 0, 2], [1, 0, 3], [0, 0, 3]])
+    paths = np.stack([r0, r1], axis=1)
+    assert discrete_violations(paths, np.ones((5, 1, 4), dtype=bool), downwash=3.0) == []
+    assert drop_loops(paths, downwash=1.0)[1] == 1
+    out, dropped = drop_loops(paths, downwash=3.0)
+    assert dropped == 0
+    np.testing.assert_array_equal(out, paths)
+
+
+def clutter(seed: int) -> dict:
+    sys.path.insert(0, str(EXPERIMENTS / "bench"))
+    import flight_quality as fq
+
+    occ = fq._random_field(64, 64, 0.10, seed, (8, 8), (55, 55), 5)
+    scn = {"map": {"kind": "ascii", "rows": fq._rows(occ)},
+           "start": {"center": [8, 8], "n_robots": 40, "sigma": 2.5, "seed": 0}, "goal": [55, 55]}
+    return {"scenario": scn, "interaction": {"k": 7}}
+
+
+def test_a_clutter_plan_loses_its_loops_and_keeps_its_cells_and_the_invariant():
+    """A 64 x 64 clutter map of 40 robots (seed 3 of the random clutter maps): 17 loops in the MRF's paths."""
+    data = apply_overrides(clutter(3), ["smoothing.enabled=false", "simulation.enabled=false"])
+    raw = plan(from_dict(apply_overrides(data, ["mrf.drop_loops=false", "mrf.merge_waits=false"]), EXPERIMENTS),
+               progress=False)
+    kept = plan(from_dict(apply_overrides(data, ["mrf.merge_waits=false"]), EXPERIMENTS), progress=False)
+    P, Q = raw.discrete.paths, kept.discrete.paths
+    assert raw.discrete.dropped_loops == 0 and kept.discrete.dropped_loops >= 10
+    assert P.shape == Q.shape
+    np.testing.assert_array_equal(P[[0, -1]], Q[[0, -1]])
+    for i in range(P.shape[1]):
+        assert subsequence(cells(Q, i), cells(P, i))
+    assert discrete_violations(Q, kept.scenario.grid.free) == []
+    moves = lambda X: int(np.any(np.diff(X, axis=0) != 0, axis=2).sum())  # noqa: E731
+    assert moves(Q) < moves(P)
+    assert kept.summary()["dropped_loops"] == kept.discrete.dropped_loops
+
+
+def test_the_paper_configs_keep_the_mrfs_paths():
+    cfg = from_dict(apply_overrides(__import__("tomllib").loads((EXPERIMENTS / "corridor.toml").read_text()),
+                                    ["smoothing.enabled=false", "simulation.enabled=false"]), EXPERIMENTS)
+    assert cfg.mrf.drop_loops is False
+    assert plan(cfg, progress=False).discrete.dropped_loops == 0
