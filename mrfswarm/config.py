@@ -269,7 +269,7 @@ class SmoothingConfig:
     refinement: str = "scaling"
     # the time refinement's NLP backend, written only here
     nlp: str = "ipopt"
-    time_weight: float = 10.0
+    time_weight: float = 20.0
     v_max: float = 2.0
     a_max: float = 4.0
     j_max: float = 4.0

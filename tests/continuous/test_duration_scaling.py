@@ -140,7 +140,9 @@ def test_the_window_refinement_by_scaling_is_the_nlps_at_a_fraction_of_the_qps(m
     import solvers.nlp
 
     def window(refinement: str):
-        rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, speed=1.25, refinement=refinement),
+        # the weight of the measurements above (the default was 10 then, 20 since)
+        rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, speed=1.25, refinement=refinement,
+                                                            time_weight=10.0),
                              0.25)
         a, c, b, start, rec = first_window(rh)
         sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec)
