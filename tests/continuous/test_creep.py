@@ -1,6 +1,6 @@
 """A robot that waits a few steps between two moves the same way drifts through its cell instead of stopping.
 
-Robot 0 flies east along y = 1, waits five steps (``CREEP_WAITS``, the longest run that creeps) at x = 4, and
+Robot 0 flies east along y = 1, waits five steps (a run ``CREEP_WAITS`` = 8 lets creep) at x = 4, and
 flies on; robot 1 zigzags east along y = 4 and 5 throughout (a turn every step: the steps are
 slow). With half a cell of region growth the wait leaves robot 0 about a metre of room. The
 wait is a run of :func:`~mrfswarm.continuous.time_grid.drift_waits`: the window QP keeps robot
@@ -20,10 +20,11 @@ from mrfswarm.continuous.time_grid import drift_waits
 from mrfswarm.flight_quality import count_stops
 from mrfswarm.maps import OccupancyGrid
 
-ROBOT0 = [(x, 1) for x in range(5)] + [(4, 1)] * CREEP_WAITS + [(x, 1) for x in range(5, 10)]
+WAITS = 5  # eight at 0.1 m/s would need more than the metre of room its cell leaves it, at these slow steps
+ROBOT0 = [(x, 1) for x in range(5)] + [(4, 1)] * WAITS + [(x, 1) for x in range(5, 10)]
 PATHS = np.array([[a, (i, 4 + i % 2)] for i, a in enumerate(ROBOT0)])
 GRID = OccupancyGrid.from_occupied(np.zeros((20, 8), bool))
-WAIT = slice(4, 4 + CREEP_WAITS)
+WAIT = slice(4, 4 + WAITS)
 
 
 def _flight(creep_speed: float, monkeypatch) -> tuple[RecedingHorizon, object]:
@@ -42,9 +43,9 @@ def _wait_speeds(plan) -> np.ndarray:
 
 def test_the_waits_are_a_drifting_run():
     waits, way, runs = drift_waits(np.diff(PATHS, axis=0).astype(float), CREEP_WAITS)
-    assert waits[:, 0].tolist() == [False] * 4 + [True] * CREEP_WAITS + [False] * 5
-    np.testing.assert_allclose(way[WAIT, 0], [[1.0, 0.0]] * CREEP_WAITS)
-    assert runs[WAIT, 0].tolist() == [CREEP_WAITS] * CREEP_WAITS and not waits[:, 1].any()
+    assert waits[:, 0].tolist() == [False] * 4 + [True] * WAITS + [False] * 5
+    np.testing.assert_allclose(way[WAIT, 0], [[1.0, 0.0]] * WAITS)
+    assert runs[WAIT, 0].tolist() == [WAITS] * WAITS and not waits[:, 1].any()
 
 
 def test_a_short_wait_is_flown_as_a_drift_not_a_stop(monkeypatch):
