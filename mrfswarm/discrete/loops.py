@@ -3,8 +3,9 @@
 Each MRF step picks every robot's next cell from its neighbourhood, and a robot that
 makes way for a neighbour, or shuffles at the goal while the swarm packs around it,
 often comes back to a cell it stood on a few steps before: A -> B -> A, or a longer
-round A -> B -> C -> A. Flown, every such round turns the robot back on itself, a full
-stop at each reversal, and a step where one robot reverses is slow for the whole swarm.
+round A -> B -> C -> A. Flown, an A -> B -> A turns the robot back on itself (a full stop
+at the reversal) and a longer round is a detour, and the step where one robot turns back
+is slow for the whole swarm.
 On seven random 64 x 64 clutter maps of 40 robots (the flight-quality bench's clutter40
 and six more seeds), the plans of 64 to 71 steps held 3 to 17 such loops, 6 to 105 robot
 steps spent in them.
