@@ -132,7 +132,7 @@ class IpoptNLP:
         self.options = options or Options()
         nlp = {"x": x, "f": f}
         if g is not None:
-            nlp["g"] = g
+            nlp["g"] = ca.densify(g)  # a row without entries (a free row of a QP) leaves g sparse, which nlpsol refuses
         if p is not None:
             nlp["p"] = p
         self.n = int(x.numel())
