@@ -72,6 +72,7 @@ class Result:
     timings_s: dict[str, float] = field(default_factory=dict)
     failure: str | None = None
     _crazyflie: tuple | None = field(default=None, init=False, repr=False, compare=False)
+    _quality: dict | None = field(default=None, init=False, repr=False, compare=False)
 
     def smoothed(self) -> ContinuousPlan:
         """The continuous plan of a run that has one.
@@ -132,6 +133,40 @@ class Result:
 
             self._crazyflie = memory_report(self)
         return self._crazyflie
+
+    def flight_quality(self) -> dict | None:
+        """The ``flight_quality`` section of ``result.json``, computed once (:mod:`mrfswarm.flight_quality`):
+        the makespan over its lower bound (the longest shortest free path from a robot's start cell to its final
+        cell, flown at ``v_max``), stops per robot and mean speeds. None without a continuous plan.
+
+        Keys: ``lower_bound_s``, ``makespan_over_bound`` (None when no robot moves), ``bound_robot`` (the robot
+        whose path sets the bound), ``stops_per_robot`` (mean), ``stops_max``, ``stops`` (per robot),
+        ``stop_speed_m_s`` (the speed under which a robot counts as stopped), ``mean_speed_m_s`` (mean over
+        robots of path length over flight time).
+        """
+        c = self.continuous
+        if c is None:
+            return None
+        if self._quality is None:
+            from mrfswarm import flight_quality as fq
+
+            scn, paths = self.scenario, self.discrete.paths
+            via = None if scn.distances is None else scn.distances.path
+            lengths = fq.free_path_lengths(scn.grid.free, paths[0], paths[-1], scn.grid.resolution, via)
+            longest = float(np.nanmax(lengths, initial=0.0))
+            bound = longest / self.config.smoothing.v_max
+            stops = fq.count_stops(c.trajectories)
+            self._quality = {
+                "lower_bound_s": bound,
+                "makespan_over_bound": c.makespan_s / bound if bound > 0 else None,
+                "bound_robot": int(np.nanargmax(lengths)) if longest > 0 else None,
+                "stops_per_robot": stops.mean,
+                "stops_max": int(stops.per_robot.max(initial=0)),
+                "stops": [int(v) for v in stops.per_robot],
+                "stop_speed_m_s": fq.STOP_SPEED,
+                "mean_speed_m_s": float(stops.mean_speed.mean()) if stops.mean_speed.size else 0.0,
+            }
+        return self._quality
 
     def discrete_paths_world(self) -> np.ndarray:
         """(T + 1, N, d) discrete paths in metres (d = 3 on a voxel map: z from the map)."""
@@ -242,6 +277,7 @@ class Result:
             "guaranteed_separation_m": None if f.tracking_bound is None
             else 2 * self.config.scenario.robot_radius - 2 * f.tracking_bound,
         }
+        out["flight_quality"] = self.flight_quality()
         out["crazyflie"] = self.crazyflie_memory()
         out["config"] = self.config.to_dict()
         return out

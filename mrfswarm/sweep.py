@@ -281,6 +281,9 @@ def _row(base: dict, out: dict) -> dict:
     for k, v in s.items():
         if k not in _STRUCTURED and (v is None or isinstance(v, (bool, numbers.Number, str))):
             row[k] = v
+    for k, v in (s.get("flight_quality") or {}).items():  # makespan over its lower bound, stops, speed
+        if v is None or isinstance(v, (bool, numbers.Number, str)):
+            row[k] = v
     for k, v in (s.get("simulation") or {}).items():  # the flown metrics
         if v is None or isinstance(v, (bool, numbers.Number, str)):
             row[f"simulation_{k}"] = v

@@ -85,3 +85,43 @@ def test_the_3d_lower_bound_searches_the_26_connected_voxel_graph_without_cuttin
     via = goal_distance(walled, np.array([3, 3, 2]), order=3).path
     d = free_path_lengths(walled, np.array([[0, 0, 0]]), np.array([[0, 0, 4]]), via=via)[0]
     assert d == pytest.approx(via[0, 0, 0] + via[0, 0, 4])
+
+
+def _doorway_config():
+    """Five robots through a three-cell doorway in a wall (the flight-quality bench's doorway)."""
+    from mrfswarm.config import from_dict
+    from support.repository import EXPERIMENTS
+
+    occ = np.zeros((30, 20), dtype=bool)
+    occ[15, :] = True
+    occ[15, 9:12] = False
+    rows = ["".join("@" if occ[x, y] else "." for x in range(30)) for y in range(20)]
+    scn = {"map": {"kind": "ascii", "rows": rows}, "start": {"center": [6, 10], "n_robots": 5, "sigma": 1.0, "seed": 0},
+           "goal": [25, 10]}
+    return from_dict({"scenario": scn, "interaction": {"k": 3}, "simulation": {"enabled": False}}, EXPERIMENTS)
+
+
+def test_a_run_reports_its_makespan_over_the_lower_bound_and_its_stops():
+    """result.json's flight_quality: the numbers of this module's functions on the run's own plan; a robot whose
+    trajectory stops is counted; without a continuous plan there is none."""
+    import dataclasses
+
+    from mrfswarm.pipeline import plan
+
+    r = plan(_doorway_config(), progress=False)
+    c, P, scn = r.continuous, r.discrete.paths, r.scenario
+    q = r.summary()["flight_quality"]
+    lengths = free_path_lengths(scn.grid.free, P[0], P[-1], scn.grid.resolution)  # every robot searched
+    bound = makespan_lower_bound(scn.grid.free, P[0], P[-1], scn.grid.resolution, r.config.smoothing.v_max)
+    assert q["lower_bound_s"] == pytest.approx(bound, rel=1e-12) and bound > 0
+    assert lengths[q["bound_robot"]] == pytest.approx(lengths.max(), rel=1e-12)
+    assert q["makespan_over_bound"] == pytest.approx(c.makespan_s / bound, rel=1e-12) and q["makespan_over_bound"] > 1
+    stops = count_stops(c.trajectories)
+    assert q["stops"] == stops.per_robot.tolist() and q["stops_per_robot"] == stops.mean
+    assert q["mean_speed_m_s"] == pytest.approx(stops.mean_speed.mean()) and q["stop_speed_m_s"] == 0.05
+
+    stopping = dataclasses.replace(c, trajectories=[_line([1.0] * 4, [0.0, 1.0, 0.0, 1.0, 0.0])] + c.trajectories[1:])
+    q2 = dataclasses.replace(r, continuous=stopping).summary()["flight_quality"]
+    assert q2["stops"][0] == 1 and q2["stops"][1:] == q["stops"][1:] and q2["stops_max"] >= 1
+
+    assert dataclasses.replace(r, continuous=None).summary()["flight_quality"] is None

@@ -296,3 +296,18 @@ def test_points_on_threads_of_one_process_agree():
         for d in (a, b):
             d.pop("timings_s"), d.pop("mrf_step_time_s")
         assert a == b
+
+
+def test_a_smoothed_sweep_tabulates_the_flight_against_its_lower_bound(tmp_path):
+    """With smoothing, each row holds the run's flight_quality scalars (makespan over its lower bound, stops),
+    as its result.json has them."""
+    res = run_sweep(EXPERIMENTS / "corridor.toml", {"smoothing.time_weight": [10, 20]}, tmp_path, workers=1,
+                    overrides=["simulation.enabled=false"])
+    for d, row in zip(sorted((tmp_path / "points").iterdir()), res.rows):
+        q = json.loads((d / "result.json").read_text())["flight_quality"]
+        for k in ("lower_bound_s", "makespan_over_bound", "bound_robot", "stops_per_robot", "stops_max",
+                  "mean_speed_m_s"):
+            assert row[k] == q[k], k
+        assert row["makespan_over_bound"] > 1 and "stops" not in row  # the per-robot list stays in result.json
+    header = read_csv(res.csv_path)[0]
+    assert {"makespan_over_bound", "stops_per_robot", "lower_bound_s"} <= set(header)

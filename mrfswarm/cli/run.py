@@ -80,6 +80,9 @@ def run(args: argparse.Namespace) -> int:
             f"min separation {s['min_separation_discrete']:.2f} m discrete")
     if s["min_separation_continuous"] is not None:
         line += f", {s['min_separation_continuous']:.2f} m smooth ({s['qp']}), makespan {s['makespan_s']:.1f} s"
+        q = s["flight_quality"]
+        if q["makespan_over_bound"] is not None:
+            line += f" ({q['makespan_over_bound']:.2f} x the lower bound, {q['stops_per_robot']:.2f} stops per robot)"
     if s["simulation"] is not None:
         line += f", flown: max tracking error {s['simulation']['max_tracking_error_m'] * 100:.1f} cm"
     print(f"{line} -> {out}")

@@ -147,3 +147,21 @@ def test_the_nlp_flag_reaches_the_time_refinement(tmp_path, monkeypatch):
     assert main(["run", *common, "--out", str(tmp_path / "plain")]) == 0
     plain = json.loads((tmp_path / "plain" / "result.json").read_text())
     assert res["makespan_s"] < plain["makespan_s"] - 0.01
+
+
+def test_the_run_line_reports_the_flight_against_its_lower_bound(tmp_path, capsys):
+    """A smoothed run prints its makespan over the lower bound and its stops per robot, as result.json has them."""
+    import re
+
+    rows = ", ".join(f'"{"." * 15}{"." if 9 <= y <= 11 else "@"}{"." * 14}"' for y in range(20))
+    cfg = write_config(tmp_path, f"[scenario]\nmap = {{ kind = \"ascii\", rows = [{rows}] }}\n"
+                                 "start = { center = [6, 10], n_robots = 5, sigma = 1.0, seed = 0 }\ngoal = [25, 10]\n"
+                                 "[interaction]\nk = 3\n[simulation]\nenabled = false\n")
+    out = tmp_path / "out"
+    assert main(["run", str(cfg), "--out", str(out)]) == 0
+    line = capsys.readouterr().out
+    m = re.search(r"makespan ([\d.]+) s \(([\d.]+) x the lower bound, ([\d.]+) stops per robot\)", line)
+    assert m, line
+    q = json.loads((out / "result.json").read_text())["flight_quality"]
+    assert float(m[2]) == pytest.approx(q["makespan_over_bound"], abs=0.005) and q["makespan_over_bound"] > 1
+    assert float(m[3]) == pytest.approx(q["stops_per_robot"], abs=0.005)
