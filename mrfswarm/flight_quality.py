@@ -76,6 +76,21 @@ def free_path_lengths(free: np.ndarray, starts: np.ndarray, ends: np.ndarray, re
     return out
 
 
+def free_move_counts(free: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """(N,) fewest moves (MRF steps) from each ``starts[i]`` to ``ends[i]`` on the same free-cell graph as
+    :func:`free_path_lengths` (a diagonal move counts one, as a straight one does); ``inf`` where no path
+    joins them. No plan brings a robot there in fewer steps."""
+    free = np.asarray(free, dtype=bool)
+    starts, ends = np.asarray(starts, dtype=np.intp), np.asarray(ends, dtype=np.intp)
+    graph = _graph(free, 1.0)
+    graph.data[:] = 1.0
+    out = np.zeros(len(starts))
+    for i in np.flatnonzero(np.any(starts != ends, axis=1)):
+        d = dijkstra(graph, directed=True, indices=int(_flat(ends[i], free.shape)), unweighted=True)
+        out[i] = d[_flat(starts[i], free.shape)]
+    return out
+
+
 def makespan_lower_bound(free: np.ndarray, starts: np.ndarray, ends: np.ndarray, resolution: float, v_max: float,
                          via: np.ndarray | None = None) -> float:
     """Seconds: the longest shortest free path from a start cell to its final cell, at ``v_max``."""

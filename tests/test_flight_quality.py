@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mrfswarm.discrete.goal_distance import goal_distance
-from mrfswarm.flight_quality import count_stops, free_path_lengths, makespan_lower_bound
+from mrfswarm.flight_quality import count_stops, free_move_counts, free_path_lengths, makespan_lower_bound
 from mrfswarm.geometry import segment_clear
 from mrfswarm.trajectory import PiecewisePolynomial
 
@@ -125,3 +125,18 @@ def test_a_run_reports_its_makespan_over_the_lower_bound_and_its_stops():
     assert q2["stops"][0] == 1 and q2["stops"][1:] == q["stops"][1:] and q2["stops_max"] >= 1
 
     assert dataclasses.replace(r, continuous=None).summary()["flight_quality"] is None
+
+
+def test_free_move_counts_count_a_diagonal_as_one_move_and_go_around_walls():
+    free = np.ones((7, 5), dtype=bool)
+    starts = np.array([[0, 0], [0, 0], [3, 2]])
+    ends = np.array([[4, 4], [6, 0], [3, 2]])
+    assert free_move_counts(free, starts, ends).tolist() == [4, 6, 0]
+    free[3, :4] = False  # a wall with its gap at the top row: x = 3 only at y = 4
+    walled = free_move_counts(free, np.array([[2, 0]]), np.array([[4, 0]]))[0]
+    # up 4 to (2, 4), across the gap 2 to (4, 4) (the diagonals (2, 3) -> (3, 4) and (3, 4) -> (4, 3) would cut
+    # the wall's corner at (3, 3)), down 4 to (4, 0)
+    assert walled == 4 + 2 + 4
+    blocked = free.copy()
+    blocked[3, 4] = False
+    assert free_move_counts(blocked, np.array([[2, 0]]), np.array([[4, 0]]))[0] == np.inf
