@@ -182,7 +182,7 @@ class MrfConfig:
     grid, up to 0.68 on voxels, and the paper's dot-product rule keeps it; 0 trimmed those too and left 3 of 1000 robots crossing
     an open field outside the goal after 300 steps), except for a robot that has stayed in its cell for the
     last ``trim_escape`` steps (default 2; 0: never), which gets its whole label set back: trimmed alone, a
-    crowd loses the moves that make room and strands robots (README, "Flight quality", What changed).
+    crowd loses the moves that make room and strands robots (docs/flight_quality.md, "What changed").
     ``contested`` says which of several equally near robots
     gets a cell they could all move to (label sets are disjoint; the nearest robot gets
     it): ``"downhill"`` (default), the one whose static field it lowers most;

@@ -278,7 +278,7 @@ REFERENCE_SPEED = 1.0
 OPTIMISTIC_BUDGET = 1 / 3
 #: Suffix of the fast attempt with its first step as the window before planned it, which the default tries
 #: among its attempts (:meth:`RecedingHorizon._follow`): measured in the session of 2026-11-28 (fifth), see
-#: the README's "What changed".
+#: docs/flight_quality.md, "What changed".
 FOLLOWED = ", first step as planned"
 #: Powers of the stretch (see RecedingHorizon._stretched) tried, in this order, before the cautious profile: a
 #: window whose faster profiles fail flies the bold profile's durations stretched by half the stretch (in the
