@@ -34,7 +34,7 @@ PROGRESS_RULES = ("static", "energy")
 #: How the goal potential measures the distance to the goal (see :mod:`mrfswarm.discrete.potentials`).
 GOAL_DISTANCES = ("geodesic", "euclidean")
 #: Who gets a cell several robots could move to (see :func:`mrfswarm.discrete.label_sets.label_sets`).
-CONTESTED_RULES = ("downhill", "nearest")
+CONTESTED_RULES = ("shared", "downhill", "nearest")
 
 #: Keys of earlier versions, and what replaced them.
 REMOVED_KEYS = {
@@ -183,11 +183,12 @@ class MrfConfig:
     an open field outside the goal after 300 steps), except for a robot that has stayed in its cell for the
     last ``trim_escape`` steps (default 2; 0: never), which gets its whole label set back: trimmed alone, a
     crowd loses the moves that make room and strands robots (docs/flight_quality.md, "What changed").
-    ``contested`` says which of several equally near robots
-    gets a cell they could all move to (label sets are disjoint; the nearest robot gets
-    it): ``"downhill"`` (default), the one whose static field it lowers most;
-    ``"nearest"``, the lower index (the paper's scenario configs), which can lock a crowd
-    up in a corridor (:mod:`mrfswarm.discrete.label_sets`).
+    ``contested`` says who may move to a cell several robots could move to: ``"shared"``
+    (default), all of them, the step MRF's hard conflicts deciding who takes it (the
+    energy, not a rule); the paper gives it to one robot, the nearest, and among equally
+    near ones ``"downhill"`` to the one whose static field it lowers most, ``"nearest"`` to the
+    lower index (the paper's scenario configs), which can lock a crowd up in a corridor
+    (:mod:`mrfswarm.discrete.label_sets`).
     ``follow`` (default true) lets a robot take the cell another robot leaves in the
     same step, when their moves keep them one cell apart (a queue moves as a whole);
     false is the paper's rule (cells where robots stand are no candidates), set by the
@@ -217,7 +218,7 @@ class MrfConfig:
     trim_backward: bool = True
     trim_escape: int = 2
     trim_slack: float = 0.5
-    contested: str = "downhill"
+    contested: str = "shared"
     follow: bool = True
     arrival: bool = True
     merge_waits: bool = True

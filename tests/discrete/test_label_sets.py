@@ -190,7 +190,7 @@ def test_a_contested_cell_goes_to_a_nearest_claimant_ties_by_rule(seed, conteste
 
 def test_contested_rule_is_checked():
     free = np.ones((4, 4), bool)
-    with pytest.raises(ValueError, match="must be one of downhill, nearest"):
+    with pytest.raises(ValueError, match="must be one of shared, downhill, nearest"):
         label_sets(free, np.array([[0, 0]]), 2, contested="random")
     with pytest.raises(ValueError, match="needs the static field"):
         label_sets(free, np.array([[0, 0]]), 2, contested="downhill")
@@ -206,3 +206,53 @@ def test_downwash_scale_shrinks_only_z():
     for bad in [(3, 0.5), (3, float("nan")), (4, 1.0)]:
         with pytest.raises(ValueError, match="downwash_scale"):
             downwash_scale(*bad)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_shared_contested_cell_stays_with_every_claimant_and_its_conflicts_are_found(seed):
+    """contested = "shared": every robot that can move to a cell keeps it (no X_i ∩ X_j = ∅), and the step's
+    hard conflicts, which then decide who takes it, match brute force on those overlapping sets."""
+    rng = np.random.default_rng(seed)
+    free = rng.random((16, 16)) > 0.2
+    cells = np.argwhere(free)
+    rng.shuffle(cells)
+    starts = cells[:30]
+    static = rng.normal(size=free.shape)
+    ls = label_sets(free, starts, 2, static=static, contested="shared")
+    occupied = {tuple(c) for c in starts.tolist()}
+    for i, s in enumerate(starts):
+        mine = {tuple(ls.cells[i, l].tolist()) for l in range(1, ls.count[i])}
+        expect = {tuple((s + o).tolist()) for o in stencil(2)[1:]
+                  if free[tuple(np.clip(s + o, 0, 15))] and 0 <= (s + o).min() and (s + o).max() < 16
+                  and tuple((s + o).tolist()) not in occupied and segment_clear(free, s, s + o)}
+        assert mine == expect, i
+    owners = [sum(c in {tuple(ls.cells[i, l].tolist()) for l in range(1, ls.count[i])} for i in range(30))
+              for c in {tuple(ls.cells[i, l].tolist()) for i in range(30) for l in range(1, ls.count[i])}]
+    assert max(owners) > 1  # cells shared by several robots
+    assert check_conflicts(ls) > 0
+
+
+def test_shared_cells_are_kept_apart_by_the_steps_hard_conflicts(monkeypatch):
+    """A plan with shared contested cells keeps every robot a cell from every other; without the hard conflicts
+    (the guard that then decides who takes a cell) two robots end a step in one cell or cross within a cell, and
+    the planner's invariant check refuses the plan."""
+    import importlib
+
+    from mrfswarm.config import from_dict
+    from mrfswarm.discrete.safety import discrete_violations
+    from mrfswarm.pipeline import plan
+
+    rows = ["." * 24] * 16
+    scn = {"map": {"kind": "ascii", "rows": rows}, "start": {"center": [5, 8], "n_robots": 20, "sigma": 1.5,
+                                                             "seed": 1}, "goal": [20, 12]}
+    cfg = from_dict({"scenario": scn, "interaction": {"k": 5}, "mrf": {"max_steps": 12, "merge_waits": False,
+                                                                       "drop_loops": False},
+                     "smoothing": {"enabled": False}, "simulation": {"enabled": False}})
+    assert cfg.mrf.contested == "shared"
+    r = plan(cfg, progress=False)
+    assert discrete_violations(r.discrete.paths, r.scenario.grid.free) == []
+    none = lambda labels, downwash=1.0: (np.zeros((0, 2), np.intp),  # noqa: E731
+                                         np.zeros((0, labels.index.shape[1], labels.index.shape[1]), bool))
+    monkeypatch.setattr(importlib.import_module("mrfswarm.discrete.step_mrf"), "conflict_tables", none)
+    with pytest.raises(AssertionError, match="discrete safety invariant violated.*(share cell|close while moving)"):
+        plan(cfg, progress=False)  # the planner's own check refuses the plan

@@ -451,7 +451,7 @@ def test_the_trim_slack_keeps_the_sideways_moves_of_the_papers_rule():
 
 @pytest.mark.parametrize("key, value, match", [
     ("goal_potential.distance", '"manhattan"', "must be one of geodesic, euclidean"),
-    ("mrf.contested", '"random"', "must be one of downhill, nearest"),
+    ("mrf.contested", '"random"', "must be one of shared, downhill, nearest"),
     ("mrf.progress", '"never"', "must be one of static, energy"),
     ("mrf.trim_escape", "-1", "must be >= 0"),
     ("mrf.trim_slack", "-0.5", "must be >= 0"),
@@ -463,7 +463,7 @@ def test_new_config_keys_are_checked(key, value, match):
 
 def test_defaults_navigate_and_paper_configs_pin_the_papers_rules():
     cfg = load_config(None)
-    assert (cfg.goal_potential.distance, cfg.mrf.contested, cfg.mrf.progress) == ("geodesic", "downhill", "static")
+    assert (cfg.goal_potential.distance, cfg.mrf.contested, cfg.mrf.progress) == ("geodesic", "shared", "static")
     assert cfg.mrf.follow and cfg.mrf.arrival and cfg.obstacle_potential.gamma == 2.0
     assert cfg.mrf.trim_backward and cfg.mrf.trim_escape == 2 and cfg.mrf.trim_slack == 0.5
     for name in ("corridor", "blocks", "corridor10", "blocks12", "free5", "free10", "example5", "single_obstacle",
