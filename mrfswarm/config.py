@@ -183,12 +183,13 @@ class MrfConfig:
     an open field outside the goal after 300 steps), except for a robot that has stayed in its cell for the
     last ``trim_escape`` steps (default 2; 0: never), which gets its whole label set back: trimmed alone, a
     crowd loses the moves that make room and strands robots (docs/flight_quality.md, "What changed").
-    ``contested`` says who may move to a cell several robots could move to: ``"shared"``
-    (default), all of them, the step MRF's hard conflicts deciding who takes it (the
-    energy, not a rule); the paper gives it to one robot, the nearest, and among equally
-    near ones ``"downhill"`` to the one whose static field it lowers most, ``"nearest"`` to the
-    lower index (the paper's scenario configs), which can lock a crowd up in a corridor
-    (:mod:`mrfswarm.discrete.label_sets`).
+    ``contested`` says who may move to a cell several robots could move to: the paper
+    gives it to one robot, the nearest, and among equally near ones ``"downhill"`` (default)
+    to the one whose static field it lowers most, ``"nearest"`` to the lower index (the
+    paper's scenario configs), which can lock a crowd up in a corridor; ``"shared"`` keeps it
+    for all of them, the step MRF's hard conflicts deciding who takes it (faster through
+    clutter and aisles, slower and not all arrived on big straight crossings;
+    :mod:`mrfswarm.discrete.label_sets`).
     ``follow`` (default true) lets a robot take the cell another robot leaves in the
     same step, when their moves keep them one cell apart (a queue moves as a whole);
     false is the paper's rule (cells where robots stand are no candidates), set by the
@@ -218,7 +219,7 @@ class MrfConfig:
     trim_backward: bool = True
     trim_escape: int = 2
     trim_slack: float = 0.5
-    contested: str = "shared"
+    contested: str = "downhill"
     follow: bool = True
     arrival: bool = True
     merge_waits: bool = True

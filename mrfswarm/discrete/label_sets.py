@@ -21,24 +21,26 @@ contested rule's order stays (:func:`_shadowed`). In the plane nothing changes. 
 a 3-D swarm with c = 2 has ~2 conflict pairs per robot in every step (targets stacked
 one voxel apart), with it a few per hundred robots.
 
-The paper gives a contested cell to one robot. With ``contested = "downhill"`` or
-``"nearest"`` it goes to the robot nearest to it (so each robot's cells lie in its own
-Voronoi cell, and moves of different robots rarely conflict), and among equally near
-robots ``contested`` says who gets it (the paper does not). With ``"shared"`` (the
-default) rule (b) is off: every robot keeps every candidate cell, and the step MRF decides
-who takes a cell that several want, by their energy, through the hard conflicts it has for
-every pair of moves that would come within a cell (:mod:`mrfswarm.discrete.step_mrf`; two
-robots never end in one cell). Behind a robot, the cell diagonally ahead of a robot is
-often nearer to the robot beside it, for which it is a move sideways: given to that robot,
-it stays empty while the robot that needed it waits or goes round. Measured (flight-quality
-bench, defaults, against "downhill"; 2026-11-28, seventh session): 40 robots in 10 %
-clutter 67 -> 61 MRF steps, makespan over its bound 1.44 -> 1.29 (refined 1.28 -> 1.21), 30 in
-aisles 1.43 -> 1.33, 50 across an open field 1.12 -> 1.08, 200 in 15 % clutter 1.95 -> 1.83
-with 1.25 -> 0.95 stops per robot; but 300 robots crossing an open field straight 1.17 ->
-1.29 (more waits), the doorway 1.32 -> 1.36, field3d 15.94 -> 16.51 s.
+The paper gives a contested cell to one robot. With ``contested = "downhill"`` (the
+default) or ``"nearest"`` it goes to the robot nearest to it (so each robot's cells lie in
+its own Voronoi cell, and moves of different robots rarely conflict), and among equally
+near robots ``contested`` says who gets it (the paper does not). With ``"shared"`` rule (b)
+is off: every robot keeps every candidate cell, and the step MRF decides who takes a cell
+that several want, by their energy, through the hard conflicts it has for every pair of
+moves that would come within a cell (:mod:`mrfswarm.discrete.step_mrf`; two robots never
+end in one cell). The cell diagonally ahead of a robot is often nearer to the robot beside
+it, for which it is a move sideways: given to that robot, it stays empty while the robot
+that needed it waits or goes round. Measured (flight-quality bench, against "downhill";
+2026-11-28, seventh session): 40 robots in 10 % clutter 67 -> 61 MRF steps, makespan over
+its bound 1.44 -> 1.29 (refined 1.28 -> 1.21), six of seven such maps 3.7-10.8 % sooner
+(one 3.9 % later), 30 robots in aisles 1.43 -> 1.33, 50 across an open field 1.12 -> 1.08,
+200 in 15 % clutter 1.95 -> 1.83 with 1.25 -> 0.95 stops per robot; but a straight
+crossing funnels: robots off the goal's row find the diagonal move toward it lower (the
+8-connected distance) and take their neighbours' lanes, so 300 robots crossing an open
+field 1.17 -> 1.29 with more waits, and of 1000 robots crossing 240 m only 985 at the goal
+after 300 steps; the doorway 1.32 -> 1.36, field3d 15.94 -> 16.51 s. Hence not the default.
 
-- ``"shared"`` (default): no robot is given a contested cell; the MRF decides.
-
+- ``"shared"``: no robot is given a contested cell; the MRF decides.
 - ``"nearest"``: the lower index. In a crowd this can hand a cell to a robot that has no
   use for it (it lies behind that robot) while the robot beside it, for which it is the
   way forward, loses it: a swarm queued in a 2-cell corridor or doorway can lock up for
@@ -46,7 +48,7 @@ with 1.25 -> 0.95 stops per robot; but 300 robots crossing an open field straigh
   64 runs with 50 robots on generated maps ended with robots held short of the goal;
   none with ``"downhill"`` or ``"shared"``). The paper's scenario configs use it (their discrete outputs
   are the ones reproduced).
-- ``"downhill"``: the robot whose static field the cell lowers most,
+- ``"downhill"`` (default): the robot whose static field the cell lowers most,
   rho_S(x_i) - rho_S(cell), then the lower index. Where rho_S is flat (free space
   without a goal) it is ``"nearest"``.
 """

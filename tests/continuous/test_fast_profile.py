@@ -68,9 +68,8 @@ def _arena() -> RecedingHorizon:
     starts = [[0.5, y] for y in (0.75, 1.5, 2.25, 3.0)] + [[1.0, y] for y in (0.75, 1.5, 2.25, 3.0)]
     scn = {"map": {"kind": "ascii", "rows": rows, "resolution": 0.25}, "start": {"positions": starts},
            "goal": [5.25, 1.75], "robot_radius": 0.1, "goal_radius": 0.75}
-    # the plan of contested = "downhill" (the default before "shared") holds the case
     cfg = from_dict({"scenario": scn, "interaction": {"k": 3}, "smoothing": {"enabled": False, "v_max": 1.0},
-                     "simulation": {"enabled": False}, "mrf": {"contested": "downhill"}})
+                     "simulation": {"enabled": False}})
     result = mrfswarm.plan(cfg, progress=False)
     return RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
                            workers=1)
@@ -99,8 +98,7 @@ def test_the_last_window_brakes_a_little_longer_before_it_falls_back(monkeypatch
 
 def _rooms() -> RecedingHorizon:
     """experiments/maps/rooms_01.toml: 5 robots through the doors of a room map."""
-    cfg = load_config(EXPERIMENTS / "maps" / "rooms_01.toml", ["smoothing.enabled=false", "simulation.enabled=false",
-                                                                "mrf.contested=downhill"])  # the plan that holds the case
+    cfg = load_config(EXPERIMENTS / "maps" / "rooms_01.toml", ["smoothing.enabled=false", "simulation.enabled=false"])
     result = mrfswarm.plan(cfg, progress=False)
     return RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
                            workers=1)
@@ -137,8 +135,7 @@ def test_a_window_tries_its_fast_attempt_with_the_first_step_as_planned(monkeypa
     from mrfswarm.config import apply_overrides
 
     data, base = case_config("trap")
-    # the plan of contested = "downhill" (the default before "shared") holds the case
-    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "mrf.contested=downhill"]), base)
+    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false"]), base)
     flight = mrfswarm.plan(cfg, progress=False).continuous
     assert flight.certificate.ok
     windows = flight.windows

@@ -169,9 +169,7 @@ def test_where_some_holds_fail_the_other_robots_are_still_held(monkeypatch):
     from flight_quality import case_config
 
     data, base = case_config("clutter40")
-    # the plan of contested = "downhill" (the default before "shared") holds the case
-    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "smoothing.enabled=false",
-                                           "mrf.contested=downhill"]), base)
+    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "smoothing.enabled=false"]), base)
     discrete = plan(cfg, progress=False)
     paths = discrete.discrete.paths
 

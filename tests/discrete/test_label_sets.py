@@ -246,7 +246,7 @@ def test_shared_cells_are_kept_apart_by_the_steps_hard_conflicts(monkeypatch):
     scn = {"map": {"kind": "ascii", "rows": rows}, "start": {"center": [5, 8], "n_robots": 20, "sigma": 1.5,
                                                              "seed": 1}, "goal": [20, 12]}
     cfg = from_dict({"scenario": scn, "interaction": {"k": 5}, "mrf": {"max_steps": 12, "merge_waits": False,
-                                                                       "drop_loops": False},
+                                                                       "drop_loops": False, "contested": "shared"},
                      "smoothing": {"enabled": False}, "simulation": {"enabled": False}})
     assert cfg.mrf.contested == "shared"
     r = plan(cfg, progress=False)

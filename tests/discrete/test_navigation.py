@@ -463,7 +463,7 @@ def test_new_config_keys_are_checked(key, value, match):
 
 def test_defaults_navigate_and_paper_configs_pin_the_papers_rules():
     cfg = load_config(None)
-    assert (cfg.goal_potential.distance, cfg.mrf.contested, cfg.mrf.progress) == ("geodesic", "shared", "static")
+    assert (cfg.goal_potential.distance, cfg.mrf.contested, cfg.mrf.progress) == ("geodesic", "downhill", "static")
     assert cfg.mrf.follow and cfg.mrf.arrival and cfg.obstacle_potential.gamma == 2.0
     assert cfg.mrf.trim_backward and cfg.mrf.trim_escape == 2 and cfg.mrf.trim_slack == 0.5
     for name in ("corridor", "blocks", "corridor10", "blocks12", "free5", "free10", "example5", "single_obstacle",
