@@ -237,7 +237,8 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
             rise = cell_values(goal_distance, clipped) - cell_values(goal_distance, starts)[:, None]
             ok &= (rise <= trim_slack) | keep_all
     ok[:, 0] = True  # staying is always allowed (the cell is free and one's own)
-    # (b) X_i ∩ X_j = ∅: a contested cell goes to one robot (the first in the sort below), but with "shared"
+    # (b) X_i ∩ X_j = ∅: a contested cell goes to one robot (the first in the sort below); with "shared" every
+    # robot keeps it (the sort then only orders the 3-D shadow rule below)
     r, s = np.nonzero(ok)
     cell_id = np.ravel_multi_index(tuple(cand[r, s].T), free.shape)  # (in 2-D, x H + y)
     dist2 = (off[s] ** 2).sum(axis=1)
