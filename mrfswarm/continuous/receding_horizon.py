@@ -276,6 +276,17 @@ REFERENCE_SPEED = 1.0
 #: flights in less time (clutter40 10.1 s -> 7.0), open50 one window differently (makespan 41.02 s -> 41.11, 11.0 s
 #: of planning -> 8.1).
 OPTIMISTIC_BUDGET = 1 / 3
+#: A hopeful attempt with creep rows or holds tries its plain durations first once this many times the run's count
+#: of attempts with no solution without them exceeds its count of attempts solved with them: the rows only add
+#: constraints, so where the plain durations have no solution the variants are not solved (they would fail, each
+#: to the budget above, about twice a solved one's iterations); where they are solved with them, the plain solve is
+#: one more. Measured (flight_quality.py --baseline 39d3468, 2026-11-28, eighth session): the open field's planning
+#: 7.6 -> 6.2 s, clutter40 9.5 -> 8.2 s, the other maps the same time, the same flights but clutter40's (52.70 ->
+#: 52.73 s: a hopeful solve can also fail for its iteration budget, and the plain solve's lazy rows change later
+#: solves; 2 of its 17 windows flew another attempt). Plain first from the start made aisles30 2.0 -> 2.35 s. Not
+#: in a refined run: there the plain solve's rows are carried into the refinement's trial points (each starts from
+#: the accepted QP's rows), which flew refined clutter40 46.86 -> 47.52 s for 3 % less planning.
+PLAIN_FAIL_WEIGHT = 2
 #: Suffix of the fast attempt with its first step as the window before planned it, which the default tries
 #: among its attempts (:meth:`RecedingHorizon._follow`): measured in the session of 2026-11-28 (fifth), see
 #: docs/flight_quality.md, "What changed".
@@ -567,6 +578,9 @@ class RecedingHorizon:
                                         f"an obstacle (radius {self.radius:g} m): the discrete move is unsafe")
         self.seps = separations(self.X, self.regions, self.distance, self.scale)
         self.profiles: list[SwarmProfile] = []  # one per PROFILES entry
+        #: Hopeful attempts with creep rows or holds so far: [no solution without them, solved with them]
+        #: (:data:`PLAIN_FAIL_WEIGHT`).
+        self.plain_odds = [0, 0]
         self.creep = np.zeros((self.T, self.N, self.dim))  # (T, N, d) CREEP_SPEED along the way of drifting waits
         self._exit = np.full((self.T, self.N), self.T)
         if cfg.speed is None and self.T:
@@ -1031,11 +1045,28 @@ class RecedingHorizon:
                     # the arrived robots where they can: flown unheld, the refined open field's robots drifted
                     # (0.2 stops per robot, none held)
                     softs = [(False, True)]
-                for with_creep, hold in softs + [(False, False)]:
+                hopeful = k < optimistic + (len(tries) - len(attempts))
+                variants, plain = softs + [(False, False)], None
+                if (softs and hopeful and not self.cfg.time_refinement
+                        and PLAIN_FAIL_WEIGHT * self.plain_odds[0] > self.plain_odds[1]):
+                    # the plain variant first (PLAIN_FAIL_WEIGHT): where it has no solution, the variants are
+                    # not tried
+                    plain = self._solve(a, b, start, durations, rec, merged=merged, optimistic=hopeful)
+                    if plain[0] is None:
+                        variants = [(False, False)]
+                for with_creep, hold in variants:
                     creep = c if with_creep else None
-                    hopeful = k < optimistic + (len(tries) - len(attempts))
-                    sol, why = self._solve(a, b, start, durations, rec, merged=merged, optimistic=hopeful, creep=creep,
-                                           gradient=self.cfg.time_refinement, hold=hold)
+                    if plain is not None and creep is None and not hold:
+                        sol, why = plain
+                    else:
+                        sol, why = self._solve(a, b, start, durations, rec, merged=merged, optimistic=hopeful,
+                                               creep=creep, gradient=self.cfg.time_refinement, hold=hold)
+                    if softs and hopeful and (with_creep, hold) in (softs[0], (False, False)):
+                        soft = (with_creep, hold) != (False, False)
+                        if sol is None and not soft:
+                            self.plain_odds[0] += 1
+                        elif sol is not None and soft:
+                            self.plain_odds[1] += 1
                     release, cert = None, None
                     if sol is not None and softs and has_hold and not hold:
                         # the holds failed: hold the arrived robots that this solution keeps clear of the others
