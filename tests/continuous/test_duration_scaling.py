@@ -294,3 +294,39 @@ def test_a_window_whose_flown_steps_the_scaling_would_only_lengthen_is_not_refin
     press[:c - a], press[c - a:] = w * 0.9 ** (2 * q), w * 1.2 ** (2 * q)  # the tail presses: flown steps shorter
     rh._refine(dataclasses.replace(sol, gradient=-press), a, start, rec)
     assert solves  # the refinement ran its trial points
+
+
+def test_a_trial_point_starts_from_the_rows_of_the_best_point_so_far(monkeypatch):
+    """The window's QP at a trial point starts from the lazy rows of the best point solved so far (the lowest f):
+    rows a neighbouring point needed are likely needed again, and need not be found again, one more round each.
+    A trial without a solution (here one that switched many limit rows on) passes on nothing."""
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, horizon=4, speed=1.32, time_weight=10.0),
+                         0.25, workers=1)
+    a, c, b, start, rec = first_window(rh)
+    sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec, gradient=True)
+    assert sol is not None and sol.gradient is not None
+    alloc = rh.time_allocation(sol, a, start, rec)
+    entry: list = []
+    real = RecedingHorizon._solve
+
+    def spy(self, *args, **kw):
+        entry.append((self.active.copy(), self.limit_rows.copy()))
+        return real(self, *args, **kw)
+
+    monkeypatch.setattr(RecedingHorizon, "_solve", spy)
+    f0 = alloc.problem.fun(sol.durations)
+    better = sol.durations * np.array([1.22, 1.035, 0.92, 0.91])
+    rounds = rec.rounds
+    f1 = alloc.problem.fun(better)
+    assert np.isfinite(f1) and f1 < f0
+    assert rec.rounds - rounds == 2  # the accepted QP's rows lacked one corridor
+    best_rows = alloc.rows[better.tobytes()]
+    assert best_rows[0].sum() > alloc.base[0].sum()
+    assert np.isnan(alloc.problem.fun(sol.durations * 0.95))  # no solution: it switched limit rows on
+    assert rh.limit_rows.sum() > best_rows[1].sum()
+    rounds = rec.rounds
+    f2 = alloc.problem.fun(sol.durations * np.array([1.25, 1.05, 0.95, 0.95]))
+    assert np.isfinite(f2)
+    assert rec.rounds - rounds == 1  # the corridor the best point needed was on from the start
+    for got, want in zip(entry[-1], best_rows):
+        np.testing.assert_array_equal(got, want)

@@ -57,7 +57,7 @@ def test_a_cached_window_solves_exactly_as_a_fresh_one(monkeypatch, backend):
     monkeypatch.setattr(entry, "update", counted)
     calls = _refined_first_window(monkeypatch, backend)
     hits = WINDOWS.hits
-    assert hits >= len(calls) / 3, (hits, len(calls))  # 11 of 22: the trial points share the accepted QP's rows
+    assert hits >= len(calls) / 3, (hits, len(calls))  # the trial points share the best point's rows
     # piqp's prepared solver updated in place; osqp's never kept
     assert (len(updates) >= 2) if backend == "piqp" else not updates
     for spec, durations, options, gradient, out in calls:
