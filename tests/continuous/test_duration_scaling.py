@@ -33,6 +33,15 @@ def separable(c: np.ndarray, x0: np.ndarray, floor: np.ndarray | None = None, ca
     return NLPProblem(fun, grad, x0, 1e-3, 100.0)
 
 
+def first_allocation(rh: RecedingHorizon) -> tuple:
+    """``first_window(rh)``, its QP solved with the gradient at the nominal durations, and the refinement's
+    problem from there: (a, c, b, start, record, solution, allocation)."""
+    a, c, b, start, rec = first_window(rh)
+    sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec, gradient=True)
+    assert sol is not None and sol.gradient is not None
+    return a, c, b, start, rec, sol, rh.time_allocation(sol, a, start, rec)
+
+
 def test_a_separable_cost_reaches_its_minimizer():
     """Each step's model is exact here: the iteration reaches T* = (7 c / W)^(1/8) within the gain tolerance."""
     c = np.array([0.5, 4.0, 40.0, 1e-3])
@@ -169,10 +178,7 @@ def test_the_refinement_starts_from_the_accepted_qp_without_solving_it_again(mon
     point: evaluating f and its gradient there solves no QP, and they are what a fresh solve at the same durations
     gives."""
     rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, speed=1.25), 0.25)
-    a, c, b, start, rec = first_window(rh)
-    sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec, gradient=True)
-    assert sol is not None and sol.gradient is not None
-    alloc = rh.time_allocation(sol, a, start, rec)
+    a, c, b, start, rec, sol, alloc = first_allocation(rh)
     solves: list = []
     real = RecedingHorizon._solve
     monkeypatch.setattr(RecedingHorizon, "_solve", lambda self, *args, **kw: solves.append(1) or real(self, *args, **kw))
@@ -302,10 +308,7 @@ def test_a_trial_point_starts_from_the_rows_of_the_best_point_so_far(monkeypatch
     A trial without a solution (here one that switched many limit rows on) passes on nothing."""
     rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, horizon=4, speed=1.32, time_weight=10.0),
                          0.25, workers=1)
-    a, c, b, start, rec = first_window(rh)
-    sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec, gradient=True)
-    assert sol is not None and sol.gradient is not None
-    alloc = rh.time_allocation(sol, a, start, rec)
+    a, c, b, start, rec, sol, alloc = first_allocation(rh)
     entry: list = []
     real = RecedingHorizon._solve
 
