@@ -24,13 +24,13 @@ clutter40's refined steps fly near v_max, and its plan takes 67 steps where 56 w
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
+from csv_table import write_csv  # noqa: E402
 from flight_quality import RESULTS, VARIANTS, case_config  # noqa: E402
 
 COLUMNS = ["case", "variant", "x_bound", "steps", "min_steps", "detour", "s_step", "s_diag", "best", "wait",
@@ -107,11 +107,7 @@ def main() -> None:
     print(" ".join(f"{c:>9}" for c in COLUMNS))
     for r in rows:
         print(" ".join(f"{str(r[c]):>9}" for c in COLUMNS))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    with open(args.out, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=COLUMNS)
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(args.out, rows, COLUMNS)
     print(f"wrote {args.out}")
 
 

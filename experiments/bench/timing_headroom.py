@@ -29,12 +29,12 @@ all over the makespan's lower bound:
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
 import numpy as np
+from csv_table import write_csv
 from flight_quality import DEFAULT_CASES, RESULTS, case_config
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -115,10 +115,7 @@ def main() -> None:
     print("  ".join(f"{k:>9}" for k in keys))
     for row in rows:
         print("  ".join(f"{row[k]!s:>9}" for k in keys))
-    with open(args.out, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=keys)
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(args.out, rows, keys)
     print(f"all over the makespan's lower bound; wrote {args.out}")
 
 
