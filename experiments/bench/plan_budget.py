@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from csv_table import write_csv  # noqa: E402
+from csv_table import text_table, write_csv  # noqa: E402
 from flight_quality import RESULTS, VARIANTS, case_config  # noqa: E402
 
 COLUMNS = ["case", "variant", "x_bound", "steps", "min_steps", "detour", "s_step", "s_diag", "best", "wait",
@@ -104,9 +104,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=RESULTS / "plan_budget.csv")
     args = ap.parse_args()
     rows = [row(case, variant, args.set) for case in args.cases.split(",") for variant in args.variants.split(",")]
-    print(" ".join(f"{c:>9}" for c in COLUMNS))
-    for r in rows:
-        print(" ".join(f"{str(r[c]):>9}" for c in COLUMNS))
+    print(text_table(rows, COLUMNS))
     write_csv(args.out, rows, COLUMNS)
     print(f"wrote {args.out}")
 

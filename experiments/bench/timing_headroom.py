@@ -34,7 +34,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
 import numpy as np
-from csv_table import write_csv
+from csv_table import text_table, write_csv
 from flight_quality import DEFAULT_CASES, RESULTS, case_config
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -111,11 +111,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=RESULTS / "timing_headroom.csv")
     args = ap.parse_args()
     rows = [measure(case) for case in args.cases.split(",")]
-    keys = list(rows[0])
-    print("  ".join(f"{k:>9}" for k in keys))
-    for row in rows:
-        print("  ".join(f"{row[k]!s:>9}" for k in keys))
-    write_csv(args.out, rows, keys)
+    print(text_table(rows, sep="  "))
+    write_csv(args.out, rows)
     print(f"all over the makespan's lower bound; wrote {args.out}")
 
 
