@@ -284,8 +284,8 @@ OPTIMISTIC_BUDGET = 1 / 3
 #: 7.6 -> 6.2 s, clutter40 9.5 -> 8.2 s, the other maps the same time, the same flights but clutter40's (52.70 ->
 #: 52.73 s: a hopeful solve can also fail for its iteration budget, and the plain solve's lazy rows change later
 #: solves; 2 of its 17 windows flew another attempt). Plain first from the start made aisles30 2.0 -> 2.35 s. Not
-#: in a refined run: there the plain solve's rows are carried into the refinement's trial points (each starts from
-#: the best point's rows, at first the accepted QP's), which flew refined clutter40 46.86 -> 47.52 s for 3 % less planning.
+#: in a refined run: there the plain solve's rows are carried into the refinement's trial points (each then started
+#: from the accepted QP's rows), which flew refined clutter40 46.86 -> 47.52 s for 3 % less planning.
 PLAIN_FAIL_WEIGHT = 2
 #: Suffix of the fast attempt with its first step as the window before planned it, which the default tries
 #: among its attempts (:meth:`RecedingHorizon._follow`): measured in the session of 2026-11-28 (fifth), see
