@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mrfswarm.config import SmoothingConfig
-from mrfswarm.continuous.duration_scaling import scale_durations
+from mrfswarm.continuous.duration_scaling import ScalingResult, scale_durations
 from mrfswarm.continuous.receding_horizon import RecedingHorizon, WindowRecord
 from solvers.nlp import NLPProblem
 from support.passing import GRID, PASSING, first_window
@@ -333,3 +333,27 @@ def test_a_trial_point_starts_from_the_rows_of_the_best_point_so_far(monkeypatch
     assert rec.rounds - rounds == 1  # the corridor the best point needed was on from the start
     for got, want in zip(entry[-1], best_rows):
         np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("longer, kept", [(4e-16, True), (1e-3, False)])
+def test_a_refined_point_longer_by_rounding_only_is_kept(monkeypatch, longer, kept):
+    """The refinement keeps no point that lasts longer than the QP's durations, and the scaling caps its points at
+    their sum, which rounding can pass by an ulp: such a point counts as no longer (refined clutter40 lost two
+    windows' refinements to it), one 1 ms longer does not."""
+    import mrfswarm.continuous.receding_horizon as rh_mod
+
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, speed=1.25), 0.25, workers=1)
+    a, c, b, start, rec, sol, alloc = first_allocation(rh)
+    total = sol.durations.sum()
+    found = scale_durations(alloc.problem, alloc.weight, rh.cfg.derivative, total=total)
+    T = found.x * (total / found.x.sum())
+    T[-1] += total * longer  # the cap's point, past the QP's sum by ``longer``
+    assert T.sum() > total and alloc.problem.fun(T) < alloc.problem.fun(sol.durations)
+
+    def only(problem, weight, derivative, **kw):  # the scaling, had it stopped at that point
+        return ScalingResult(T, problem.fun(T), 1, 1, "converged")
+
+    monkeypatch.setattr(rh_mod, "scale_durations", only)
+    refined = rh._refine(sol, a, start, rec)
+    assert rec.refined == kept
+    assert np.array_equal(refined.durations, T if kept else sol.durations)
