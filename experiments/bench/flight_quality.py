@@ -161,7 +161,12 @@ def case_config(case: str) -> tuple[dict, Path]:
 
 def child(case: str, variant: str, code: str | None, overrides: list[str], arrays: str) -> None:
     """Plan one case with one variant and print its row as JSON (run in a child process); the arrays
-    the makespan's lower bound needs go to the file ``arrays``."""
+    the makespan's lower bound needs go to the file ``arrays``.
+
+    ``plan_s`` times :func:`~mrfswarm.pipeline.plan` alone; ``run_s`` what a user of ``mrfswarm run`` waits for
+    after the interpreter starts: importing the package, planning and writing every output (figures, Crazyflie
+    files and their certificate) into a scratch folder, the issue's "run time"."""
+    started = time.perf_counter()
     use(code)
     import importlib.util
 
@@ -189,6 +194,11 @@ def child(case: str, variant: str, code: str | None, overrides: list[str], array
     t0 = time.perf_counter()
     r = plan(cfg, progress=False)
     total = time.perf_counter() - t0
+    from mrfswarm.outputs import write_outputs
+
+    with tempfile.TemporaryDirectory() as out:
+        write_outputs(r, Path(out) / "run")
+    run_total = time.perf_counter() - started
     scn, c = r.scenario, r.continuous
     paths = r.discrete.paths
     d = scn.distances
@@ -205,7 +215,8 @@ def child(case: str, variant: str, code: str | None, overrides: list[str], array
            "speed": round(float(stops.mean_speed.mean()), 2),
            "at_goal": sum(bool(o.at_goal) for o in robots),
            "moving_share": round(float(moving.mean()), 2),
-           "plan_s": round(total, 1),
+           "plan_s": round(total, 2),
+           "run_s": round(run_total, 2),
            "min_sep_m": round(float(c.min_separation), 3)}
     print(json.dumps(row))
 
@@ -223,7 +234,7 @@ def lower_bound(arrays: Path, makespan: float) -> dict:
 
 
 COLUMNS = ["steps", "bound", "stops", "stops_max", "speed", "at_goal", "moving_share", "makespan_s", "bound_s",
-           "plan_s"]
+           "plan_s", "run_s"]
 
 
 def main() -> None:
@@ -263,6 +274,22 @@ def main() -> None:
         w.writeheader()
         w.writerows(rows)
     print(f"bound: makespan / lower bound; stops: per robot; moving_share: robot-steps that move; wrote {args.out}")
+    for line in cost_lines(rows):
+        print(line)
+
+
+def cost_lines(rows: list[dict]) -> list[str]:
+    """Per case and code, what ``refined`` costs over ``default``: the ratios of their plan_s and run_s."""
+    by = {(r["case"], r["code"], r["variant"]): r for r in rows}
+    out = []
+    for (case, code, variant), ref in by.items():
+        base = by.get((case, code, "default"))
+        if variant != "refined" or base is None:
+            continue
+        ratio = {k: ref[k] / base[k] if base.get(k) and ref.get(k) is not None else None for k in ("plan_s", "run_s")}
+        out.append(f"refined / default, {case} ({code}): " + ", ".join(
+            f"{k} {v:.2f} x" if v is not None else f"{k} -" for k, v in ratio.items()))
+    return out
 
 
 if __name__ == "__main__":

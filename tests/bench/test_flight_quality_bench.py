@@ -1,0 +1,24 @@
+"""The refinement's cost lines of experiments/bench/flight_quality.py."""
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parents[2] / "experiments" / "bench"))
+from flight_quality import cost_lines  # noqa: E402
+
+
+def row(case: str, code: str, variant: str, plan_s: float, run_s: float | None) -> dict:
+    return {"case": case, "code": code, "variant": variant, "plan_s": plan_s, "run_s": run_s}
+
+
+def test_refined_over_default_per_case_and_code():
+    rows = [row("forest", "HEAD", "default", 0.5, 2.0), row("forest", "HEAD", "refined", 2.0, 4.0),
+            row("forest", "now", "default", 0.4, 2.5), row("forest", "now", "refined", 1.2, 3.0),
+            row("trap", "now", "refined", 1.0, 3.0)]  # no default to compare with: no line
+    assert cost_lines(rows) == ["refined / default, forest (HEAD): plan_s 4.00 x, run_s 2.00 x",
+                                "refined / default, forest (now): plan_s 3.00 x, run_s 1.20 x"]
+
+
+def test_a_baseline_without_run_s_gets_a_dash():
+    rows = [row("rooms", "abc", "default", 1.0, None), row("rooms", "abc", "refined", 2.5, None)]
+    assert cost_lines(rows) == ["refined / default, rooms (abc): plan_s 2.50 x, run_s -"]
