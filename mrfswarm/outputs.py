@@ -17,33 +17,18 @@ import json
 import os
 import shutil
 import tempfile
-from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 from mrfswarm import plots
+from mrfswarm.atomic import atomic_write, umask
 from mrfswarm.errors import ExportError
 from mrfswarm.pipeline import Result
 
 RUN_MARKER = "result.json"
 """The file that makes a folder a run's folder (written last)."""
-
-
-def atomic_write(path: Path, write: Callable[[Path], object]) -> Path:
-    """Call ``write(tmp)`` (its return value is ignored) then rename ``tmp`` to ``path`` (same folder, same suffix)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
 
 
 def write_json(path: Path, data: dict) -> Path:
@@ -114,9 +99,7 @@ def write_outputs(result: Result, out: Path, animate: bool = False, overwrite: b
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.partial-"))
     try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(stage, 0o777 & ~umask)  # as a folder made by mkdir would be
+        os.chmod(stage, 0o777 & ~umask())  # as a folder made by mkdir would be
         written = write_discrete_outputs(result, stage)
         if result.continuous is not None:
             written += write_continuous_outputs(result, stage, animate)

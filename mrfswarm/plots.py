@@ -417,8 +417,12 @@ def draw_field(ax, field: np.ndarray, extent: tuple[float, float, float, float],
 
 
 def save_figure(fig, path: Path, dpi: int = 100) -> Path:
-    """Save a figure as a compact PNG (limited dpi, optimized) and close it."""
+    """Save a figure as a PNG (limited dpi) and close it.
+
+    Not PIL's ``optimize``: it saved 3 % of the bytes (the forest's seven figures 357 -> 347 kB)
+    and took a third of the time of writing a small run's outputs (0.64-0.75 s -> 0.97-1.47 s).
+    """
     plt = _plt()
-    fig.savefig(path, dpi=dpi, pil_kwargs={"optimize": True})
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return Path(path)

@@ -407,7 +407,8 @@ def _cell(v: Any) -> str:
 def _write_table(out_dir: Path, rows: list[dict], columns: list[str], meta: dict) -> None:
     import csv
 
-    from mrfswarm.outputs import atomic_write, write_json
+    from mrfswarm.atomic import atomic_write
+    from mrfswarm.outputs import write_json
 
     def write(p: Path) -> None:
         with open(p, "w", newline="") as f:

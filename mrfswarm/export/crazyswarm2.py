@@ -64,7 +64,7 @@ def crazyflies_config(starts: np.ndarray, uri: str | None = None) -> dict:
 
 def write_crazyswarm2(starts: np.ndarray, out: Path) -> list[Path]:
     """``out/crazyswarm2/crazyflies.yaml``, ``out/crazyswarm2/fly.py`` and ``out/crazyflie/cflib_upload.py``."""
-    from mrfswarm.outputs import atomic_write
+    from mrfswarm.atomic import atomic_write
 
     written = [atomic_write(out / "crazyswarm2" / "crazyflies.yaml", lambda p: p.write_text(
         "# Crazyswarm2 robots of this mrfswarm run: cf<k> flies trajectories/robot_<k-1>.csv (see fly.py)\n"

@@ -138,7 +138,7 @@ def write_measured(path: Path, measured: dict) -> Path:
     """Write ``measured.json`` atomically, readable by everyone."""
     import os
 
-    from mrfswarm.outputs import atomic_write
+    from mrfswarm.atomic import atomic_write
 
     atomic_write(path, lambda p: p.write_text(_compact_json(measured) + "\n"))
     os.chmod(path, 0o644)

@@ -13,11 +13,11 @@ from __future__ import annotations
 import csv
 import io
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from mrfswarm.atomic import atomic_write
 from mrfswarm.errors import ScenarioError
 from mrfswarm.trajectory.polynomial import PiecewisePolynomial
 from solvers.errors import InvalidProblem
@@ -81,18 +81,7 @@ def write_uav_csv(trajectory: PiecewisePolynomial, path: str | os.PathLike, alti
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
     """Write ``text`` to a temporary file beside ``path``, then rename it onto ``path``."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    atomic_write(Path(path), lambda p: p.write_text(text, newline=""))
 
 
 def read_uav_csv(path: str | os.PathLike, dim: int = 3) -> PiecewisePolynomial:

@@ -175,3 +175,25 @@ def yaml_robots(out: Path) -> list:
 
     robots = yaml.safe_load((out / "crazyswarm2" / "crazyflies.yaml").read_text())["robots"]
     return [r["initial_position"] for r in robots.values()]
+
+
+@pytest.mark.parametrize("mask", [0o022, 0o027])
+def test_a_runs_files_and_folders_get_the_modes_the_umask_gives(tmp_path, mask):
+    """Every file of a run is written under a temporary name (mkstemp: owner-only, 0600) and renamed into place;
+    it gets the mode a file created the usual way would have (0666 less the umask), as its folders get 0777 less
+    the umask: a colleague or a web server that may read the folder may read the run. The same for a CSV written
+    by the trajectory module."""
+    from mrfswarm.trajectory.uav_csv import write_text_atomic
+
+    old = os.umask(mask)
+    try:
+        out = tmp_path / "out"
+        assert run(tmp_path, 3, out) == 0
+        write_text_atomic(tmp_path / "robot.csv", "duration\n")
+    finally:
+        os.umask(old)
+    files = [p for p in out.rglob("*") if p.is_file()] + [tmp_path / "robot.csv"]
+    folders = [out] + [p for p in out.rglob("*") if p.is_dir()]
+    assert len(files) > 10 and len(folders) > 3
+    assert {oct(p.stat().st_mode & 0o777) for p in files} == {oct(0o666 & ~mask)}
+    assert {oct(p.stat().st_mode & 0o777) for p in folders} == {oct(0o777 & ~mask)}
