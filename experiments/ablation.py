@@ -37,13 +37,13 @@ import csv
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from mrfswarm.config import load_config
-from mrfswarm.discrete.planner import DiscreteProblem, StepOutcome, plan_discrete, step_model
+from mrfswarm.discrete.planner import AUTO_RULES, DiscreteProblem, StepOutcome, plan_discrete, step_model
 from mrfswarm.metrics import discrete_metrics
 from mrfswarm.pipeline import mrf_options
 from mrfswarm.scenario import build_scenario
@@ -163,6 +163,8 @@ def run_one(config: Path, method: str, max_steps: int | None = None, seed: int =
     cfg = load_config(config, ["smoothing.enabled=false", f"mrf.method={method}"])
     scn = build_scenario(cfg)
     problem = scn.discrete_problem()
+    if problem.contested == "auto":  # one plan per method, its steps measured: the first rule "auto" tries
+        problem = replace(problem, contested=AUTO_RULES[0])
     records: list[StepRecord] = []
     plan = plan_discrete(problem, method=method, max_steps=max_steps or cfg.mrf.max_steps, tol=cfg.mrf.tol,
                          patience=cfg.mrf.patience, options=mrf_options(cfg, seed),

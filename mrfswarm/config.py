@@ -33,8 +33,9 @@ REFINEMENTS = ("scaling", "nlp")
 PROGRESS_RULES = ("static", "energy")
 #: How the goal potential measures the distance to the goal (see :mod:`mrfswarm.discrete.potentials`).
 GOAL_DISTANCES = ("geodesic", "euclidean")
-#: Who gets a cell several robots could move to (see :func:`mrfswarm.discrete.label_sets.label_sets`).
-CONTESTED_RULES = ("shared", "downhill", "nearest")
+#: Who gets a cell several robots could move to (see :func:`mrfswarm.discrete.label_sets.label_sets`; ``"auto"``
+#: plans with each of :data:`mrfswarm.discrete.planner.AUTO_RULES` and keeps the plan that flies soonest).
+CONTESTED_RULES = ("auto", "shared", "downhill", "nearest")
 
 #: Keys of earlier versions, and what replaced them.
 REMOVED_KEYS = {
@@ -184,12 +185,15 @@ class MrfConfig:
     last ``trim_escape`` steps (default 2; 0: never), which gets its whole label set back: trimmed alone, a
     crowd loses the moves that make room and strands robots (docs/flight_quality.md, "What changed").
     ``contested`` says who may move to a cell several robots could move to: the paper
-    gives it to one robot, the nearest, and among equally near ones ``"downhill"`` (default)
+    gives it to one robot, the nearest, and among equally near ones ``"downhill"``
     to the one whose static field it lowers most, ``"nearest"`` to the lower index (the
     paper's scenario configs), which can lock a crowd up in a corridor; ``"shared"`` keeps it
     for all of them, the step MRF's hard conflicts deciding who takes it (faster through
     clutter and aisles, slower and not all arrived on big straight crossings;
-    :mod:`mrfswarm.discrete.label_sets`).
+    :mod:`mrfswarm.discrete.label_sets`). ``"auto"`` (default) plans with ``"downhill"`` and
+    then ``"shared"`` and keeps the plan with the most robots at the goal, then the one the
+    time grid's model flies soonest (:func:`mrfswarm.discrete.planner.plan_discrete`); the
+    discrete stage costs about twice as much, a small part of a run with smoothing.
     ``follow`` (default true) lets a robot take the cell another robot leaves in the
     same step, when their moves keep them one cell apart (a queue moves as a whole);
     false is the paper's rule (cells where robots stand are no candidates), set by the
@@ -219,7 +223,7 @@ class MrfConfig:
     trim_backward: bool = True
     trim_escape: int = 2
     trim_slack: float = 0.5
-    contested: str = "downhill"
+    contested: str = "auto"
     follow: bool = True
     arrival: bool = True
     merge_waits: bool = True

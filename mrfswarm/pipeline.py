@@ -225,6 +225,7 @@ class Result:
             "merged_waits": self.discrete.merged_waits,
             "dropped_loops": self.discrete.dropped_loops,
             "congested_fields": self.discrete.congested_fields,
+            "contested": self.discrete.contested,
             "timings_s": {k: float(v) for k, v in self.timings_s.items()},
             "failure": self.failure,
         }
@@ -396,7 +397,7 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         t0 = time.perf_counter()
         plan_d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.method, max_steps=cfg.mrf.max_steps,
                                tol=cfg.mrf.tol, patience=cfg.mrf.patience, options=options,
-                               on_step=lambda t, out: bar.update(1), progress=cfg.mrf.progress,
+                               on_step=lambda t, out: bar.update(t - bar.n), progress=cfg.mrf.progress,
                                arrival=cfg.mrf.arrival)
         timings["discrete"] = time.perf_counter() - t0
     metrics = discrete_metrics(plan_d.paths, scn.grid.occupied, scn.grid.resolution, scn.goal,

@@ -201,8 +201,9 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
         most of them, as the paper's dot-product rule keeps every square move
         (``mrf.trim_slack``).
     """
-    if contested not in CONTESTED_RULES:
-        raise ValueError(f"contested = {contested!r}: must be one of {', '.join(CONTESTED_RULES)}")
+    rules = [r for r in CONTESTED_RULES if r != "auto"]  # "auto" picks one of them per plan (plan_discrete)
+    if contested not in rules:
+        raise ValueError(f"contested = {contested!r}: label sets need one of {', '.join(rules)}")
     if contested == "downhill" and static is None:
         raise ValueError('contested = "downhill" needs the static field')
     starts = np.asarray(starts, dtype=np.intp)

@@ -54,6 +54,10 @@ log = logging.getLogger(__name__)
 
 #: The per-step stages whose times are recorded, in order.
 STAGES = ("graph", "cliques", "labels", "energy", "optimizer")
+#: The contested rules ``contested = "auto"`` plans with, in this order (:func:`plan_discrete`).
+AUTO_RULES = ("downhill", "shared")
+#: With ``"auto"``, a later rule's plan ends after this many times the first plan's steps: it would fly later.
+AUTO_STEP_CAP = 1.1
 
 
 #: A robot whose nearest neighbour is farther than this many d_min is separated from the swarm.
@@ -184,6 +188,8 @@ class DiscretePlan:
         Loops replaced by waits by :func:`~mrfswarm.discrete.loops.drop_loops` (0 when off).
     congested_fields
         Goal fields recomputed around stalled robots (:mod:`mrfswarm.discrete.congestion`).
+    contested
+        The contested rule the plan was made with (the one ``"auto"`` picked).
     """
 
     paths: np.ndarray
@@ -195,6 +201,7 @@ class DiscretePlan:
     merged_waits: int = 0
     dropped_loops: int = 0
     congested_fields: int = 0
+    contested: str = ""
 
     @property
     def n_steps(self) -> int:
@@ -363,12 +370,17 @@ class _Progress:
             self.since += 1
 
 
+def _short_count(problem: DiscreteProblem, cells: np.ndarray) -> int:
+    """The robots that have a free path to the goal and are outside the goal region (0 without a goal)."""
+    if problem.goal_path is None:
+        return 0
+    d = cell_values(problem.goal_path, cells)
+    return int(np.count_nonzero(np.isfinite(d) & ~(d <= problem.goal_region_radius)))
+
+
 def _short_of_goal(problem: DiscreteProblem, cells: np.ndarray) -> bool:
     """Some robot that has a free path to the goal is outside the goal region (never without a goal)."""
-    if problem.goal_path is None:
-        return False
-    d = cell_values(problem.goal_path, cells)
-    return bool((np.isfinite(d) & ~(d <= problem.goal_region_radius)).any())
+    return _short_count(problem, cells) > 0
 
 
 def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int = 300, tol: float = 1e-6,
@@ -406,6 +418,12 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         (``patience``): on a 64 x 64 clutter map with 40 robots, 47 more steps of a few
         robots shuffling around the goal, flown as a slow tail.
 
+    With ``problem.contested = "auto"`` the stage plans once per rule of :data:`AUTO_RULES` and
+    returns the plan with the fewest robots short of the goal region, then the one the sooner
+    by :func:`flight_time`, then the first. When the first plan has every robot at the goal, a
+    later rule's plan ends after :data:`AUTO_STEP_CAP` times its steps (cut there, it has robots
+    short of the goal, or flies later by the model). ``on_step`` sees each plan's steps from 1.
+
     Raises
     ------
     ScenarioError
@@ -413,6 +431,42 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     """
     if progress not in PROGRESS_RULES:
         raise ValueError(f"progress = {progress!r}: must be one of {', '.join(PROGRESS_RULES)}")
+    def one(p: DiscreteProblem, steps: int) -> DiscretePlan:
+        return _plan_rule(p, method, steps, tol, patience, options, on_step, progress, arrival)
+
+    if problem.contested != "auto":
+        return one(problem, max_steps)
+    best: DiscretePlan | None = None
+    best_key: tuple[int, float] = (0, 0.0)
+    cap = max_steps
+    for rule in AUTO_RULES:
+        plan = one(replace(problem, contested=rule), cap)
+        key = (_short_count(problem, plan.paths[-1]), flight_time(problem, plan.paths))
+        log.info("discrete stage, contested = %r: %d steps, %d robots short of the goal, %.2f s by the flight model",
+                 rule, plan.n_steps, *key)
+        if best is None or key < best_key:
+            best, best_key = plan, key
+        if rule == AUTO_RULES[0] and key[0] == 0:  # arrived: a plan of many more steps would fly later
+            cap = min(max_steps, int(np.ceil(AUTO_STEP_CAP * max(plan.n_steps, 1))))
+    assert best is not None
+    return best
+
+
+def flight_time(problem: DiscreteProblem, paths: np.ndarray) -> float:
+    """How long ``paths`` take to fly: seconds on the time grid's model (``problem.flight``), or without one the
+    sum of each step's longest move (cells)."""
+    if len(paths) < 2:
+        return 0.0
+    if problem.flight is not None:
+        need, length = problem.flight.needs(paths)
+        return float(problem.flight.duration(need.max(axis=1), length.max(axis=1)))
+    return float(np.linalg.norm(np.diff(paths, axis=0), axis=2).max(axis=1).sum())
+
+
+def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float, patience: int,
+               options: mrf_solvers.Options | None, on_step: Callable[[int, StepOutcome], None] | None,
+               progress: str, arrival: bool) -> DiscretePlan:
+    """:func:`plan_discrete` with one contested rule."""
     pos = np.asarray(problem.start, dtype=np.intp).copy()
     _check_start(problem, pos)
     paths = [pos]
@@ -497,4 +551,5 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         merged_waits=merged,
         dropped_loops=dropped,
         congested_fields=congested,
+        contested=problem.contested,
     )

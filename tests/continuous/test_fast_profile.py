@@ -135,7 +135,7 @@ def test_a_window_tries_its_fast_attempt_with_the_first_step_as_planned(monkeypa
     from mrfswarm.config import apply_overrides
 
     data, base = case_config("trap")
-    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false"]), base)
+    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "mrf.contested=downhill"]), base)  # its plan
     flight = mrfswarm.plan(cfg, progress=False).continuous
     assert flight.certificate.ok
     windows = flight.windows

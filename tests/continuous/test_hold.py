@@ -169,7 +169,9 @@ def test_where_some_holds_fail_the_other_robots_are_still_held(monkeypatch):
     from flight_quality import case_config
 
     data, base = case_config("clutter40")
-    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "smoothing.enabled=false"]), base)
+    # the plan of the "downhill" rule, whose windows this test was written on
+    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "smoothing.enabled=false",
+                                           "mrf.contested=downhill"]), base)
     discrete = plan(cfg, progress=False)
     paths = discrete.discrete.paths
 

@@ -30,7 +30,9 @@ def clutter():
     from flight_quality import case_config
 
     data, base = case_config("clutter40")
-    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "smoothing.enabled=false"]), base)
+    # the plan of the "downhill" rule, whose windows these tests were written on
+    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "smoothing.enabled=false",
+                                           "mrf.contested=downhill"]), base)
     return cfg, plan(cfg, progress=False)
 
 

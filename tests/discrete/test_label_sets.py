@@ -190,8 +190,10 @@ def test_a_contested_cell_goes_to_a_nearest_claimant_ties_by_rule(seed, conteste
 
 def test_contested_rule_is_checked():
     free = np.ones((4, 4), bool)
-    with pytest.raises(ValueError, match="must be one of shared, downhill, nearest"):
+    with pytest.raises(ValueError, match="label sets need one of shared, downhill, nearest"):
         label_sets(free, np.array([[0, 0]]), 2, contested="random")
+    with pytest.raises(ValueError, match="label sets need one of"):  # "auto" is the planner's, per plan
+        label_sets(free, np.array([[0, 0]]), 2, contested="auto")
     with pytest.raises(ValueError, match="needs the static field"):
         label_sets(free, np.array([[0, 0]]), 2, contested="downhill")
 

@@ -40,7 +40,7 @@ DISCRETE = ["smoothing.enabled=false"]
 #: The paper's field, and its label sets (no following into a cell a robot leaves: with it the swarm of forest_03
 #: files between the trees to the goal even on the straight-line field).
 EUCLIDEAN = ('goal_potential.distance="euclidean"', "mrf.follow=false", "obstacle_potential.gamma=5",  # the paper's
-             "mrf.trim_backward=false")
+             "mrf.trim_backward=false", "mrf.contested=downhill")  # (one plan, the rule these maps were pinned with)
 
 #: Maps whose swarm the paper's straight-line goal field leaves short of the goal (all of them).
 TRAPPED_BY_EUCLIDEAN = set(MAP_CONFIGS)
@@ -382,7 +382,7 @@ def test_stalled_robots_are_told_from_trapped_ones():
     # the robots left behind are held by the robots ahead, not by the field
     # (with the paper's label sets and end rule: following into the cells robots leave, or ending the plan on
     # arrival, the defaults, let this swarm arrive)
-    r = run_map("trap_04", 'mrf.progress="energy"', "mrf.follow=false", "mrf.arrival=false")
+    r = run_map("trap_04", 'mrf.progress="energy"', "mrf.follow=false", "mrf.arrival=false", "mrf.contested=downhill")
     short = [x for x in r.robots if not x.at_goal]
     assert short and {x.stop_reason for x in short} == {"stalled"}
     assert r.discrete.stop_reason == "stalled"
@@ -451,7 +451,7 @@ def test_the_trim_slack_keeps_the_sideways_moves_of_the_papers_rule():
 
 @pytest.mark.parametrize("key, value, match", [
     ("goal_potential.distance", '"manhattan"', "must be one of geodesic, euclidean"),
-    ("mrf.contested", '"random"', "must be one of shared, downhill, nearest"),
+    ("mrf.contested", '"random"', "must be one of auto, shared, downhill, nearest"),
     ("mrf.progress", '"never"', "must be one of static, energy"),
     ("mrf.trim_escape", "-1", "must be >= 0"),
     ("mrf.trim_slack", "-0.5", "must be >= 0"),
@@ -463,7 +463,7 @@ def test_new_config_keys_are_checked(key, value, match):
 
 def test_defaults_navigate_and_paper_configs_pin_the_papers_rules():
     cfg = load_config(None)
-    assert (cfg.goal_potential.distance, cfg.mrf.contested, cfg.mrf.progress) == ("geodesic", "downhill", "static")
+    assert (cfg.goal_potential.distance, cfg.mrf.contested, cfg.mrf.progress) == ("geodesic", "auto", "static")
     assert cfg.mrf.follow and cfg.mrf.arrival and cfg.obstacle_potential.gamma == 2.0
     assert cfg.mrf.trim_backward and cfg.mrf.trim_escape == 2 and cfg.mrf.trim_slack == 0.5
     for name in ("corridor", "blocks", "corridor10", "blocks12", "free5", "free10", "example5", "single_obstacle",

@@ -1,0 +1,100 @@
+"""``mrf.contested = "auto"`` (the default): the discrete stage plans with each rule of ``AUTO_RULES`` and keeps
+the plan with the fewest robots short of the goal, then the one the time grid's model flies soonest."""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import mrfswarm
+from mrfswarm.config import apply_overrides, from_dict, load_config
+from mrfswarm.discrete import planner as planner_mod
+from mrfswarm.discrete.planner import AUTO_RULES, _short_count, flight_time, plan_discrete
+from mrfswarm.scenario import build_scenario
+from support.repository import EXPERIMENTS
+
+
+def clutter_map() -> dict:
+    """40 robots on a 64 x 64 map with 10 % obstacles (seed 3 of the bench's clutter maps)."""
+    sys.path.insert(0, str(EXPERIMENTS / "bench"))
+    import flight_quality as fq
+
+    occ = fq._random_field(64, 64, 0.10, 3, (8, 8), (55, 55), 5)
+    scn = {"map": {"kind": "ascii", "rows": fq._rows(occ)},
+           "start": {"center": [8, 8], "n_robots": 40, "sigma": 2.5, "seed": 0}, "goal": [55, 55]}
+    return {"scenario": scn, "interaction": {"k": 7}}
+
+
+def crossing() -> dict:
+    """30 robots crossing an open field straight along x."""
+    scn = {"map": {"kind": "free", "size": [60, 30]},
+           "start": {"center": [8, 15], "n_robots": 30, "sigma": 3.0, "seed": 0}, "goal": [52, 15]}
+    return {"scenario": scn, "interaction": {"k": 7}}
+
+
+def problem_of(data: dict):
+    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false"]))
+    return cfg, build_scenario(cfg).discrete_problem()
+
+
+def plan(problem, cfg, rule: str | None = None, max_steps: int | None = None, on_step=None):
+    p = problem if rule is None else replace(problem, contested=rule)
+    return plan_discrete(p, method=cfg.mrf.method, max_steps=max_steps or cfg.mrf.max_steps, tol=cfg.mrf.tol,
+                         patience=cfg.mrf.patience, progress=cfg.mrf.progress, arrival=cfg.mrf.arrival,
+                         on_step=on_step)
+
+
+@pytest.mark.parametrize("data, expect", [(clutter_map, "shared"), (crossing, "downhill")])
+def test_auto_keeps_the_plan_the_flight_model_flies_soonest(data, expect):
+    """Clutter flies sooner with the cells shared, a straight crossing with them given downhill (its lanes)."""
+    cfg, problem = problem_of(data())
+    assert problem.contested == "auto" == cfg.mrf.contested  # the default
+    plans = {rule: plan(problem, cfg, rule) for rule in AUTO_RULES}
+    auto = plan(problem, cfg)
+    assert all(_short_count(problem, p.paths[-1]) == 0 for p in plans.values())
+    times = {rule: flight_time(problem, p.paths) for rule, p in plans.items()}
+    assert auto.contested == expect == min(times, key=times.get)
+    assert np.array_equal(auto.paths, plans[expect].paths) and auto.stop_reason == "arrived"
+    other = next(r for r in AUTO_RULES if r != expect)
+    assert times[expect] < 0.97 * times[other]  # a clear choice, not a tie broken by rounding
+
+
+def test_a_plan_cut_short_is_not_kept_though_it_flies_sooner(monkeypatch):
+    """After a first plan that arrives, a later rule's plan ends after AUTO_STEP_CAP times its steps. Cut at half
+    (the cap set to 0.5 here), the second plan flies sooner by the model, as it is short, but leaves robots
+    outside the goal region: the first plan is kept."""
+    cfg, problem = problem_of(crossing())
+    first = plan(problem, cfg, AUTO_RULES[0])
+    monkeypatch.setattr(planner_mod, "AUTO_STEP_CAP", 0.5)
+    steps: list[int] = []
+    auto = plan(problem, cfg, on_step=lambda t, out: steps.append(t))
+    cap = math.ceil(0.5 * first.n_steps)
+    restart = steps.index(1, 1)  # the second plan's steps start again from 1
+    assert steps[:restart] == list(range(1, first.n_steps + 1)) and steps[restart:] == list(range(1, cap + 1))
+    cut = plan(problem, cfg, AUTO_RULES[1], max_steps=cap)
+    assert _short_count(problem, cut.paths[-1]) > 0
+    assert flight_time(problem, cut.paths) < flight_time(problem, first.paths)  # the model alone would take it
+    assert auto.contested == AUTO_RULES[0] and np.array_equal(auto.paths, first.paths)
+
+
+def test_without_a_flight_model_the_longest_moves_decide():
+    """With smoothing off (no time grid), each step counts its longest move in cells."""
+    cfg = from_dict(apply_overrides(clutter_map(), ["simulation.enabled=false", "smoothing.enabled=false"]))
+    problem = build_scenario(cfg).discrete_problem()
+    assert problem.flight is None
+    paths = np.array([[[0, 0], [5, 5]], [[1, 1], [5, 6]], [[1, 1], [5, 7]], [[1, 1], [5, 7]]])
+    assert flight_time(problem, paths) == pytest.approx(math.sqrt(2) + 1 + 0)
+    auto = plan(problem, cfg)
+    assert auto.contested == "shared"
+
+
+def test_the_run_records_the_rule_it_planned_with():
+    """result.json's ``contested``: the rule "auto" picked, or the config's own."""
+    data = apply_overrides(crossing(), ["smoothing.enabled=false", "simulation.enabled=false"])
+    assert mrfswarm.plan(from_dict(data), progress=False).summary()["contested"] == "downhill"
+    paper = load_config(EXPERIMENTS / "corridor.toml", ["smoothing.enabled=false", "simulation.enabled=false"])
+    assert mrfswarm.plan(paper, progress=False).summary()["contested"] == "nearest"  # the paper's rule, pinned
