@@ -257,10 +257,17 @@ EXPORT_SLACK = 3e-3
 #: same makespans within 0.4 %; 2026-11-27). Acceleration and jerk keep none: there the rounding search
 #: (mrfswarm.export.cflib_) finds roundings within the limits on the corridor as it did before.
 EXPORT_LIMIT_SLACK = (5e-3, 0.0, 0.0)
-#: Robots per chunk: independent groups are packed into QPs of about this many robots.
-CHUNK_ROBOTS = 64
+#: Robots per chunk: independent groups are packed into QPs of about this many robots. Small chunks cost less
+#: than one large QP even in one process: piqp's iterations grow with the hardest robot of a QP, and a failing
+#: attempt stops after the chunk that failed last time (``_solve_chunks``). 12 instead of 64, default planning on
+#: 2 cores (2026-11-28, one warm process per map, two runs; the plans of ``mrf.contested = "auto"``): the open
+#: field 12.4 -> 6.5 s (one worker: 12.4 -> 9.1), clutter40 8.3 -> 6.2, aisles30 3.4 -> 2.6, 200 robots in
+#: clutter 103.9 -> 96.2, the 300-robot crossing 33.9 -> 29.0, the 1000-robot crossing 200.2 -> 182.6; 8 robots
+#: the same as 12, 16 the open field 7.6 s, 32 10.6 s. The flights: clutter40 46.99 -> 47.13 s, aisles30 36.80
+#: -> 36.85, the rest within 0.1 %.
+CHUNK_ROBOTS = 12
 #: Swarms at least this large (two chunks or more) solve their chunks in worker processes (forked, so
-#: cheap to start: 100 robots on 2 cores, smoothing 6.1 s -> 5.0 s).
+#: cheap to start: 100 robots on 2 cores, smoothing 6.1 s -> 5.0 s with chunks of 64).
 PARALLEL_ROBOTS = CHUNK_ROBOTS + 1
 #: Rounds of lazy constraint generation before every row is switched on.
 MAX_ROUNDS = 12

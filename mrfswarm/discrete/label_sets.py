@@ -21,8 +21,8 @@ contested rule's order stays (:func:`_shadowed`). In the plane nothing changes. 
 a 3-D swarm with c = 2 has ~2 conflict pairs per robot in every step (targets stacked
 one voxel apart), with it a few per hundred robots.
 
-The paper gives a contested cell to one robot. With ``contested = "downhill"`` (the
-default) or ``"nearest"`` it goes to the robot nearest to it (so each robot's cells lie in
+The paper gives a contested cell to one robot. With ``contested = "downhill"`` or
+``"nearest"`` it goes to the robot nearest to it (so each robot's cells lie in
 its own Voronoi cell, and moves of different robots rarely conflict), and among equally
 near robots ``contested`` says who gets it (the paper does not). With ``"shared"`` rule (b)
 is off: every robot keeps every candidate cell, and the step MRF decides who takes a cell
@@ -38,7 +38,9 @@ its bound 1.44 -> 1.29 (refined 1.28 -> 1.21), six of seven such maps 3.7-10.8 %
 crossing funnels: robots off the goal's row find the diagonal move toward it lower (the
 8-connected distance) and take their neighbours' lanes, so 300 robots crossing an open
 field 1.17 -> 1.29 with more waits, and of 1000 robots crossing 240 m only 985 at the goal
-after 300 steps; the doorway 1.32 -> 1.36, field3d 15.94 -> 16.51 s. Hence not the default.
+after 300 steps; the doorway 1.32 -> 1.36, field3d 15.94 -> 16.51 s. Hence neither is the default:
+``contested = "auto"`` (the config's default) plans with both and keeps the plan that flies sooner
+(:func:`mrfswarm.discrete.planner.plan_discrete`); these label sets take one rule.
 
 - ``"shared"``: no robot is given a contested cell; the MRF decides.
 - ``"nearest"``: the lower index. In a crowd this can hand a cell to a robot that has no
@@ -48,7 +50,7 @@ after 300 steps; the doorway 1.32 -> 1.36, field3d 15.94 -> 16.51 s. Hence not t
   64 runs with 50 robots on generated maps ended with robots held short of the goal;
   none with ``"downhill"`` or ``"shared"``). The paper's scenario configs use it (their discrete outputs
   are the ones reproduced).
-- ``"downhill"`` (default): the robot whose static field the cell lowers most,
+- ``"downhill"``: the robot whose static field the cell lowers most,
   rho_S(x_i) - rho_S(cell), then the lower index. Where rho_S is flat (free space
   without a goal) it is ``"nearest"``.
 """

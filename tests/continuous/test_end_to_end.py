@@ -265,9 +265,15 @@ def test_plans_are_the_same_with_one_or_several_workers(monkeypatch):
     assert plans[0].certificate.ok and max(w.rounds for w in plans[0].windows) >= 1
 
 
-def test_chunks_are_alike_in_size_and_never_larger_than_asked():
-    """100 robots make two chunks of 50 (not 64 and 36: two workers would wait for the larger)."""
+def test_chunks_are_alike_in_size_and_never_larger_than_asked(monkeypatch):
+    """With chunks of up to 64 robots, 100 robots make two chunks of 50 (not 64 and 36: two workers would wait
+    for the larger); with the default 12, nine chunks, none over 12."""
     import mrfswarm.continuous.receding_horizon as rhm
+
+    single = [np.array([i]) for i in range(100)]
+    sizes = [len(c) for c in rhm.pack_groups(single, rhm.chunk_size(100))]
+    assert len(sizes) == 9 and max(sizes) <= rhm.CHUNK_ROBOTS == 12 and sum(sizes) == 100
+    monkeypatch.setattr(rhm, "CHUNK_ROBOTS", 64)
 
     for n in range(1, 400):
         size = rhm.chunk_size(n)
