@@ -344,7 +344,7 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
 
     piece, u0, u1 = split
     N, M, K, d = P.shape
-    S, D = len(piece), K - 1
+    D = K - 1
     chain_mm = (np.concatenate([P[:, :, :D].reshape(N, M * D, d), P[:, -1:, D]], axis=1) - origin) * 1000  # (N, C, d)
     C = chain_mm.shape[1]
     floor = np.floor(chain_mm)
@@ -363,22 +363,6 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
     shift = np.einsum("nsad,d->nsa", ax, origin * 1000)  # the slabs in mm from the origin
     lower = regions.lower.transpose(1, 0, 2) * 1000 - shift
     upper = regions.upper.transpose(1, 0, 2) * 1000 - shift
-    owner = np.zeros((M, S))  # (M, S): which piece flies each step, for the per-piece sums
-    owner[piece, np.arange(S)] = 1.0
-
-    def failing(bits: np.ndarray, robots: np.ndarray) -> np.ndarray:
-        """(n, M): per piece of ``robots``, how many of its steps' checks fail, plus (below 1) by how much."""
-        flying = (floor[robots] + bits)[:, at][:, piece]  # (n, S, K, d)
-        q = np.einsum("skl,nsld->nskd", W, flying)
-        s = np.einsum("nsad,nskd->nska", ax[robots], q)
-        excess = [np.maximum(np.maximum(lower[robots][:, :, None] - s, s - upper[robots][:, :, None]) + INSIDE_MM, 0.0)
-                  .reshape(len(robots), S, -1)]
-        for L in derivative:
-            excess.append(np.maximum(np.linalg.norm(np.einsum("sjl,nsld->nsjd", L, flying), axis=-1) - 1.0, 0.0))
-        e = np.concatenate(excess, axis=-1)  # (n, S, checks)
-        count, total = (e > 0).sum(axis=-1) @ owner.T, e.sum(axis=-1) @ owner.T
-        return count + total / (1.0 + total)
-
     # each piece's steps, padded to the most a piece flies (a merged piece flies several)
     per = np.bincount(piece, minlength=M)
     own = np.arange(max(int(per.max(initial=1)), 1))
@@ -386,8 +370,8 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
     own_step = np.where(own_valid, np.concatenate([[0], np.cumsum(per)[:-1]])[:, None] + own[None, :], 0)
 
     def piece_failing(flying: np.ndarray, robots: np.ndarray, pieces: np.ndarray) -> np.ndarray:
-        """(n,): :func:`failing`'s score of one piece each, ``pieces`` of ``robots`` flown with the
-        control points ``flying`` (n, K, d)."""
+        """(n,): per piece ``pieces`` of ``robots`` flown with the control points ``flying`` (n, K, d),
+        how many of its steps' checks fail, plus (below 1) by how much."""
         st, ok = own_step[pieces], own_valid[pieces]  # (n, most)
         f = flying[:, None]  # (n, 1, K, d)
         s = (W[st] @ f) @ ax[robots[:, None], st].swapaxes(-1, -2)  # (n, most, K, slabs)
@@ -399,13 +383,18 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
         total = e.sum(axis=(1, 2))
         return (e > 0).sum(axis=(1, 2)) + total / (1.0 + total)
 
+    def failing(bits: np.ndarray) -> np.ndarray:
+        """(N, M): :func:`piece_failing` of every piece of every robot."""
+        flying = (floor + bits)[:, at].reshape(N * M, K, d)
+        return piece_failing(flying, np.repeat(np.arange(N), M), np.tile(np.arange(M), N)).reshape(N, M)
+
     bits = (frac > 0.5).astype(float)  # (N, C, d): the nearest first
     w = min(WINDOW, C)
     combos = ((np.arange(2 ** w)[:, None] >> np.arange(w)[None, :]) & 1).astype(float)  # (2^w, w)
     O = len(combos)
     stride = 2 * D  # windows this far apart shape no piece in common (a window spans at most one knot)
     for _ in range(sweeps):
-        score = failing(bits, np.arange(N))  # (N, M), kept current below as windows change
+        score = failing(bits)  # (N, M), kept current below as windows change
         if not score.any():
             break
         changed = False
