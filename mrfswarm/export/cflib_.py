@@ -331,8 +331,9 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
     every robot and window two pieces apart whose pieces fail at once (the others keep
     their points), keeping the one under which the (one or two) pieces these points
     shape fail the fewest checks (then by the least excess, then the nearest); only
-    those pieces' steps are evaluated (17 x faster on 50 robots, 2.0 -> 0.12 s). The checks: the steps' control points in their regions (excess
-    in millimetres) and, given the rounded piece ``durations`` (M, ms) and ``limits``,
+    those pieces' steps are evaluated (17 x faster on 50 robots, 2.0 -> 0.12 s). The
+    checks: the steps' control points in their regions (excess in millimetres) and,
+    given the rounded piece ``durations`` (M, ms) and ``limits``,
     their speed, acceleration and jerk control points on the certificate's
     :data:`~mrfswarm.continuous.formulation.LIMIT_PARTS` sub-intervals within the limits
     (excess relative to the limit). A millimetre at one point moves a jerk control point
