@@ -411,17 +411,25 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
                 rob, win = np.nonzero(score[:, first] + np.where(two, score[:, last], 0.0) > 0)
                 if len(rob) == 0:
                     continue
-                trials = []
-                for pc in (first[win], last[win]):  # (n,) each pair's piece
-                    flying = np.repeat(bits[rob[:, None], at[pc]][:, None], O, axis=1)  # (n, O, K, d)
-                    pos = window[win] - D * pc[:, None]  # (n, w) the window's points in the piece
+                pairs = np.arange(len(rob))
+                across = np.flatnonzero(two[win])  # the pairs whose window shapes a second piece
+                parts = []  # (pairs, O) scores of their first piece, (across, O) of their second
+                for sel, pc in ((pairs, first[win]), (across, last[win][across])):
+                    if len(sel) == 0:
+                        parts.append(np.zeros((0, O)))
+                        continue
+                    who = rob[sel]
+                    flying = np.repeat(bits[who[:, None], at[pc]][:, None], O, axis=1)  # (n, O, K, d)
+                    pos = window[win[sel]] - D * pc[:, None]  # (n, w) the window's points in the piece
                     for t in range(w):
                         inside = np.flatnonzero((pos[:, t] >= 0) & (pos[:, t] < K))
                         flying[inside, :, pos[inside, t], axis] = combos[:, t]
-                    flying += floor[rob[:, None], at[pc]][:, None]
-                    trials.append(piece_failing(flying.reshape(-1, K, d), np.repeat(rob, O),
-                                                np.repeat(pc, O)).reshape(-1, O))
-                scores = trials[0] + np.where(two[win][:, None], trials[1], 0.0)  # (n, O)
+                    flying += floor[who[:, None], at[pc]][:, None]
+                    parts.append(piece_failing(flying.reshape(-1, K, d), np.repeat(who, O),
+                                               np.repeat(pc, O)).reshape(len(sel), O))
+                one, other = parts
+                scores = one.copy()  # (n, O)
+                scores[across] += other
                 near = np.abs(frac[rob[:, None], window[win], axis][:, None, :] - combos[None]).sum(axis=-1)
                 low = scores.min(axis=1, keepdims=True)
                 pick = np.argmin(np.where(scores <= low + 1e-12, near, np.inf), axis=1)  # (n,)
@@ -429,9 +437,8 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
                 if np.any(new != bits[rob[:, None], window[win], axis]):
                     changed = True
                     bits[rob[:, None], window[win], axis] = new
-                pairs = np.arange(len(rob))
-                score[rob, first[win]] = trials[0][pairs, pick]
-                score[rob[two[win]], last[win][two[win]]] = trials[1][pairs, pick][two[win]]
+                score[rob, first[win]] = one[pairs, pick]
+                score[rob[across], last[win][across]] = other[np.arange(len(across)), pick[across]]
         if not changed:
             break
     chain = (floor + bits).astype(np.int64)
