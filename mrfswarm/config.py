@@ -209,6 +209,10 @@ class MrfConfig:
     instead, where it stays one cell from every other robot (its cells a subsequence of
     the MRF's; no reversal to fly, :mod:`mrfswarm.discrete.loops`); false keeps the MRF's
     paths, as the paper's scenario configs do.
+    ``straighten`` (default true) then shortens each robot's way between two of its steps
+    (at most 8 apart) where safe: the same ends and step count, no move longer, a wait still a
+    wait (two diagonal moves that zigzag become two straight ones; :mod:`mrfswarm.discrete.straighten`);
+    false keeps the MRF's cells, as the paper's scenario configs do.
     ``progress`` says what resets the patience: ``"static"`` (default), a new minimum of
     the swarm energy or of the robots' static field sum; ``"energy"``, of the swarm
     energy only (the paper's scenario configs), which jumps whenever the k-NN graph's
@@ -228,6 +232,7 @@ class MrfConfig:
     arrival: bool = True
     merge_waits: bool = True
     drop_loops: bool = True
+    straighten: bool = True
     progress: str = "static"
     options: dict[str, Any] = field(default_factory=dict)
 

@@ -224,6 +224,7 @@ class Result:
             "mrf_repaired": int(sum(s["repaired"] for s in self.discrete.steps)),
             "merged_waits": self.discrete.merged_waits,
             "dropped_loops": self.discrete.dropped_loops,
+            "straightened": self.discrete.straightened,
             "congested_fields": self.discrete.congested_fields,
             "contested": self.discrete.contested,
             "timings_s": {k: float(v) for k, v in self.timings_s.items()},

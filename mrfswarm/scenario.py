@@ -109,6 +109,7 @@ class Scenario:
             congestion=self.congestion_field(),
             merge_waits=c.mrf.merge_waits,
             drop_loops=c.mrf.drop_loops,
+            straighten=c.mrf.straighten,
             flight=flight_model(c.smoothing, self.grid.resolution, c.scenario.robot_radius) if c.smoothing.enabled
             else None,
         )

@@ -54,7 +54,7 @@ EXP = ROOT / "experiments"
 RESULTS = Path(__file__).parent / "results"
 DEFAULT_CASES = "corridor,doorway,forest,rooms,trap,open50,clutter40,aisles30,arena8"
 #: mrf keys newer than the default baseline (dropped from a case for a baseline that does not know them).
-NEW_KEYS = ("follow", "arrival", "merge_waits", "drop_loops")
+NEW_KEYS = ("follow", "arrival", "merge_waits", "drop_loops", "straighten")
 VARIANTS = {"default": [], "refined": ["smoothing.time_refinement=true"],
             "refined_nlp": ["smoothing.time_refinement=true", "smoothing.refinement=nlp"]}
 

@@ -45,6 +45,7 @@ from mrfswarm.discrete.motion import MIN_SEPARATION, cell_values, step_min_separ
 from mrfswarm.discrete.potentials import Morse
 from mrfswarm.discrete.safety import discrete_violations
 from mrfswarm.discrete.step_mrf import step_mrf
+from mrfswarm.discrete.straighten import straighten
 from mrfswarm.errors import ScenarioError
 from mrfswarm.geometry import norm
 from solvers import mrf as mrf_solvers
@@ -115,6 +116,9 @@ class DiscreteProblem:
     drop_loops
         Once the paths are planned (before the waits are merged), a robot that comes back
         to a cell waits there instead where safe (:mod:`mrfswarm.discrete.loops`).
+    straighten
+        Once the loops are dropped (before the waits are merged), each robot's way between two of
+        its steps shortened where safe, no move longer (:mod:`mrfswarm.discrete.straighten`).
     flight
         The flight-time model a merge must not lengthen (None: every safe merge is made).
     """
@@ -139,6 +143,7 @@ class DiscreteProblem:
     congestion: CongestionField | None = None
     merge_waits: bool = False
     drop_loops: bool = False
+    straighten: bool = False
     flight: FlightTime | None = None
 
 
@@ -186,6 +191,8 @@ class DiscretePlan:
         Waits moved by :func:`~mrfswarm.discrete.merge_waits.merge_waits` (0 when off).
     dropped_loops
         Loops replaced by waits by :func:`~mrfswarm.discrete.loops.drop_loops` (0 when off).
+    straightened
+        Windows shortened by :func:`~mrfswarm.discrete.straighten.straighten` (0 when off).
     congested_fields
         Goal fields recomputed around stalled robots (:mod:`mrfswarm.discrete.congestion`).
     contested
@@ -200,6 +207,7 @@ class DiscretePlan:
     stop_reason: str = "max_steps"
     merged_waits: int = 0
     dropped_loops: int = 0
+    straightened: int = 0
     congested_fields: int = 0
     contested: str = ""
 
@@ -533,9 +541,11 @@ def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float
         converged, reason = False, "trapped"
     log.info("discrete stage: %d steps, %s", len(paths) - 1, reason)
     stacked = np.stack(paths)
-    merged = dropped = 0
+    merged = dropped = straightened = 0
     if problem.drop_loops:
         stacked, dropped = drop_loops(stacked, problem.downwash)
+    if problem.straighten:
+        stacked, straightened = straighten(stacked, problem.free, problem.downwash)
     if problem.merge_waits:
         stacked, merged = merge_waits(stacked, problem.downwash, problem.flight)
     bad = discrete_violations(stacked, problem.free, downwash=problem.downwash)
@@ -550,6 +560,7 @@ def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float
         stop_reason=reason,
         merged_waits=merged,
         dropped_loops=dropped,
+        straightened=straightened,
         congested_fields=congested,
         contested=problem.contested,
     )

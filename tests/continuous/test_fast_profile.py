@@ -69,7 +69,7 @@ def _arena() -> RecedingHorizon:
     scn = {"map": {"kind": "ascii", "rows": rows, "resolution": 0.25}, "start": {"positions": starts},
            "goal": [5.25, 1.75], "robot_radius": 0.1, "goal_radius": 0.75}
     cfg = from_dict({"scenario": scn, "interaction": {"k": 3}, "smoothing": {"enabled": False, "v_max": 1.0},
-                     "simulation": {"enabled": False}})
+                     "simulation": {"enabled": False}, "mrf": {"straighten": False}})  # the plan it was seen on
     result = mrfswarm.plan(cfg, progress=False)
     return RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
                            workers=1)
@@ -135,7 +135,8 @@ def test_a_window_tries_its_fast_attempt_with_the_first_step_as_planned(monkeypa
     from mrfswarm.config import apply_overrides
 
     data, base = case_config("trap")
-    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "mrf.contested=downhill"]), base)  # its plan
+    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "mrf.contested=downhill",
+                                           "mrf.straighten=false"]), base)  # its plan
     flight = mrfswarm.plan(cfg, progress=False).continuous
     assert flight.certificate.ok
     windows = flight.windows

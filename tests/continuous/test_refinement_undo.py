@@ -21,7 +21,7 @@ from support.repository import EXPERIMENTS
 # the forests of experiments/bench/flight_quality.py: 10 robots, k = 7
 #: The plans of the "downhill" contested rule, on which the undo was needed.
 FOREST = ("scenario.start.n_robots=10", "scenario.start.sigma=1.5", "interaction.k=7", "simulation.enabled=false",
-          "mrf.contested=downhill")
+          "mrf.contested=downhill", "mrf.straighten=false")
 
 
 def old_attempts(monkeypatch) -> None:
@@ -58,7 +58,7 @@ def test_refining_window3d_flies_no_later_than_its_default(monkeypatch, attempts
     if attempts == "old":
         old_attempts(monkeypatch)
     path: Path = EXPERIMENTS / "window3d.toml"
-    pinned = ["simulation.enabled=false", "mrf.contested=downhill"]
+    pinned = ["simulation.enabled=false", "mrf.contested=downhill", "mrf.straighten=false"]
     default = plan(load_config(path, pinned), progress=False).continuous
     refined = plan(load_config(path, [*pinned, "smoothing.time_refinement=true"]), progress=False).continuous
     undone = any(f.startswith("after window") for w in refined.windows for f in w.failed)

@@ -106,7 +106,8 @@ def clutter(seed: int) -> dict:
 
 def test_a_clutter_plan_loses_its_loops_and_keeps_its_cells_and_the_invariant():
     """A 64 x 64 clutter map of 40 robots (seed 3 of the random clutter maps): 17 loops in the MRF's paths."""
-    data = apply_overrides(clutter(3), ["smoothing.enabled=false", "simulation.enabled=false", "mrf.contested=downhill"])
+    data = apply_overrides(clutter(3), ["smoothing.enabled=false", "simulation.enabled=false", "mrf.contested=downhill",
+                                       "mrf.straighten=false"])
     raw = plan(from_dict(apply_overrides(data, ["mrf.drop_loops=false", "mrf.merge_waits=false"]), EXPERIMENTS),
                progress=False)
     kept = plan(from_dict(apply_overrides(data, ["mrf.merge_waits=false"]), EXPERIMENTS), progress=False)

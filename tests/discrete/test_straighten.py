@@ -1,0 +1,153 @@
+"""Straightening a robot's path: the same steps, no longer moves, a shorter way (``mrf.straighten``)."""
+
+from __future__ import annotations
+
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrfswarm.config import apply_overrides, from_dict
+from mrfswarm.discrete.safety import discrete_violations
+from mrfswarm.discrete.straighten import shortest_lengths, straighten
+from mrfswarm.pipeline import plan
+
+EXPERIMENTS = Path(__file__).resolve().parents[2] / "experiments"
+
+
+def lengths(P: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(np.diff(P, axis=0), axis=-1)
+
+
+def test_shortest_lengths_are_the_octile_distances():
+    np.testing.assert_allclose(shortest_lengths(np.array([[4, 0], [3, -1], [0, 0], [-2, 2]])),
+                               [4, 2 + np.sqrt(2), 0, 2 * np.sqrt(2)])
+    np.testing.assert_allclose(shortest_lengths(np.array([[3, 2, 1], [0, 0, -2]])),
+                               [1 + np.sqrt(2) + np.sqrt(3), 2])
+
+
+def test_a_lone_robots_zigzag_becomes_a_straight_run():
+    col = np.array([[0, 1], [1, 2], [2, 1], [3, 2], [4, 1]])
+    out, done = straighten(col[:, None], np.ones((6, 4), dtype=bool))
+    assert done >= 1
+    np.testing.assert_array_equal(out[:, 0], [[x, 1] for x in range(5)])
+
+
+def test_a_wait_stays_a_wait_and_no_move_grows():
+    # diagonal, wait, diagonal back: the way is shorter as straight, wait, straight, the wait in its step
+    col = np.array([[0, 1], [1, 2], [1, 2], [2, 1], [3, 1]])
+    out, done = straighten(col[:, None], np.ones((5, 4), dtype=bool))
+    assert done == 1
+    np.testing.assert_array_equal(out[:, 0], [[0, 1], [1, 1], [1, 1], [2, 1], [3, 1]])
+    # straight, diagonal, diagonal, diagonal: the shortest way has one diagonal, in a step that had one
+    col = np.array([[0, 0], [1, 0], [2, 1], [3, 0], [4, 1]])
+    out, done = straighten(col[:, None], np.ones((5, 2), dtype=bool))
+    assert done == 1
+    assert lengths(out).sum() == pytest.approx(3 + np.sqrt(2))
+    assert np.all(lengths(out) <= lengths(col[:, None]) + 1e-12)
+
+
+def around_an_obstacle() -> tuple[np.ndarray, np.ndarray]:
+    """A robot arcs (0, 0) -> (1, 1) -> (2, 2) -> (3, 1) -> (4, 0) over an obstacle at (2, 0)."""
+    free = np.ones((5, 3), dtype=bool)
+    free[2, 0] = False
+    return np.array([[0, 0], [1, 1], [2, 2], [3, 1], [4, 0]])[:, None], free
+
+
+def test_an_obstacle_is_gone_around():
+    paths, free = around_an_obstacle()
+    assert discrete_violations(paths, free) == []
+    out, done = straighten(paths, free)
+    assert done >= 1
+    # the straight run (1, 1) -> (3, 1) keeps half a cell from (2, 0); the diagonals at the ends cut no corner
+    np.testing.assert_array_equal(out[:, 0], [[0, 0], [1, 1], [2, 1], [3, 1], [4, 0]])
+    assert discrete_violations(out, free) == []
+
+
+def test_the_clear_move_table_is_the_guard_for_obstacles(monkeypatch):
+    """With every move counted clear, the robot goes straight through the obstacle."""
+    import mrfswarm.discrete.straighten as st
+
+    paths, free = around_an_obstacle()
+    monkeypatch.setattr(st, "clear_moves", lambda f: np.ones((*f.shape, 9), dtype=bool))
+    out, done = st.straighten(paths, free)
+    assert done >= 1
+    assert discrete_violations(out, free) != []
+
+
+def beside_a_neighbour() -> np.ndarray:
+    """Robot 0 arcs (0, 2) -> (1, 3) -> (2, 3) -> (3, 3) -> (4, 2) over robot 1, waiting on the straight way at (2, 2)."""
+    r0 = [(0, 2), (1, 3), (2, 3), (3, 3), (4, 2)]
+    r1 = [(2, 2)] * 5
+    return np.array([r0, r1]).transpose(1, 0, 2)
+
+
+def test_a_neighbour_keeps_the_zigzag():
+    paths, free = beside_a_neighbour(), np.ones((5, 4), dtype=bool)
+    assert discrete_violations(paths, free) == []
+    out, done = straighten(paths, free)
+    assert done == 0
+    np.testing.assert_array_equal(out, paths)
+
+
+def test_the_separation_check_is_the_guard_for_neighbours(monkeypatch):
+    import mrfswarm.discrete.straighten as st
+
+    monkeypatch.setattr(st, "robot_clear", lambda *a: True)
+    out, done = st.straighten(beside_a_neighbour(), np.ones((5, 4), dtype=bool))
+    assert done == 1
+    assert discrete_violations(out, np.ones((5, 4), dtype=bool)) != []
+
+
+def test_downwash_counts_in_the_check():
+    # robot 0 zigzags sideways under robot 1, which hovers 3 voxels above the straight way's middle voxel
+    # (1, 0, 1): apart in the plain metric, 3 / 4 of a voxel with c = 4
+    r0 = np.array([[0, 0, 1], [1, 1, 1], [2, 0, 1]])
+    r1 = np.array([[1, 0, 4], [1, 0, 4], [1, 0, 4]])
+    paths, free = np.stack([r0, r1], axis=1), np.ones((3, 2, 5), dtype=bool)
+    assert discrete_violations(paths, free, downwash=4.0) == []
+    assert straighten(paths, free, downwash=1.0)[1] == 1
+    out, done = straighten(paths, free, downwash=4.0)
+    assert done == 0
+    np.testing.assert_array_equal(out, paths)
+
+
+@pytest.mark.parametrize("case", ["doorway", "clutter40"])
+def test_a_plan_keeps_its_ends_steps_waits_and_invariant_and_no_move_grows(case):
+    sys.path.insert(0, str(EXPERIMENTS / "bench"))
+    import flight_quality as fq
+
+    data, base = fq.case_config(case)
+    data = apply_overrides(data, ["smoothing.enabled=false", "simulation.enabled=false", "mrf.straighten=false"])
+    r = plan(from_dict(data, base), progress=False)
+    P, free = r.discrete.paths, r.scenario.grid.free
+    Q, done = straighten(P, free)
+    assert done >= 3
+    assert Q.shape == P.shape
+    np.testing.assert_array_equal(Q[[0, -1]], P[[0, -1]])
+    assert np.all(lengths(Q) <= lengths(P) + 1e-9)
+    np.testing.assert_array_equal(lengths(Q) > 0, lengths(P) > 0)
+    assert lengths(Q).sum() < lengths(P).sum() - 1.0
+    assert discrete_violations(Q, free) == []
+
+
+def test_the_default_run_straightens_and_says_so():
+    sys.path.insert(0, str(EXPERIMENTS / "bench"))
+    import flight_quality as fq
+
+    data, base = fq.case_config("doorway")
+    on = plan(from_dict(apply_overrides(data, ["smoothing.enabled=false", "simulation.enabled=false"]), base),
+              progress=False)
+    off = plan(from_dict(apply_overrides(data, ["smoothing.enabled=false", "simulation.enabled=false",
+                                                "mrf.straighten=false"]), base), progress=False)
+    assert on.discrete.straightened > 0 and off.discrete.straightened == 0
+    assert on.summary()["straightened"] == on.discrete.straightened
+    assert lengths(on.discrete.paths).sum() < lengths(off.discrete.paths).sum()
+
+
+def test_the_paper_configs_keep_the_mrfs_cells():
+    for name in ("corridor", "blocks", "free10", "swarm_size"):
+        data = tomllib.loads((EXPERIMENTS / f"{name}.toml").read_text())
+        assert data["mrf"]["straighten"] is False, name
