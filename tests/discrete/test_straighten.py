@@ -151,3 +151,54 @@ def test_the_paper_configs_keep_the_mrfs_cells():
     for name in ("corridor", "blocks", "free10", "swarm_size"):
         data = tomllib.loads((EXPERIMENTS / f"{name}.toml").read_text())
         assert data["mrf"]["straighten"] is False, name
+
+
+def random_walks(seed: int, robots: int = 4, steps: int = 40) -> tuple[np.ndarray, np.ndarray]:
+    """Robots wandering right in bands of their own among random obstacles: moves of every kind, waits, zigzags."""
+    rng = np.random.default_rng(seed)
+    free = rng.random((steps + 2, 6 * robots)) > 0.12
+    cols = []
+    for i in range(robots):
+        cell = np.array([0, 6 * i + 2])
+        free[tuple(cell)] = True
+        col = [cell.copy()]
+        for _ in range(steps):
+            options = [m for m in ([0, 0], [1, -1], [1, 0], [1, 1], [0, 1], [0, -1])
+                       if 6 * i <= cell[1] + m[1] < 6 * i + 5 and free[tuple(cell + m)]]
+            cell = cell + np.array(options[rng.integers(len(options))])
+            col.append(cell.copy())
+        cols.append(col)
+    return np.array(cols).transpose(1, 0, 2), free
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_free_map_filter_skips_only_windows_without_a_shorter_way(seed, monkeypatch):
+    # the table of windows worth searching (_slack) against searching every window: the same plan
+    import mrfswarm.discrete.straighten as st
+
+    paths, free = random_walks(seed)
+    slack, _ = st._slack(paths, st.WINDOW)
+    own = lengths(paths)
+    checked = 0
+    for k in range(2, st.WINDOW + 1):  # the table against each window's own search
+        for s in range(len(paths) - k):
+            for i in range(paths.shape[1]):
+                offset = tuple(sorted(np.abs(paths[s + k, i] - paths[s, i]).tolist()))
+                caps = tuple(sorted(np.round(own[s:s + k, i], 9).tolist()))
+                assert slack[s, i, k] == (own[s:s + k, i].sum() > st._unobstructed_sorted(offset, caps) + 1e-6)
+                checked += slack[s, i, k]
+    assert checked > 50
+    fast, done = straighten(paths, free)
+    assert done > 0
+
+    def every_window(P, window):
+        slack, order = real(P, window)
+        for k in range(2, window + 1):
+            slack[:len(P) - k, :, k] = True  # every window s..s + k within the plan
+        return slack, order
+
+    real = st._slack
+    monkeypatch.setattr(st, "_slack", every_window)
+    slow, done_slow = straighten(paths, free)
+    assert done_slow == done
+    np.testing.assert_array_equal(fast, slow)
