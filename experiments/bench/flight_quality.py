@@ -24,7 +24,8 @@ Cases (deterministic maps built here; 1 m cells unless said):
 - ``rooms``: ``experiments/maps/rooms_01``, 5 robots;
 - ``trap``: ``experiments/maps/trap_01`` (U-shaped), 5 robots;
 - ``open50``: 50 robots across an open 60 x 60 field, k = 7;
-- ``clutter40``: 40 robots on 64 x 64 with 10 % random single-cell obstacles, k = 7;
+- ``clutter40``: 40 robots on 64 x 64 with 10 % random single-cell obstacles, k = 7; ``clutter40@S``
+  (``--cases`` only) the same on the map of seed S (``clutter40`` is seed 1; 1-7 are the seven maps of the docs);
 - ``aisles30``: 30 robots through a warehouse of shelves with 2-cell aisles, k = 7;
 - ``arena8``: 8 robots in a 6 x 3.5 m arena of 0.25 m cells (robot radius 0.1 m, v_max 1 m/s);
 - ``big200`` (``--cases`` only): 200 robots on 128 x 128 with 15 % obstacles;
@@ -123,8 +124,12 @@ def case_config(case: str) -> tuple[dict, Path]:
         scn = {"map": {"kind": "free", "size": [60, 60]},
                "start": {"center": [10, 10], "n_robots": 50, "sigma": 3.0, "seed": 0}, "goal": [50, 50]}
         return {"scenario": scn, "interaction": {"k": 7}}, EXP
-    if case == "clutter40":
-        occ = _random_field(64, 64, 0.10, 1, (8, 8), (55, 55), 5)
+    if case == "clutter40" or case.startswith("clutter40@"):
+        seed_text = case.partition("@")[2] or "1"
+        if not seed_text.isdigit():
+            raise SystemExit(f"case {case!r}: the seed after '@' must be a whole number")
+        seed = int(seed_text)
+        occ = _random_field(64, 64, 0.10, seed, (8, 8), (55, 55), 5)
         scn = {"map": {"kind": "ascii", "rows": _rows(occ)},
                "start": {"center": [8, 8], "n_robots": 40, "sigma": 2.5, "seed": 0}, "goal": [55, 55]}
         return {"scenario": scn, "interaction": {"k": 7}}, EXP
