@@ -115,6 +115,7 @@ from mrfswarm.continuous.time_grid import (
     motion_profile,
     next_moves,
     nominal_durations,
+    rest_times,
     witness_durations,
 )
 from mrfswarm.continuous.window_cache import WINDOWS
@@ -330,6 +331,17 @@ FINAL_BRAKING = (1.1, 1.25)
 #: flown so, sooner than the bold ones with the holds (tests/continuous/test_hold.py's arrived robot drifts
 #: there at up to 0.36 m/s, the bold attempt held it).
 FAST_SLOWER = (1.05, 1.1)
+#: The flight's first window (the swarm at rest) also tries the fast durations with each flown step at least what
+#: the fastest jerk-limited start from rest needs over the swarm's progress (``time_grid.rest_times``), times this
+#: factor, before the first attempt whose flown steps last longer. The fast and bold profiles start at a constant
+#: acceleration that the jerk limit does not allow, and where they fail the first window flew the moderate
+#: profile, cruising at 0.925 v_max. At 1.0 the window QP, whose control points keep inside the limit polygons,
+#: had no solution on the arena's first window (piqp: primal infeasible); at 1.05 (flight_quality maps, one run,
+#: 2026-11-29): the doorway 10.50 -> 10.46 s (refined 10.62 -> 10.45), aisles30 35.99 -> 35.88 (32.36 -> 32.26),
+#: the corridor, forest, rooms, trap, open field, clutter40 and arena the same flights (their first windows fly
+#: a faster attempt, or the moderate one still); a second try at 1.1 or 1.15 changed none of them.
+JERK_START = 1.05
+JERK_START_NAME = "jerk-limited start"
 #: Factor by which new steps are slowed per attempt after the nominal ones fail.
 SLOWDOWN = 1.5
 
@@ -965,7 +977,22 @@ class RecedingHorizon:
             else:
                 longer = [(_slower(f), np.concatenate([fast[:c - a] * f, bold[c - a:]])) for f in FAST_SLOWER]
             attempts[1:1] = [(name, d) for name, d in longer if d[:c - a].sum() < bold[:c - a].sum()]
+            if a == 0:
+                attempts = self._jerk_start(attempts, c, fast, bold)
         return attempts
+
+    def _jerk_start(self, attempts: list[tuple[str, np.ndarray]], c: int, fast: np.ndarray,
+                    bold: np.ndarray) -> list[tuple[str, np.ndarray]]:
+        """``attempts`` of the flight's first window (steps 0..b, flying 0..c) with the jerk-limited start
+        (:data:`JERK_START`) before the first attempt after the fast one whose flown steps last longer."""
+        ell = self.profiles[[name for name, _, _ in PROFILES].index("fast")].ell[:c]
+        floor = np.diff(np.concatenate([[0.0], rest_times(np.cumsum(ell), *self.limits)]))
+        start = np.concatenate([np.maximum(fast[:c], floor) * JERK_START, bold[c:]])
+        flown = start[:c].sum()
+        at = next((k for k, (_, d) in enumerate(attempts) if k and d[:c].sum() > flown), None)
+        if at is None:
+            return attempts
+        return [*attempts[:at], (JERK_START_NAME, start), *attempts[at:]]
 
     @staticmethod
     def _follow(attempts: list[tuple[str, np.ndarray]], previous: np.ndarray) -> list[tuple[str, np.ndarray]]:
@@ -1009,7 +1036,7 @@ class RecedingHorizon:
         optimistic = len(attempts) - 1 if self.profiles else 0
         # the attempts that drift through waits: every profile but the cautious one, and the stretched durations
         drifting = ({name for name, _, _ in PROFILES[:-1]} | {f"stretched^{p:g}" for p in STRETCH_POWERS}
-                    | {_braking(f) for f in FINAL_BRAKING} | {_slower(f) for f in FAST_SLOWER})
+                    | {_braking(f) for f in FINAL_BRAKING} | {_slower(f) for f in FAST_SLOWER} | {JERK_START_NAME})
         has_creep = bool(self._creep_rows(a, b, c).any())
         has_hold = bool(self.held[a:b].any())
         overlap, base = 0, nominal

@@ -213,8 +213,8 @@ def test_a_backend_without_multipliers_still_solves_the_window(monkeypatch):
 
 
 def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch):
-    """The fast (and its slower variants), bold and moderate attempts (and the stretch's probe) run PIQP at 40 of its 120 iterations, the cautious
-    one at the full budget.
+    """The fast (and its slower variants), bold, jerk-limited start and moderate attempts (and the stretch's probe)
+    run PIQP at 40 of its 120 iterations, the cautious one at the full budget.
 
     Solves given the smaller budget are made to fail here: the window then flies the cautious profile, and every
     solve of it had the stage's full options."""
@@ -240,8 +240,10 @@ def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch
     assert rec.attempt == "cautious"
     # the stretch's probe (the window without limit rows) runs the smaller budget too, and failing adds no attempt
     slower = [f"fast x{f:g}" for f in rh_mod.FAST_SLOWER]
-    assert [f.split(":")[0] for f in rec.failed] == ["fast", *slower, "nominal", "moderate", "stretch"]
-    n = 4 + len(slower)
+    # the flight's first window: the jerk-limited start too, between the bold and the moderate profile here
+    assert [f.split(":")[0] for f in rec.failed] == ["fast", *slower, "nominal", rh_mod.JERK_START_NAME, "moderate",
+                                                     "stretch"]
+    n = 5 + len(slower)
     assert budgets[:n] == [int(np.ceil(cap / 3))] * n
     assert set(budgets[n:]) == {rh_mod.QP_OPTIONS.max_iter}
 
