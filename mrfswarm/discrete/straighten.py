@@ -25,10 +25,10 @@ The way is found by a dynamic program over the cells within reach of both ends (
 windows longer than the shortest way of their displacement in the same capped steps on a
 free map are searched, found for the whole plan at once (the free-map length once per
 distinct sorted displacement and caps). The flight-quality bench's 200 robots in 15 % clutter
-(straightened twice, see :mod:`~mrfswarm.discrete.planner`) took 16.3 s before that table and the
-shared program, 5.1 s after, clutter40 0.63 s -> 0.37 s, to the same plans (one run each). A robot's start, end and
-step count are kept, so the plan's length is unchanged. Measured (flight_quality bench, one
-run each): see the README's ``mrf.straighten`` row.
+(straightened twice, see :mod:`~mrfswarm.discrete.planner`) took 16.3 s before that table and
+the shared program, 5.1 s after, clutter40 0.63 s -> 0.37 s, to the same plans (one run each).
+A robot's start, end and step count are kept, so the plan's length is unchanged. Measured
+(flight_quality bench, one run each): see the README's ``mrf.straighten`` row.
 
 This is a post-process of the paper's method (its robots keep the MRF's cells);
 ``mrf.straighten = false`` turns it off, as the paper's scenario configs do.
@@ -83,19 +83,6 @@ def clear_moves(free: np.ndarray) -> np.ndarray:
     for k, m in enumerate(moves):
         out[(*cells.T, k)] = segments_clear(free, cells, cells + m)
     return out
-
-
-def shortest_way(column: np.ndarray, s: int, e: int, clear: np.ndarray) -> np.ndarray | None:
-    """The robot's cells of steps s..e (e - s + 1, d) on the shortest way from ``column[s]`` to ``column[e]`` whose
-    move in each step is no longer than the column's and is a wait exactly where the column waits; None if no such
-    way is shorter than the column's own.
-
-    A dynamic program over the cells within e - s moves of ``column[s]``; ``clear`` is :func:`clear_moves`.
-    """
-    own = np.linalg.norm(np.diff(column[s:e + 1], axis=0), axis=1)
-    search = _Search(column[s], own, clear, [(e - s, column[e])])
-    cost = search.cost(e - s, column[e])
-    return search.way(e - s, column[e]) if cost < own.sum() - 1e-6 else None
 
 
 @lru_cache(maxsize=4096)
