@@ -227,7 +227,7 @@ def _slack(P: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
     for k in range(2, min(window, T) + 1):
         own = C[k:] - C[:-k]  # (T - k + 1, N)
         offset = np.sort(np.abs(P[k:] - P[:-k]), axis=-1)
-        maybe = own > shortest_lengths(offset) + 1e-6  # the free-map way with no caps is shorter still
+        maybe = own > shortest_lengths(offset) + 1e-6  # longer than the free-map way without caps: may have room
         if not maybe.any():
             continue
         uncapped[:T - k + 1] |= maybe
