@@ -215,7 +215,7 @@ def _slack(P: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
     displacement in the same capped steps on a free map (:func:`_unobstructed_sorted`, searched once per distinct
     sorted offset and caps); only those windows can be shortened. And (T, N) whether some window from step s
     is longer than the shortest way with no caps (which the robots are visited in the order of)."""
-    T, N, _ = P.shape[0] - 1, P.shape[1], P.shape[2]
+    T, N = P.shape[0] - 1, P.shape[1]
     L = np.linalg.norm(np.diff(P, axis=0), axis=-1)  # (T, N)
     caps, kind = np.unique(np.round(L, 9), return_inverse=True)
     kind = kind.reshape(L.shape)
