@@ -464,7 +464,8 @@ def separations(positions: np.ndarray, regions: Regions, distance: float,
     S = np.ones(positions.shape[-1]) if scale is None else np.asarray(scale, dtype=float)
     blo, bhi = regions.bounding_boxes()
     blo, bhi = blo * S, bhi * S  # the scaled boxes (S > 0): the bounding boxes of the scaled regions
-    steps, firsts, seconds = [], [], []
+    none = np.zeros(0, dtype=np.int64)  # with no steps (the swarm starts at the goal) there are no pairs
+    steps, firsts, seconds = [none], [none], [none]
     for j in range(regions.steps):
         p = near_pairs(blo[j], bhi[j], distance)
         steps.append(np.full(len(p), j))

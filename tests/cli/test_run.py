@@ -165,3 +165,16 @@ def test_the_run_line_reports_the_flight_against_its_lower_bound(tmp_path, capsy
     q = json.loads((out / "result.json").read_text())["flight_quality"]
     assert float(m[2]) == pytest.approx(q["makespan_over_bound"], abs=0.005) and q["makespan_over_bound"] > 1
     assert float(m[3]) == pytest.approx(q["stops_per_robot"], abs=0.005)
+
+
+def test_a_swarm_that_starts_at_the_goal_plans_a_hover(tmp_path):
+    # every robot inside the goal region from the start: the discrete plan has no step, and the continuous
+    # stage (regions, separations, certificate, exports) must still give a complete, certified run
+    cfg = write_config(tmp_path, "[scenario]\nmap = { kind = \"free\", size = [20, 20] }\n"
+                       "start = { positions = [[16, 10], [17, 10], [18, 10], [17, 9], [17, 11]] }\ngoal = [17, 10]\n")
+    out = tmp_path / "out"
+    assert main(["run", str(cfg), "--out", str(out), "--workers", "1", "--set", "simulation.enabled=false"]) == 0
+    res = json.loads((out / "result.json").read_text())
+    assert res["mrf_steps"] == 0 and res["complete"] is True and res["certificate"]["ok"] is True
+    assert res["flight_quality"]["stops_per_robot"] == 0.0
+    assert (out / "crazyflie").is_dir() and (out / "trajectories").is_dir()

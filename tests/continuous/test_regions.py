@@ -201,3 +201,10 @@ def test_interaction_groups_are_connected_components():
     seps = Separations(np.zeros(3, int), np.array([0, 1, 4]), np.array([1, 2, 5]), np.ones((3, 2)), np.ones(3), 0.5)
     groups = interaction_groups(7, seps)
     assert sorted(map(tuple, groups)) == [(0, 1, 2), (3,), (4, 5), (6,)]
+
+
+def test_separations_of_a_plan_without_steps_are_empty():
+    X = np.array([[[0.5, 0.5], [2.5, 0.5]]])  # (T + 1 = 1, N = 2, d): no step
+    grid = OccupancyGrid(np.zeros((4, 4), dtype=bool))
+    seps = separations(X, build_regions(np.array([[[0, 0], [2, 0]]]), grid, 0.25), 0.5)
+    assert len(seps.step) == 0 and len(seps.first) == len(seps.second) == 0
