@@ -559,12 +559,20 @@ def apply_overrides(data: dict, overrides: list[str]) -> dict:
     """Apply ``--set`` overrides to TOML data (nested tables created as needed).
 
     A renamed key sets its current name (:func:`current_key`), so that ``--set
-    mrf.optimizer=gibbs`` overrides ``method`` in a config that gives it.
+    mrf.optimizer=gibbs`` overrides ``method`` in a config that gives it; overrides that give
+    both names, as a file that does, are an error.
     """
     data = _deepcopy(data)
+    named: dict[str, str] = {}  # current key -> the name an override gave it by
     for item in overrides:
         path, value = parse_override(item)
-        path = current_key(".".join(path)).split(".")
+        given = ".".join(path)
+        key = current_key(given)
+        other = named.setdefault(key, given)
+        if other != given:
+            old, new = (other, given) if other in RENAMED_KEYS else (given, other)
+            raise ConfigError(f"{old} and {new} are both given; {old} is the old name of {new}: keep {new}")
+        path = key.split(".")
         node = data
         for part in path[:-1]:
             nxt = node.setdefault(part, {})

@@ -10,7 +10,7 @@ import pytest
 
 import solvers.qp
 from mrfswarm.cli import main
-from mrfswarm.config import from_dict, load_config
+from mrfswarm.config import apply_overrides, from_dict, load_config
 from mrfswarm.continuous import receding_horizon
 from mrfswarm.continuous.receding_horizon import QP_OPTIONS
 from mrfswarm.errors import ConfigError, DeprecatedKeyWarning
@@ -46,6 +46,18 @@ def test_both_names_are_an_error_naming_both(tmp_path):
         load_config(write(tmp_path, '[mrf]\noptimizer = "icm"\nmethod = "gibbs"\n'))
     with pytest.raises(ConfigError, match="both given"):
         from_dict({"mrf": {"method": "icm", "optimizer": "icm"}})
+
+
+@pytest.mark.parametrize("overrides", [["mrf.optimizer=icm", "mrf.method=gibbs"],
+                                       ["mrf.method=gibbs", "mrf.optimizer=icm"]])
+def test_both_names_in_the_overrides_are_an_error_as_in_a_file(overrides):
+    with pytest.warns(DeprecatedKeyWarning), pytest.raises(
+            ConfigError, match=r"^mrf\.optimizer and mrf\.method are both given.*keep mrf\.method$"):
+        apply_overrides({}, overrides)
+
+
+def test_one_name_given_twice_in_the_overrides_is_the_last_one():
+    assert apply_overrides({}, ["mrf.method=icm", "mrf.method=gibbs"])["mrf"]["method"] == "gibbs"
 
 
 def test_a_wrong_type_under_the_old_name_names_the_new_key():
