@@ -300,12 +300,13 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     Raises
     ------
     SolverNotFound
-        An unknown or missing MRF method or QP backend, or an NLP backend that the time
-        refinement would use and that is not installed.
+        An unknown or missing MRF method, an unknown QP backend (whatever stage is on), a QP
+        backend that is not installed where the continuous stage runs, or an NLP backend that
+        the time refinement would use and that is not installed.
     ConfigError
         A QP backend that cannot solve the continuous stage's problems (its capabilities
-        lack inequality rows: regions, corridors and limits are inequalities), or an
-        ``nlp`` that names no NLP backend.
+        lack inequality rows: regions, corridors and limits are inequalities), an ``nlp``
+        that names no NLP backend, or an unknown ``simulation.vehicle`` (whatever stage is on).
     """
     cfg = config if isinstance(config, Config) else load_config(config)
     if mrf is not None:
@@ -316,6 +317,11 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
         check_nlp(nlp)  # the config's own check of the key
         cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, nlp=nlp, refinement="nlp"))
     mrf_solvers.METHODS.get(cfg.mrf.method)  # fail now, not after the map is loaded
+    if cfg.smoothing.backend not in solvers.qp.BACKENDS:  # a name no backend has is wrong with the stage off too
+        solvers.qp.BACKENDS.get(cfg.smoothing.backend)
+    from mrfswarm.simulation import check_available, check_vehicle
+
+    check_vehicle(cfg.simulation.vehicle)
     if cfg.smoothing.enabled:
         record = solvers.qp.BACKENDS.get(cfg.smoothing.backend)  # an unknown or missing QP backend fails now too
         if not record.capabilities.inequalities:
@@ -326,8 +332,6 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
         if cfg.smoothing.time_refinement and cfg.smoothing.refinement == "nlp":
             solvers.nlp.BACKENDS.get(cfg.smoothing.nlp)  # a registered NLP backend that is not installed
         if cfg.simulation.enabled:
-            from mrfswarm.simulation import check_available
-
             check_available(cfg.simulation.vehicle, cfg.simulation.backend)
     return cfg
 

@@ -230,10 +230,15 @@ def resolve_backend(backend: str) -> str:
     return backend
 
 
-def check_available(vehicle: str, backend: str = "auto") -> None:
-    """Fail early: RotorPy installed, the vehicle known, the backend known and installed."""
+def check_vehicle(vehicle: str) -> None:
+    """Fail early on a vehicle that is not one of :data:`VEHICLES` (whether or not the simulation runs)."""
     if vehicle not in VEHICLES:
         raise ConfigError(f"simulation.vehicle = {vehicle!r}: must be one of {', '.join(VEHICLES)}")
+
+
+def check_available(vehicle: str, backend: str = "auto") -> None:
+    """Fail early: RotorPy installed, the vehicle known, the backend known and installed."""
+    check_vehicle(vehicle)
     if importlib.util.find_spec("rotorpy") is None:
         raise SolverNotFound('the simulation needs RotorPy: pip install "mrfswarm[rotorpy]" '
                              "(or set simulation.enabled = false)")

@@ -20,6 +20,11 @@ BAD = {
     "run --out under a file": (["run", FREE5, "--out", "FILE/sub"], "argument --out: .* lies under the file"),
     "run --mrf unknown": (["run", FREE5, "--mrf", "nope", "--out", "OUT"], "unknown MRF backend 'nope'"),
     "run --qp unknown": (["run", FREE5, "--qp", "nope", "--out", "OUT"], "unknown QP backend 'nope'"),
+    "run --qp unknown, smoothing off": (["run", FREE5, "--qp", "nope", "--set", "smoothing.enabled=false", "--out", "OUT"],
+                                        "unknown QP backend 'nope'"),
+    "run unknown vehicle, simulation off": (["run", FREE5, "--set", "simulation.vehicle=foo", "--set",
+                                             "simulation.enabled=false", "--out", "OUT"],
+                                            "simulation.vehicle = 'foo': must be one of crazyflie"),
     "run --qp equality-only": (["run", CORRIDOR, "--qp", "closed_form", "--out", "OUT"],
                                r"smoothing.backend = 'closed_form' solves equality-constrained problems only; .* "
                                r"\(installed backends that take them: osqp, piqp"),
