@@ -37,6 +37,7 @@ an update only replaces the data. SCS's ``eps_abs``, ``eps_rel``, ``max_iters`` 
 from __future__ import annotations
 
 import logging
+import warnings
 from collections.abc import Callable
 from typing import Any, ClassVar
 
@@ -102,8 +103,10 @@ class QpsolversQP(PreparedQP):
     def _solve(self, warm_start):
         import qpsolvers
 
-        sol = qpsolvers.solve_problem(self._qp, self.solver, initvals=warm_start, verbose=self.options.verbose,
-                                      **_SETTINGS[self.solver](self.options))
+        with warnings.catch_warnings():  # qpsolvers warns of a status it returns too: the status is reported
+            warnings.filterwarnings("ignore", category=UserWarning, module=r"qpsolvers\.")
+            sol = qpsolvers.solve_problem(self._qp, self.solver, initvals=warm_start, verbose=self.options.verbose,
+                                          **_SETTINGS[self.solver](self.options))
         extras = sol.extras if isinstance(sol.extras, dict) else {}
         raw = str(extras.get("status", "no status"))
         status = _STATUS[self.solver].get(raw, Status.ERROR)

@@ -11,6 +11,7 @@ import dataclasses
 import subprocess
 import sys
 import tomllib
+import warnings
 
 import numpy as np
 import pytest
@@ -141,9 +142,12 @@ def test_infeasible_raises(name):
             qp.solve(qp.QPProblem(P=sp.eye(2), q=np.zeros(2), A=A, l=np.array([1.0, 2.0]), u=np.array([1.0, 2.0])), name)
         return
     expected = InfeasibleError if backend.capabilities.detects_infeasibility else SolverError
-    with pytest.raises(expected) as info:
+    with warnings.catch_warnings(record=True) as caught, pytest.raises(expected) as info:
+        warnings.simplefilter("always")
         qp.solve(problem, name, qp.Options(max_iter=1000))
     assert info.value.backend == name and info.value.status
+    # the status is the report: no library warning of it on the user's terminal as well
+    assert not [w for w in caught if issubclass(w.category, UserWarning)], [str(w.message) for w in caught]
 
 
 # ------------------------------------------------------------------ setup once, update, warm start
