@@ -519,6 +519,22 @@ def test_piqp_stops_at_its_iteration_cap_not_at_a_first_order_methods():
         qp.solve(problem, "piqp", qp.Options(eps_abs=1e-12, eps_rel=1e-12, max_iter=1))
 
 
+def test_proxsuite_stops_at_its_iteration_cap_not_at_a_first_order_methods():
+    """ProxQP does not detect the infeasible reference problem: it runs to ``max_iter`` outer iterations. An
+    ``Options.max_iter`` sized for ADMM (the receding horizon's 50000) is capped at ``MAX_ITER``, and the
+    registry declares the cap (the receding horizon sizes its optimistic budget from it)."""
+    pytest.importorskip("proxsuite")
+    from solvers.qp import proxsuite_
+
+    assert proxsuite_._settings(qp.Options(max_iter=50000))["max_iter"] == proxsuite_.MAX_ITER
+    assert proxsuite_._settings(qp.Options(max_iter=30))["max_iter"] == 30
+    assert qp.BACKENDS.get("proxsuite").capabilities.iteration_budget(50000) == proxsuite_.MAX_ITER
+    prepared = qp.prepare(ref_problems.infeasible(), "proxsuite", qp.Options(max_iter=50000))
+    with pytest.raises(SolverError, match="MAX_ITER"):
+        prepared.solve()
+    assert prepared._qp.results.info.iter_ext <= proxsuite_.MAX_ITER
+
+
 def _window_qp() -> qp.QPProblem:
     """A 4-robot window problem of the continuous stage (288 variables, 608 rows), feasible.
 
