@@ -359,3 +359,25 @@ def test_a_refined_point_longer_by_rounding_only_is_kept(monkeypatch, longer, ke
     refined = rh._refine(sol, a, start, rec)
     assert rec.refined == kept
     assert np.array_equal(refined.durations, T if kept else sol.durations)
+
+
+@pytest.mark.parametrize("nlp, rows", [("ipopt", 1), ("slsqp", 1), ("lbfgsb", 0)])
+def test_the_nlp_refinement_searches_no_point_longer_than_the_qps(monkeypatch, nlp, rows):
+    """The NLP refinement keeps no point that lasts longer in sum than the window's QP, so a backend that takes
+    linear rows gets that one, sum(T) <= the QP's sum (the scaling's cap); L-BFGS-B, bounds only, gets none and is
+    still run. The refined window is certified and no longer."""
+    import solvers.nlp
+
+    seen: list = []
+    minimize = solvers.nlp.minimize
+    monkeypatch.setattr(solvers.nlp, "minimize", lambda problem, backend, options=None: seen.append(problem)
+                        or minimize(problem, backend, options))
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, speed=1.25, refinement="nlp", nlp=nlp),
+                         0.25)
+    a, c, b, start, rec = first_window(rh)
+    sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec, gradient=True)
+    refined = rh._refine(sol, a, start, rec)
+    assert len(seen) == 1 and seen[0].A.shape == (rows, len(sol.durations))
+    if rows:
+        assert np.all(seen[0].A == 1.0) and seen[0].ub[0] == pytest.approx(sol.durations.sum(), abs=0)
+    assert rh._certify(refined, a).ok and refined.durations.sum() <= sol.durations.sum() + 1e-9
