@@ -144,8 +144,9 @@ def test_bad_settings_are_refused(kw):
 
 def test_the_window_refinement_by_scaling_is_the_nlps_at_a_fraction_of_the_qps(monkeypatch):
     """Two robots passing, from the slow 1.25 m/s cruise: the scaling lowers snap + weight x time to within
-    0.5 % of Ipopt's optimum (151.5 against 151.3) with a fifth of its QP rounds (8 against 39), certified, and
-    without calling an NLP backend."""
+    0.5 % of Ipopt's optimum with under half its QP rounds (7 against 19; 8 against 39 before Ipopt searched
+    only points no longer than the QP's, ``RecedingHorizon._not_longer``), certified, and without calling an
+    NLP backend."""
     import solvers.nlp
 
     def window(refinement: str):
@@ -170,7 +171,7 @@ def test_the_window_refinement_by_scaling_is_the_nlps_at_a_fraction_of_the_qps(m
     monkeypatch.setattr(solvers.nlp, "minimize", no_nlp)
     value, rounds = window("scaling")
     assert value == pytest.approx(nlp_value, rel=5e-3)
-    assert rounds * 3 < nlp_rounds
+    assert rounds * 2 < nlp_rounds
 
 
 def test_the_refinement_starts_from_the_accepted_qp_without_solving_it_again(monkeypatch):
