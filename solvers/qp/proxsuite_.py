@@ -28,8 +28,9 @@ Infeasibility: ProxQP did not detect the infeasible test problem (``x1 + x2 = 1`
 ``x >= 1``), neither API nor with ``primal_infeasibility_solving``: it runs to
 ``max_iter`` and reports ``PROXQP_MAX_ITER_REACHED``, so an infeasible problem raises a
 :class:`SolverError` with that status, not :class:`InfeasibleError` (the record lacks the
-``detects_infeasibility`` capability). With ``max_iter = 20000`` the dense API spends
-about 9 s there (its inner iterations run to 9 million), the sparse one 0.06 s. Warm starts use
+``detects_infeasibility`` capability). With ``max_iter = 20000`` the dense API spent
+about 9 s there (its inner iterations ran to 9 million), the sparse one 0.06 s: hence the cap
+:data:`MAX_ITER`. Warm starts use
 ``InitialGuess.WARM_START`` with the given primal point; cold solves use ProxQP's
 default equality-constrained initial guess. An update with the same pattern and the
 same split of rows calls ``QP.update`` (no new allocation); otherwise it sets up again.
