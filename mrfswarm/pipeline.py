@@ -336,6 +336,18 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     return cfg
 
 
+def with_seed(cfg: Config, seed: int | None) -> Config:
+    """``cfg`` with ``seed`` (``--seed``) written where it acts: the sampled start's seed (a start given by
+    positions has none) and ``mrf.options.seed``; so the config a result records plans the same again."""
+    if seed is None:
+        return cfg
+    start = dict(cfg.scenario.start)
+    if "positions" not in start:
+        start["seed"] = seed
+    return cfg.replace(scenario=dataclasses.replace(cfg.scenario, start=start),
+                       mrf=dataclasses.replace(cfg.mrf, options={**cfg.mrf.options, "seed": seed}))
+
+
 def mrf_options(cfg: Config, seed: int | None = None) -> mrf_solvers.Options:
     """The MRF method's options: the config's ``[mrf.options]`` over the defaults, ``seed`` (if given) over those."""
     options = mrf_solvers.Options(**cfg.mrf.options)
@@ -389,12 +401,12 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     """
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0):
         raise ConfigError(f"seed = {seed!r}: must be an integer >= 0")
-    cfg = resolve_config(config, mrf=mrf, qp=qp, nlp=nlp)
+    cfg = with_seed(resolve_config(config, mrf=mrf, qp=qp, nlp=nlp), seed)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    scn = build_scenario(cfg, seed)
+    scn = build_scenario(cfg)
     timings["scenario"] = time.perf_counter() - t0
-    options = mrf_options(cfg, seed)
+    options = mrf_options(cfg)
     show = sys.stderr.isatty() if progress is None else progress
     from tqdm import tqdm
 

@@ -52,6 +52,26 @@ def test_set_mrf_and_seed_flags(tmp_path):
     assert res["mrf"] == "exact" and res["mrf_steps"] <= 4 and res["config"]["mrf"]["max_steps"] == 4
 
 
+def test_a_seed_is_recorded_where_it_acts_and_the_recorded_config_plans_the_same(tmp_path):
+    # --seed overrides the sampled start's seed and the MRF method's: result.json's config must say so, or the
+    # run cannot be reproduced from its own output
+    from mrfswarm import pipeline
+    from mrfswarm.config import from_dict, load_config
+
+    out = tmp_path / "o"
+    rc = main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(out), "--mrf", "gibbs", "--seed", "3",
+               "--set", "smoothing.enabled=false"])
+    assert rc == 0
+    res = json.loads((out / "result.json").read_text())
+    assert res["config"]["scenario"]["start"]["seed"] == 3 and res["config"]["mrf"]["options"]["seed"] == 3
+    discrete = load_config(EXPERIMENTS / "free5.toml", ["smoothing.enabled=false"])
+    seeded = pipeline.plan(discrete, mrf="gibbs", seed=3, progress=False).discrete.paths
+    again = pipeline.plan(from_dict(res["config"]), progress=False).discrete.paths
+    assert np.array_equal(again, seeded)
+    unseeded = pipeline.plan(discrete, mrf="gibbs", progress=False).discrete.paths
+    assert not np.array_equal(unseeded, seeded)  # the seed did act
+
+
 BAD = {
     "robot in wall": (f"[scenario]\n{CORRIDOR_MAP}\nstart = {{ positions = [[4, 16], [20, 30]] }}\ngoal = [35, 20]\n"
                       "[interaction]\nk = 1\n", r"robot 1 at \(20, 30\) is inside an obstacle"),
