@@ -389,7 +389,7 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     Raises
     ------
     ConfigError
-        A bad config or seed (the message names it).
+        A bad config, seed or workers (the message names it).
     SolverNotFound
         An unknown or missing MRF method or QP backend, or a missing NLP backend with
         ``smoothing.time_refinement``.
@@ -401,6 +401,8 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     """
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0):
         raise ConfigError(f"seed = {seed!r}: must be an integer >= 0")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, numbers.Integral) or workers < 1):
+        raise ConfigError(f"workers = {workers!r}: must be a whole number >= 1")
     cfg = with_seed(resolve_config(config, mrf=mrf, qp=qp, nlp=nlp), seed)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()

@@ -482,9 +482,11 @@ class ContinuousPlan:
         """Every robot has at most ``max_pieces`` pieces (True without a limit)."""
         return self.max_pieces == 0 or max(self.pieces_per_robot, default=0) <= self.max_pieces
 
-    def positions(self, times: np.ndarray) -> np.ndarray:
-        """(S, N, dim) every robot's position at ``times``."""
-        return np.stack([tr.evaluate(times) for tr in self.trajectories], axis=1)
+    def positions(self, times: np.ndarray | float) -> np.ndarray:
+        """(S, N, dim) every robot's position at ``times`` ((N, dim) at one time given as a number)."""
+        t = np.asarray(times, dtype=float)
+        out = np.stack([tr.evaluate(np.atleast_1d(t)) for tr in self.trajectories], axis=1)
+        return out[0] if t.ndim == 0 else out
 
 
 @dataclass

@@ -112,6 +112,15 @@ def test_plan_refuses_a_negative_seed():
         mrfswarm.plan(FREE5, seed=-1)
 
 
+@pytest.mark.parametrize("workers", [0, -1, 1.5, "2", True])
+def test_plan_refuses_bad_workers_before_any_work(workers):
+    import mrfswarm
+    from mrfswarm.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"^workers = .*: must be a whole number >= 1$"):
+        mrfswarm.plan(FREE5, workers=workers)
+
+
 def test_an_equality_only_backend_fails_when_the_config_is_resolved(monkeypatch):
     """The capability record is read at config resolution: no map is loaded, nothing is planned."""
     from mrfswarm import pipeline

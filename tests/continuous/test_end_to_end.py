@@ -67,6 +67,15 @@ def test_end_to_end_is_certified_and_checks_out_densely(name, backend, dense_che
         assert tr.pieces == c.pieces_per_robot[i] <= r.config.smoothing.max_pieces
 
 
+def test_positions_at_one_time_are_robot_major():
+    c = run("free5").continuous
+    t = 0.37 * c.makespan_s
+    one = c.positions(t)  # a number: (N, dim), robot i at row i, as at an array of one time
+    assert one.shape == (len(c.trajectories), c.dim)
+    np.testing.assert_array_equal(one, c.positions(np.array([t]))[0])
+    np.testing.assert_array_equal(one[2], c.trajectories[2].evaluate(np.array([t]))[0])
+
+
 def test_corridor_flies_without_stopping():
     """The default (continuous seams, safe regions) flies the paper's corridor without a stop."""
     c = run("corridor").continuous
