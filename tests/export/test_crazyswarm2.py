@@ -2,6 +2,8 @@
 packing with cflib's real classes (only the radio link is fake)."""
 
 import importlib.util
+import json
+import shutil
 import sys
 import types
 
@@ -200,6 +202,20 @@ def test_cflib_upload_packs_with_cflib(run_dir, compressed):
     assert define[3] == kind and define[-1] == 31
 
 
+def test_cflib_upload_refuses_a_compressed_flight_that_is_not_certified(run_dir, tmp_path):
+    script = load_script(run_dir / "crazyflie" / "cflib_upload.py", "cflib_upload_uncertified")
+    assert script.not_certified(run_dir) == []  # the corridor's compressed flight certifies
+    plan = tmp_path / "plan"
+    shutil.copytree(run_dir, plan)
+    res = json.loads((plan / "result.json").read_text())
+    res["crazyflie"]["compressed"]["not_certified_robots"] = [3]
+    (plan / "result.json").write_text(json.dumps(res))
+    with pytest.raises(SystemExit, match=r"compressed flight of robots \[3\] is not certified.*without --compressed"):
+        script.pieces([0, 3], True, plan)
+    assert set(script.pieces([0, 1], True, plan)[0]) == {0, 1}  # the certified ones still go
+    assert set(script.pieces([3], False, plan)[0]) == {3}  # and robot 3's raw pieces
+
+
 def test_cflib_upload_refuses_raw_pieces_that_do_not_fit(per_step_dir):
     from cflib.crazyflie.mem import MemoryElement, TrajectoryMemory
 
@@ -249,6 +265,9 @@ def test_cflib_upload_flies_a_3d_compressed_plan(tmp_path):
     comp = cflib_.compress(trs, altitude=1.0, v_max=3.0)
     (tmp_path / "crazyflie" / "compressed.json").write_text(json.dumps(compressed_json(comp)))
     script = load_script(tmp_path / "crazyflie" / "cflib_upload.py", "cflib_upload_3d")
+    with pytest.raises(SystemExit, match="no result.json"):  # this folder has no certificate to read ...
+        script.pieces([2], True, tmp_path)
+    script.not_certified = lambda plan: []  # ... the packing is this test's subject (the certificate's: above)
     assert script.compressed_plan(tmp_path).z_mm is None
     elements, origin = script.pieces([2], True, tmp_path)
     assert np.allclose(script.start_of(elements[2], True), trs[2].evaluate(0.0), atol=1e-3)

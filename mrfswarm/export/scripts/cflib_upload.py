@@ -8,7 +8,8 @@ Written by ``mrfswarm run`` into ``<run>/crazyflie/``; needs ``pip install 'mrfs
 Radio addresses come from ``../crazyswarm2/crazyflies.yaml`` (``cf<k>`` is robot ``k - 1``).
 Raw pieces (``Poly4D``) are those of ``../trajectories/robot_<i>.csv``; at most 31 fit.
 ``--compressed`` uploads the compressed pieces of ``compressed.json`` beside this file, the
-ones whose decoded flight ``result.json`` certifies (``crazyflie.compressed``); their
+ones whose decoded flight ``result.json`` certifies (``crazyflie.compressed``), and refuses
+robots whose decoded flight it does not (``not_certified_robots``); their
 positions are relative to ``origin_m``: the positioning system's origin must be there.
 ``--fly`` then takes off, goes to each start, starts all trajectories at once, and lands.
 """
@@ -51,8 +52,25 @@ def pieces(robots: list[int], compressed: bool, plan: Path = PLAN) -> tuple[dict
             tr = read_uav_csv(plan / "trajectories" / f"robot_{i}.csv", dim=4)
             out[i] = cflib_.raw_pieces(tr, 0.0)
         return out, np.zeros(3)
+    uncertified = sorted(set(robots) & set(not_certified(plan)))
+    if uncertified:
+        raise SystemExit(f"cflib_upload.py: the compressed flight of robots {uncertified} is not certified "
+                         "(result.json: crazyflie.compressed.not_certified_robots); upload the raw pieces instead "
+                         "(without --compressed)")
     c = compressed_plan(plan)
     return {i: cflib_.compressed_elements(c, i) for i in robots}, c.origin
+
+
+def not_certified(plan: Path = PLAN) -> list[int]:
+    """The robots whose decoded compressed flight ``result.json`` does not certify (all, without a certificate)."""
+    if not (plan / "result.json").is_file():
+        raise SystemExit(f"cflib_upload.py: no result.json in {plan}: whether the compressed flight is certified "
+                         "cannot be read; upload the raw pieces instead (without --compressed)")
+    section = json.loads((plan / "result.json").read_text()).get("crazyflie") or {}
+    compressed = section.get("compressed") or {}
+    if "not_certified_robots" not in compressed:
+        return list(range(len(section.get("robots") or [])))
+    return [int(i) for i in compressed["not_certified_robots"]]
 
 
 def compressed_plan(plan: Path = PLAN) -> Any:
