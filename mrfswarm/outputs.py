@@ -199,7 +199,7 @@ def write_crazyflie_outputs(result: Result, out: Path) -> list[Path]:
     from mrfswarm.export.crazyswarm2 import starts_of, write_crazyswarm2
 
     c = result.smoothed()
-    written = write_crazyswarm2(starts_of(c.trajectories), out)
+    written = write_crazyswarm2(starts_of(c.trajectories), out, result.config.scenario.robot_radius)
     _, comp = result._crazyflie_export()
     if comp is not None:
         written.append(write_json(out / "crazyflie" / "compressed.json", compressed_json(comp)))

@@ -13,6 +13,7 @@ start, at the altitude in a 2-D plan and at the start's own height in a 3-D one)
 
 from __future__ import annotations
 
+import logging
 import shutil
 from collections.abc import Sequence
 from functools import partial
@@ -20,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+
+log = logging.getLogger(__name__)
 
 URI = "radio://0/80/2M/E7E7E7E7{id:02X}"
 URI_WIDE = "radio://0/80/2M/E7E7E7{id:04X}"
@@ -62,13 +65,33 @@ def crazyflies_config(starts: np.ndarray, uri: str | None = None) -> dict:
     }
 
 
-def write_crazyswarm2(starts: np.ndarray, out: Path) -> list[Path]:
-    """``out/crazyswarm2/crazyflies.yaml``, ``out/crazyswarm2/fly.py`` and ``out/crazyflie/cflib_upload.py``."""
+def shared_ground(starts: np.ndarray, distance: float) -> list[tuple[int, int]]:
+    """Pairs of robots whose ground spots (``initial_position``: x, y below the start) are nearer than
+    ``distance``: in a 3-D plan, robots that start one above the other. They cannot both sit there, and
+    taking off straight up (fly.py, cflib_upload.py) would fly one into the other."""
+    xy = np.asarray(starts, dtype=float)[:, :2]
+    d = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
+    i, k = np.nonzero(np.triu(d < distance, 1))
+    return [(int(a), int(b)) for a, b in zip(i, k)]
+
+
+def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0) -> list[Path]:
+    """``out/crazyswarm2/crazyflies.yaml``, ``out/crazyswarm2/fly.py`` and ``out/crazyflie/cflib_upload.py``.
+
+    Robots whose ground spots come nearer than ``2 radius`` (:func:`shared_ground`) are named in a warning
+    and in the file's comments: their take-off is not the scripts' to fly."""
     from mrfswarm.atomic import atomic_write
 
+    header = "# Crazyswarm2 robots of this mrfswarm run: cf<k> flies trajectories/robot_<k-1>.csv (see fly.py)\n"
+    pairs = shared_ground(starts, 2 * radius) if radius > 0 else []
+    if pairs:
+        names = ", ".join(f"{robot_name(i)} and {robot_name(k)}" for i, k in pairs)
+        text = (f"robots start above the same ground spot ({names}): crazyflies.yaml places them there; put "
+                f"one elsewhere and fly it to its start by hand (fly.py and cflib_upload.py take off straight up)")
+        log.warning("crazyswarm2: %s", text)
+        header += f"# WARNING: {text}\n"
     written = [atomic_write(out / "crazyswarm2" / "crazyflies.yaml", lambda p: p.write_text(
-        "# Crazyswarm2 robots of this mrfswarm run: cf<k> flies trajectories/robot_<k-1>.csv (see fly.py)\n"
-        + yaml.safe_dump(crazyflies_config(starts), sort_keys=False)))]
+        header + yaml.safe_dump(crazyflies_config(starts), sort_keys=False)))]
     for folder, script in (("crazyswarm2", "fly.py"), ("crazyflie", "cflib_upload.py")):
         source = SCRIPTS / script
         written.append(atomic_write(out / folder / script, partial(shutil.copyfile, source)))

@@ -44,6 +44,24 @@ def load_script(path, name):
     return mod
 
 
+def test_robots_started_one_above_the_other_are_named_in_a_warning_and_the_yaml(tmp_path, caplog):
+    from mrfswarm.export.crazyswarm2 import shared_ground, write_crazyswarm2
+
+    stacked = np.array([[2.0, 3.0, 1.5], [2.0, 3.0, 3.5], [2.0, 5.0, 1.5], [2.3, 5.0, 3.0]])
+    assert shared_ground(stacked, 0.5) == [(0, 1), (2, 3)]  # the same spot, and 0.3 m apart
+    with caplog.at_level("WARNING"):
+        write_crazyswarm2(stacked, tmp_path / "a", radius=0.25)
+    text = (tmp_path / "a" / "crazyswarm2" / "crazyflies.yaml").read_text()
+    assert "cf1 and cf2, cf3 and cf4" in caplog.text and "# WARNING: robots start above the same ground spot" in text
+    assert len(yaml.safe_load(text)["robots"]) == 4  # still the file Crazyswarm2 reads
+    caplog.clear()
+    apart = stacked + np.array([[0.0, 0, 0], [0.5, 0, 0], [0, 0, 0], [0.5, 0, 0]])
+    assert shared_ground(apart, 0.5) == []
+    with caplog.at_level("WARNING"):
+        write_crazyswarm2(apart, tmp_path / "b", radius=0.25)
+    assert not caplog.text and "WARNING" not in (tmp_path / "b" / "crazyswarm2" / "crazyflies.yaml").read_text()
+
+
 def test_yaml_as_crazyswarm2_launch_reads_it(run_dir):
     c = yaml.safe_load((run_dir / "crazyswarm2" / "crazyflies.yaml").read_text())
     fileversion = c.get("fileversion", 1)
