@@ -137,8 +137,8 @@ def run(args: argparse.Namespace) -> int:
     speed = DEFAULT_SPEED if args.speed is None else args.speed
     if not (math.isfinite(speed) and speed > 0):
         raise ConfigError(f"--speed must be a positive finite number, got {args.speed}")
-    if args.altitude is not None and not math.isfinite(args.altitude):
-        raise ConfigError(f"--altitude must be finite, got {args.altitude}")
+    if args.altitude is not None and not (math.isfinite(args.altitude) and args.altitude > 0):
+        raise ConfigError(f"--altitude must be a finite number > 0 (as scenario.altitude), got {args.altitude}")
     _check_time_options(args, degree, q)
     if args.qp != CLOSED_FORM:
         solvers.qp.BACKENDS.get(args.qp)  # unknown or missing backend: SolverNotFound, before any work
