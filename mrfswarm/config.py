@@ -561,8 +561,14 @@ def apply_overrides(data: dict, overrides: list[str]) -> dict:
     A renamed key sets its current name (:func:`current_key`), so that ``--set
     mrf.optimizer=gibbs`` overrides ``method`` in a config that gives it; overrides that give
     both names, as a file that does, are an error.
+
+    A key of a table the config leaves to its default (``scenario.map``, ``scenario.start``) that
+    the default table has sets it in that table: ``--set scenario.map.size=[12,12]`` is a free
+    12 x 12 map, ``--set scenario.start.n_robots=6`` six robots around the default centre. A key
+    the default lacks starts a table of its own (``scenario.start.positions``).
     """
     data = _deepcopy(data)
+    defaults = Config().to_dict()
     named: dict[str, str] = {}  # current key -> the name an override gave it by
     for item in overrides:
         path, value = parse_override(item)
@@ -573,8 +579,12 @@ def apply_overrides(data: dict, overrides: list[str]) -> dict:
             old, new = (other, given) if other in RENAMED_KEYS else (given, other)
             raise ConfigError(f"{old} and {new} are both given; {old} is the old name of {new}: keep {new}")
         path = key.split(".")
-        node = data
-        for part in path[:-1]:
+        node, default = data, defaults
+        for depth, part in enumerate(path[:-1]):
+            default = default.get(part) if isinstance(default, dict) else None
+            # a dict-valued key of a section (sections themselves get their defaults in from_dict)
+            if part not in node and depth == len(path) - 2 >= 1 and isinstance(default, dict) and path[-1] in default:
+                node[part] = _deepcopy(default)
             nxt = node.setdefault(part, {})
             if not isinstance(nxt, dict):
                 raise ConfigError(f"--set {item!r}: {part} is not a table")

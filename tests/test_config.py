@@ -223,3 +223,19 @@ def test_the_nlp_key_is_checked_against_the_registry(tmp_path):
     assert load_config().smoothing.nlp == solvers.nlp.DEFAULT_BACKEND == "ipopt"
     for name in solvers.nlp.BACKENDS.names():
         assert load_config(write(tmp_path, f'[smoothing]\nnlp = "{name}"\n')).smoothing.nlp == name
+
+
+@pytest.mark.parametrize("override, table, expected", [
+    ("scenario.map.size=[12,12]", "map", {"kind": "free", "size": [12, 12]}),
+    ("scenario.start.n_robots=6", "start", {"center": [5.0, 5.0], "n_robots": 6, "seed": 0}),
+    ("scenario.start.positions=[[1,1],[3,3]]", "start", {"positions": [[1, 1], [3, 3]]}),  # not a default key
+])
+def test_a_key_of_a_table_left_to_its_default_sets_it_in_the_default_table(override, table, expected):
+    assert getattr(load_config(None, [override]).scenario, table) == expected
+
+
+def test_a_key_of_a_table_the_config_gives_sets_it_in_that_table(tmp_path):
+    cfg = load_config(write(tmp_path, '[scenario]\nstart = { center = [8, 8], n_robots = 4 }\n'),
+                      ["scenario.start.n_robots=6"])
+    assert cfg.scenario.start == {"center": [8, 8], "n_robots": 6}
+    assert apply_overrides({}, ["smoothing.v_max=3"]) == {"smoothing": {"v_max": 3}}  # sections stay sparse
