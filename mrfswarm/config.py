@@ -579,7 +579,8 @@ def apply_overrides(data: dict, overrides: list[str]) -> dict:
             old, new = (other, given) if other in RENAMED_KEYS else (given, other)
             raise ConfigError(f"{old} and {new} are both given; {old} is the old name of {new}: keep {new}")
         path = key.split(".")
-        node, default = data, defaults
+        node = data
+        default: Any = defaults
         for depth, part in enumerate(path[:-1]):
             default = default.get(part) if isinstance(default, dict) else None
             # a dict-valued key of a section (sections themselves get their defaults in from_dict)
