@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import tomllib
 import warnings
 from dataclasses import dataclass, field, fields
@@ -612,6 +613,9 @@ def load_config(path: str | Path | None = None, overrides: list[str] | None = No
     """
     data: dict = {}
     base = Path(".")
+    if path is not None and not isinstance(path, (str, os.PathLike)):
+        raise ConfigError(f"a config is a path to a TOML file (or, to plan, a Config object), got "
+                          f"{type(path).__name__} {path!r:.60}")
     if path is not None:
         p = Path(path)
         text = read_text(p, "config", ConfigError)

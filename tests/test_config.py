@@ -239,3 +239,13 @@ def test_a_key_of_a_table_the_config_gives_sets_it_in_that_table(tmp_path):
                       ["scenario.start.n_robots=6"])
     assert cfg.scenario.start == {"center": [8, 8], "n_robots": 6}
     assert apply_overrides({}, ["smoothing.v_max=3"]) == {"smoothing": {"v_max": 3}}  # sections stay sparse
+
+
+@pytest.mark.parametrize("config", [5, {"scenario": {}}, ["c.toml"]])
+def test_a_config_that_is_neither_a_path_nor_a_config_is_a_config_error(config):
+    import mrfswarm
+
+    with pytest.raises(ConfigError, match=r"^a config is a path to a TOML file \(or, to plan, a Config object\), got"):
+        load_config(config)
+    with pytest.raises(ConfigError, match="a config is a path to a TOML file"):
+        mrfswarm.plan(config)
