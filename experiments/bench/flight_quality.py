@@ -35,7 +35,13 @@ Cases (deterministic maps built here; 1 m cells unless said):
 - ``cross300`` (``--cases`` only): 300 robots crossing 110 m of open field (the big swarm's windows, quicker).
 
     python experiments/bench/flight_quality.py [--cases ...] [--variants default,refined,refined_nlp]
-        [--baseline REV] [--baseline-variants default] [--out experiments/bench/results/flight_quality.csv]
+        [--baseline REV] [--baseline-variants default] [--repeat N] [--out experiments/bench/results/flight_quality.csv]
+
+``--repeat N`` plans every case N times, the rounds interleaved (each round runs every code and variant of the
+case once), and the cost lines give the median over the rounds of the refined run's time over the default's in
+the same round: the machine is shared and noisy, and a ratio taken within a round holds better than one
+timing. The flights of the rounds must be the same (the planning is deterministic); a round that differs is
+reported.
 """
 
 from __future__ import annotations
@@ -249,6 +255,7 @@ def main() -> None:
     ap.add_argument("--baseline", default="3268301", help="git revision of the previous default ('' for none)")
     ap.add_argument("--baseline-variants", default="default")
     ap.add_argument("--out", type=Path, default=RESULTS / "flight_quality.csv")
+    ap.add_argument("--repeat", type=int, default=1, help="rounds of every case, interleaved (median cost ratios)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a config override for every run (repeatable)")
     ap.add_argument("--child", nargs=2, metavar=("CASE", "VARIANT"), help=argparse.SUPPRESS)
@@ -266,13 +273,17 @@ def main() -> None:
             runs = [(v, None, "now") for v in args.variants.split(",")]
             if old is not None:
                 runs = [(v, old, args.baseline) for v in args.baseline_variants.split(",") if v] + runs
-            for v, code, label in runs:
-                arrays = Path(tmp) / "arrays.npz"
-                row = {"code": label, **run_child(Path(__file__), ["--child", case, v, "--arrays", str(arrays),
-                                                                   *(f"--set={o}" for o in args.set)], code)}
-                row.update(lower_bound(arrays, row["makespan_s"]))
-                rows.append(row)
-                print(f"{case:<10} {label:<9} {v:<8} " + " ".join(f"{str(row[c]):>12}" for c in COLUMNS), flush=True)
+            for round_ in range(args.repeat):
+                for v, code, label in runs:
+                    arrays = Path(tmp) / "arrays.npz"
+                    row = {"code": label, **run_child(Path(__file__), ["--child", case, v, "--arrays", str(arrays),
+                                                                       *(f"--set={o}" for o in args.set)], code)}
+                    row.update(lower_bound(arrays, row["makespan_s"]))
+                    if args.repeat > 1:
+                        row["round"] = round_
+                    rows.append(row)
+                    print(f"{case:<10} {label:<9} {v:<8} " + " ".join(f"{str(row[c]):>12}" for c in COLUMNS),
+                          flush=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with open(args.out, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -284,17 +295,36 @@ def main() -> None:
 
 
 def cost_lines(rows: list[dict]) -> list[str]:
-    """Per case and code, what ``refined`` costs over ``default``: the ratios of their plan_s and run_s."""
-    by = {(r["case"], r["code"], r["variant"]): r for r in rows}
+    """Per case and code, what ``refined`` costs over ``default``: the ratios of their plan_s and run_s, each
+    taken within a round (``round``, rows of ``--repeat``) and the median over the rounds; and the rounds whose
+    flights differ from the first round's."""
+    by: dict[tuple, list[dict]] = {}
+    for r in rows:
+        by.setdefault((r["case"], r["code"], r["variant"]), []).append(r)
     out = []
-    for (case, code, variant), ref in by.items():
-        base = by.get((case, code, "default"))
-        if variant != "refined" or base is None:
+    for (case, code, variant), refs in by.items():
+        bases = by.get((case, code, "default"))
+        for r in refs[1:]:
+            if (r.get("makespan_s"), r.get("steps")) != (refs[0].get("makespan_s"), refs[0].get("steps")):
+                out.append(f"{case} ({code}) {variant}: round {r.get('round')} flew {r.get('makespan_s')} s in "
+                           f"{r.get('steps')} steps, round 0 {refs[0].get('makespan_s')} s in {refs[0].get('steps')}")
+        if variant != "refined" or not bases:
             continue
-        ratio = {k: ref[k] / base[k] if base.get(k) and ref.get(k) is not None else None for k in ("plan_s", "run_s")}
-        out.append(f"refined / default, {case} ({code}): " + ", ".join(
+        ratio = {k: _median([ref[k] / base[k] for ref, base in zip(refs, bases) if base.get(k) and ref.get(k)])
+                 for k in ("plan_s", "run_s")}
+        rounds = f", median of {len(refs)} rounds" if len(refs) > 1 else ""
+        out.append(f"refined / default, {case} ({code}{rounds}): " + ", ".join(
             f"{k} {v:.2f} x" if v is not None else f"{k} -" for k, v in ratio.items()))
     return out
+
+
+def _median(values: list[float]) -> float | None:
+    """The median of ``values`` (None for none)."""
+    if not values:
+        return None
+    s = sorted(values)
+    mid = len(s) // 2
+    return s[mid] if len(s) % 2 else (s[mid - 1] + s[mid]) / 2
 
 
 if __name__ == "__main__":

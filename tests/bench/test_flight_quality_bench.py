@@ -22,3 +22,18 @@ def test_refined_over_default_per_case_and_code():
 def test_a_baseline_without_run_s_gets_a_dash():
     rows = [row("rooms", "abc", "default", 1.0, None), row("rooms", "abc", "refined", 2.5, None)]
     assert cost_lines(rows) == ["refined / default, rooms (abc): plan_s 2.50 x, run_s -"]
+
+
+def test_repeated_rounds_give_the_median_of_the_ratios_within_each_round():
+    rows = []
+    # round 1's refined run was slow (a busy machine): its own default was slow too, the ratio holds
+    for k, (d, r) in enumerate([(1.0, 3.2), (2.0, 5.0), (1.0, 2.6)]):
+        rows += [{**row("clutter40", "now", "default", d, 2 * d), "round": k, "makespan_s": 46.7, "steps": 61},
+                 {**row("clutter40", "now", "refined", r, 2 * r), "round": k, "makespan_s": 43.1, "steps": 61}]
+    assert cost_lines(rows) == ["refined / default, clutter40 (now, median of 3 rounds): plan_s 2.60 x, run_s 2.60 x"]
+
+
+def test_a_round_that_flies_differently_is_reported():
+    rows = [{**row("arena8", "now", "default", 1.0, 2.0), "round": k, "makespan_s": m, "steps": 16}
+            for k, m in enumerate([5.78, 5.78, 5.81])]
+    assert cost_lines(rows) == ["arena8 (now) default: round 2 flew 5.81 s in 16 steps, round 0 5.78 s in 16"]
