@@ -391,6 +391,17 @@ def _short_of_goal(problem: DiscreteProblem, cells: np.ndarray) -> bool:
     return _short_count(problem, cells) > 0
 
 
+def _arrived(problem: DiscreteProblem, cells: np.ndarray) -> bool:
+    """Every robot that has a free path to the goal is in the goal region, and some robot has one: a swarm
+    cut off from the goal has not arrived (it plans on by the energy, and ends converged, trapped or
+    stalled)."""
+    if problem.goal_path is None:
+        return False
+    d = cell_values(problem.goal_path, cells)
+    reachable = np.isfinite(d)
+    return bool(reachable.any() and np.all(d[reachable] <= problem.goal_region_radius))
+
+
 def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int = 300, tol: float = 1e-6,
                   patience: int = 20, options: mrf_solvers.Options | None = None,
                   on_step: Callable[[int, StepOutcome], None] | None = None,
@@ -525,7 +536,7 @@ def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float
         if out.energy_before - out.energy_after < tol * max(1.0, abs(out.energy_before)):
             converged, reason = True, "converged"
             break
-        if arrival and problem.goal_path is not None and not _short_of_goal(problem, pos):
+        if arrival and _arrived(problem, pos):
             converged, reason = True, "arrived"
             break
         # progress is measured on the scenario's own field (a congested one changes every few steps)

@@ -67,3 +67,22 @@ def test_the_plan_ends_at_the_first_step_with_every_robot_in_the_goal_region():
     longer = plan_discrete(problem, max_steps=60, arrival=False)
     assert longer.stop_reason != "arrived" and longer.n_steps > plan.n_steps
     np.testing.assert_array_equal(longer.paths[:len(plan.paths)], plan.paths)  # the same plan, cut short
+
+
+def test_a_swarm_cut_off_from_the_goal_has_not_arrived():
+    """No robot has a free path to the goal (a wall across the map, the euclidean field pulling at it): the
+    arrival rule has no robot to wait for, and the plan must not end "arrived" after one step."""
+    free = np.ones((20, 10), dtype=bool)
+    free[10, :] = False
+    goal = np.array([16, 5])
+    start = np.array([[3, 4], [3, 6], [5, 4], [5, 6]])
+    d = goal_distance(free, goal)
+    assert not d.reachable[tuple(start.T)].any()
+    xs, ys = np.meshgrid(np.arange(20), np.arange(10), indexing="ij")
+    static = np.where(free, 3.0 * np.hypot(xs - goal[0], ys - goal[1]) / 20.0, np.inf)
+    problem = DiscreteProblem(free=free, static=static, start=start, goal=goal, morse=Morse(), k=2, order=2,
+                              goal_path=d.path, goal_region_radius=3.0)
+    plan = plan_discrete(problem, max_steps=30, arrival=True)
+    assert plan.stop_reason != "arrived"
+    assert plan.n_steps > 1  # it moved toward the wall, as the energy asks
+    assert discrete_violations(plan.paths, free) == []
