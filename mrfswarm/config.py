@@ -22,6 +22,7 @@ from mrfswarm.errors import ConfigError, DeprecatedKeyWarning
 from mrfswarm.file_input import read_text
 from mrfswarm.maps import LOADERS
 from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE
+from mrfswarm.trajectory.uav_csv import DEGREE as EXPORT_DEGREE
 from solvers.mrf import Options as MRFOptions
 from solvers.nlp import BACKENDS as NLP_BACKENDS
 from solvers.qp import Options as QPOptions
@@ -494,9 +495,14 @@ def _validate(cfg: Config) -> None:
     need(m.contested in CONTESTED_RULES, "mrf.contested", m.contested, f"must be one of {', '.join(CONTESTED_RULES)}")
     sm = cfg.smoothing
     need(sm.degree >= 3, "smoothing.degree", sm.degree, "must be >= 3 (jerk is bounded on control points)")
+    # every run writes its flight as uav_trajectories CSV and Crazyflie pieces, which hold degree 7: a plan of a
+    # higher degree would be planned in full and then not written
+    need(sm.degree <= EXPORT_DEGREE, "smoothing.degree", sm.degree,
+         f"must be <= {EXPORT_DEGREE} (the uav_trajectories CSV and the Crazyflie hold degree {EXPORT_DEGREE})")
+    need(1 <= sm.derivative <= (EXPORT_DEGREE + 1) // 2, "smoothing.derivative", sm.derivative,
+         f"must be in 1..{(EXPORT_DEGREE + 1) // 2} (the degree, at most {EXPORT_DEGREE}, must be >= 2 x derivative - 1)")
     need(sm.degree >= 2 * sm.derivative - 1, "smoothing.degree", sm.degree,
          f"must be >= 2 * smoothing.derivative - 1 = {2 * sm.derivative - 1}")
-    need(1 <= sm.derivative <= 6, "smoothing.derivative", sm.derivative, "must be in 1..6")
     need(sm.speed is None or sm.speed > 0, "smoothing.speed", sm.speed, "must be > 0 (or left out: from the limits)")
     need(sm.region_growth >= 0, "smoothing.region_growth", sm.region_growth, "must be >= 0")
     need(sm.horizon >= 1, "smoothing.horizon", sm.horizon, "must be >= 1")

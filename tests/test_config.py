@@ -200,6 +200,9 @@ def test_set_reaches_the_options_tables_from_the_cli(tmp_path):
     ("smoothing.qp_options.time_limit=-1", "smoothing.qp_options: time_limit must be positive, got -1"),
     ("scenario.downwash=0.5", "scenario.downwash = 0.5: must be >= 1"),
     ("scenario.downwash=inf", "scenario.downwash must be finite, got inf"),
+    # a degree the run's own outputs cannot hold is refused before planning, not after it
+    ("smoothing.degree=9", "smoothing.degree = 9: must be <= 7"),
+    ("smoothing.derivative=5", "smoothing.derivative = 5: must be in 1..4"),
 ])
 def test_bad_solver_options_are_one_line_naming_the_key(tmp_path, capsys, override, message):
     with pytest.raises(ConfigError) as e:
