@@ -55,6 +55,15 @@ def point_segment_distance(x: np.ndarray, p: np.ndarray, q: np.ndarray) -> np.nd
     return norm(r)
 
 
+def edge_gap(points: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """Distance (cells) from each point (..., d), in cell coordinates, to the edge of a grid of ``shape``: the map
+    spans [-0.5, S - 0.5] on each axis (floor and ceiling included), off it counts as a wall; 0 outside it."""
+    pts = np.asarray(points, dtype=float)
+    size = np.asarray(shape, dtype=float)
+    gap = np.minimum(pts + 0.5, size - 0.5 - pts).min(axis=-1)
+    return np.maximum(gap, 0.0)
+
+
 def point_box_distance(x: np.ndarray, center: np.ndarray, half: float = 0.5) -> np.ndarray:
     """Distance from point x to the closed box (square, cube) of half-width ``half`` around ``center``."""
     g = np.maximum(0.0, np.abs(x - center) - half)

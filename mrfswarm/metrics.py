@@ -27,7 +27,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mrfswarm.discrete.motion import in_grid, scaled, step_min_separation
-from mrfswarm.geometry import norm, point_box_distance
+from mrfswarm.geometry import edge_gap, norm, point_box_distance
 
 #: Samples per step when measuring obstacle clearance along straight moves.
 _CLEARANCE_SAMPLES = 16
@@ -183,7 +183,7 @@ def distance_series(points: np.ndarray, max_pairs: int = MEAN_PAIRS, max_work: i
 
 
 class ObstacleIndex:
-    """Distances to the occupied cells of a grid, from a k-d tree built once.
+    """Distances to the occupied cells of a grid and to its edge, from a k-d tree built once.
 
     Parameters
     ----------
@@ -192,31 +192,34 @@ class ObstacleIndex:
     """
 
     def __init__(self, occupied: np.ndarray) -> None:
+        self.shape = tuple(occupied.shape)
         self.cells = np.argwhere(occupied)
         self.tree = cKDTree(self.cells) if len(self.cells) else None
 
     def clearance(self, points: np.ndarray) -> float | None:
-        """Smallest distance (cells) from any point (..., d), in cell coordinates, to an occupied square (cube).
+        """Smallest distance (cells) from any point (..., d), in cell coordinates, to an occupied square (cube) or
+        the map's edge (off the map counts as a wall, floor and ceiling included); None for no point.
 
-        None when the map has no obstacle. Exact: the nearest squares (cubes) are among the
-        2^d nearest occupied cell centres (the cells around the point's nearest box point).
+        Exact: the nearest squares (cubes) are among the 2^d nearest occupied cell centres (the
+        cells around the point's nearest box point).
         """
-        if self.tree is None:
-            return None
-        ndim = self.cells.shape[1]
+        ndim = len(self.shape)
         pts = np.asarray(points, dtype=float).reshape(-1, ndim)
+        if not len(pts):
+            return None
+        best = float(edge_gap(pts, self.shape).min())
+        if self.tree is None:
+            return best
         k = min(8 if ndim == 2 else 27, len(self.cells))
         _, idx = self.tree.query(pts, k)
         idx = np.asarray(idx).reshape(len(pts), k)
         d = point_box_distance(pts[:, None, :], self.cells[idx].astype(float))
-        return float(d.min())
+        return min(best, float(d.min()))
 
 
 def obstacle_clearance(occupied: np.ndarray, points: np.ndarray) -> float | None:
-    """Smallest distance (cells) from any point (..., d), in cell coordinates, to an occupied square (cube).
-
-    None when the map has no obstacle. Builds an :class:`ObstacleIndex`; keep one per map
-    when asking many times.
+    """Smallest distance (cells) from any point (..., d), in cell coordinates, to an occupied square (cube) or the
+    map's edge; None for no point. Builds an :class:`ObstacleIndex`; keep one per map when asking many times.
     """
     return ObstacleIndex(occupied).clearance(points)
 
@@ -233,7 +236,7 @@ def densify(paths: np.ndarray, samples: int = _CLEARANCE_SAMPLES) -> np.ndarray:
 
 
 def path_clearance(paths: np.ndarray, occupied: np.ndarray, samples: int = _CLEARANCE_SAMPLES) -> float | None:
-    """Smallest distance (cells) to an occupied square over :func:`densify` (paths, samples); None without obstacles.
+    """Smallest distance (cells) to an occupied square or the map's edge over :func:`densify` (paths, samples).
 
     Equal to measuring every densified point, without densifying every move: the
     positions themselves (points of the densified set) give an upper bound U, and a move
@@ -241,14 +244,12 @@ def path_clearance(paths: np.ndarray, occupied: np.ndarray, samples: int = _CLEA
     occupied square or cube (edt: the distance from p's centre to the nearest occupied cell
     centre), so only the moves whose bound is below U are densified.
     """
-    if not occupied.any():
-        return None
     index = ObstacleIndex(occupied)
     paths = np.asarray(paths)
     upper = index.clearance(paths)
-    if upper is None:  # not reached: the grid has obstacles
-        return None
-    if len(paths) == 1:
+    if upper is None or len(paths) == 1 or not occupied.any():
+        # the map's edge is nearest at a move's ends (its distance is concave along a straight move): the
+        # positions themselves give it
         return upper
     from scipy.ndimage import distance_transform_edt
 

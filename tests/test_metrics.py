@@ -19,7 +19,11 @@ def test_obstacle_clearance_exact():
     occ[5, 5] = True
     assert obstacle_clearance(occ, np.array([[2.0, 5.0]])) == pytest.approx(2.5)
     assert obstacle_clearance(occ, np.array([[3.5, 3.5]])) == pytest.approx(np.hypot(1, 1))
-    assert obstacle_clearance(np.zeros((4, 4), bool), np.array([[1.0, 1.0]])) is None
+    # the map's edge is a wall: a point half a cell in from it is half a cell clear, obstacles or not
+    assert obstacle_clearance(occ, np.array([[0.0, 5.0]])) == pytest.approx(0.5)
+    assert obstacle_clearance(np.zeros((4, 4), bool), np.array([[1.0, 1.0]])) == pytest.approx(1.5)
+    assert obstacle_clearance(np.zeros((4, 4, 3), bool), np.array([[1.5, 1.5, 2.2]])) == pytest.approx(0.3)  # ceiling
+    assert obstacle_clearance(occ, np.zeros((0, 2))) is None
 
 
 def test_discrete_metrics_summary():
@@ -31,7 +35,9 @@ def test_discrete_metrics_summary():
     np.testing.assert_allclose(m.path_lengths, [1.0, 1.0])  # 2 cells of 0.5 m
     np.testing.assert_allclose(m.mean_distance, [1.5, 1.5, 1.5])
     assert m.min_separation == pytest.approx(1.5)
-    assert m.min_obstacle_clearance == pytest.approx((10 - 2 - 0.5) * 0.5)
+    assert m.min_obstacle_clearance == pytest.approx(0.5 * 0.5)  # robot 0 runs along the map's edge
+    inner = discrete_metrics(paths + 4, occ, resolution=0.5)  # in from the edges: the wall at x = 10 is nearest
+    assert inner.min_obstacle_clearance == pytest.approx((10 - 6 - 0.5) * 0.5)
     assert m.final_goal_distance == pytest.approx(np.hypot(0, 0.5) * 0.5)
     assert m.reached_goal is True
     far = discrete_metrics(paths, occ, resolution=0.5, goal=np.array([8, 1]), goal_radius=1.0)
@@ -67,10 +73,12 @@ def test_min_separation_is_in_the_downwash_scaled_metric_within_steps():
 def test_obstacle_clearance_in_3d_matches_brute_force():
     rng = np.random.default_rng(0)
     occupied = rng.random((8, 7, 6)) < 0.1
-    pts = rng.uniform(-1, 8, (300, 3))
+    pts = rng.uniform(-0.5, 5.5, (300, 3))  # on the map
     cells = np.argwhere(occupied).astype(float)
     g = np.maximum(np.abs(pts[:, None] - cells[None]) - 0.5, 0.0)
-    assert obstacle_clearance(occupied, pts) == pytest.approx(np.linalg.norm(g, axis=-1).min())
+    edge = np.minimum(pts + 0.5, np.array(occupied.shape) - 0.5 - pts).min()
+    assert obstacle_clearance(occupied, pts) == pytest.approx(min(np.linalg.norm(g, axis=-1).min(), edge))
+    assert obstacle_clearance(occupied, pts[:1] - 2.0) == 0.0  # off the map
 
 
 def test_path_clearance_and_lengths_in_3d():
@@ -84,7 +92,10 @@ def test_path_clearance_and_lengths_in_3d():
     s = np.linspace(0, 1, 2001)[:, None]
     pts = np.concatenate([paths[0, 0] + s * (paths[1, 0] - paths[0, 0]), paths[1, 0] + s * (paths[2, 0] - paths[1, 0])])
     brute = np.linalg.norm(np.maximum(np.abs(pts - 3.0) - 0.5, 0), axis=1).min()
-    assert m.min_obstacle_clearance == pytest.approx(brute * 0.5, abs=1e-3)
+    edge = np.minimum(paths + 0.5, 6 - 0.5 - paths).min()  # robot 0 starts in a corner of the map: half a cell
+    assert m.min_obstacle_clearance == pytest.approx(min(brute, edge) * 0.5, abs=1e-3)
+    inner = discrete_metrics(np.array([[[2, 2, 2]], [[2, 2, 2]]]), occupied, resolution=0.5)
+    assert inner.min_obstacle_clearance == pytest.approx(np.sqrt(3) * 0.5 * 0.5)  # (2, 2, 2): the voxel's corner
     # robots 5 apart in x and y: the z scaling does not matter here
     assert m.min_separation == pytest.approx(min_separation(paths, 2.0) * 0.5)
     assert m.reached_goal is not None

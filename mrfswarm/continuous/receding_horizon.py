@@ -1590,11 +1590,10 @@ def exact_min_separation(trajectories: list[PiecewisePolynomial], reach: float, 
 
 
 def sampled_clearance(trajectories: list[PiecewisePolynomial], grid: OccupancyGrid, per_piece: int = 16) -> float | None:
-    """Smallest distance from a robot's centre to an occupied cell, at ``per_piece`` samples per piece."""
+    """Smallest distance from a robot's centre to an occupied cell or the map's edge, at ``per_piece`` samples per
+    piece."""
     from mrfswarm.continuous.sampled_check import voxel_clearance
 
-    if not grid.occupied.any():
-        return None
     knots = trajectories[0].knots
     tau = np.linspace(0.0, 1.0, per_piece)
     times = (knots[:-1, None] + tau[None, :] * np.diff(knots)[:, None]).ravel()

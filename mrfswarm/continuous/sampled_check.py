@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from mrfswarm.geometry import edge_gap
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.trajectory.piece_stack import norms
 
@@ -89,20 +90,23 @@ def min_pair_distance(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def voxel_clearance(occupied: np.ndarray, points: np.ndarray, k: int = 8) -> float | None:
-    """Smallest distance (cells) from any point (..., d), in cell coordinates, to an occupied cell's square or cube.
+    """Smallest distance (cells) from any point (..., d), in cell coordinates, to an occupied cell's square or cube
+    or to the map's edge (off the map counts as a wall, floor and ceiling included); None for no point.
 
-    None when there is no occupied cell. Exact: a cell whose centre is c from a point is
+    Exact: a cell whose centre is c from a point is
     between c - sqrt(d)/2 and c from it, so with the ``k`` nearest centres of a point at
     most c_k away, the nearest cell is among them once the best of them is within
     c_k - sqrt(d)/2; points where it is not are asked again with four times as many.
     """
+    d = occupied.ndim
+    pts = np.asarray(points, dtype=float).reshape(-1, d)
+    if not len(pts):
+        return None
+    best = float(edge_gap(pts, occupied.shape).min())
     cells = np.argwhere(occupied)
     if len(cells) == 0:
-        return None
-    d = occupied.ndim
+        return best
     tree = cKDTree(cells)
-    pts = np.asarray(points, dtype=float).reshape(-1, d)
-    best = np.inf
     while len(pts):
         kk = min(k, len(cells))
         dist, idx = tree.query(pts, kk)

@@ -370,10 +370,15 @@ def test_the_limit_polytope_lies_in_the_ball_and_holds_its_inner_ball():
 def test_voxel_clearance_is_exact_against_every_voxel():
     rng = np.random.default_rng(2)
     occ = rng.uniform(size=(12, 10, 8)) < 0.05
-    pts = rng.uniform(-1, 12, (3000, 3))
+    pts = rng.uniform(-0.5, 7.5, (3000, 3))  # on the map
     gap = np.maximum(0, np.abs(pts[:, None] - np.argwhere(occ)[None]) - 0.5)
-    assert voxel_clearance(occ, pts, k=2) == pytest.approx(np.linalg.norm(gap, axis=-1).min(), abs=1e-12)
-    assert voxel_clearance(np.zeros((3, 3, 3), bool), pts) is None
+    edge = np.minimum(pts + 0.5, np.array(occ.shape) - 0.5 - pts).min()
+    inner = pts[np.minimum(pts + 0.5, np.array(occ.shape) - 0.5 - pts).min(axis=1) > 1.0]
+    gap_inner = np.maximum(0, np.abs(inner[:, None] - np.argwhere(occ)[None]) - 0.5)
+    assert voxel_clearance(occ, inner, k=2) == pytest.approx(np.linalg.norm(gap_inner, axis=-1).min(), abs=1e-12)
+    assert voxel_clearance(occ, pts, k=2) == pytest.approx(min(np.linalg.norm(gap, axis=-1).min(), edge), abs=1e-12)
+    # no obstacle: the floor, the ceiling and the walls of the map are still there
+    assert voxel_clearance(np.zeros((3, 3, 3), bool), np.array([[1.0, 1.0, 1.9]])) == pytest.approx(0.6)
 
 
 def test_separations_in_the_scaled_space_refuse_a_plan_that_breaks_the_invariant():
