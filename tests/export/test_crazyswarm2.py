@@ -232,6 +232,11 @@ def test_cflib_upload_refuses_a_compressed_flight_that_is_not_certified(run_dir,
         script.pieces([0, 3], True, plan)
     assert set(script.pieces([0, 1], True, plan)[0]) == {0, 1}  # the certified ones still go
     assert set(script.pieces([3], False, plan)[0]) == {3}  # and robot 3's raw pieces
+    # a plan without a compressed flight (too wide for it): its reason, not "not certified"
+    res["crazyflie"]["compressed"] = {"error": "the flight spans 84.000 m, more than the format's 65.535 m"}
+    (plan / "result.json").write_text(json.dumps(res))
+    with pytest.raises(SystemExit, match=r"no compressed flight: the flight spans 84.000 m.*without --compressed"):
+        script.pieces([0], True, plan)
 
 
 def test_cflib_upload_refuses_raw_pieces_that_do_not_fit(per_step_dir):
@@ -289,6 +294,11 @@ def test_cflib_upload_flies_a_3d_compressed_plan(tmp_path):
     assert script.compressed_plan(tmp_path).z_mm is None
     elements, origin = script.pieces([2], True, tmp_path)
     assert np.allclose(script.start_of(elements[2], True), trs[2].evaluate(0.0), atol=1e-3)
+    # --fly takes every robot off to the highest start, as fly.py does (not robot 0's)
+    every, _ = script.pieces([0, 1, 2], True, tmp_path)
+    top = max(tr.evaluate(0.0)[2] for tr in trs)
+    assert trs[0].evaluate(0.0)[2] < top
+    assert script.takeoff_altitude(every, True) == pytest.approx(top, abs=1e-3)
     link = FakeLink()
     memory = TrajectoryMemory(id=1, type=MemoryElement.TYPE_TRAJ, size=4096, mem_handler=link)
     cf = types.SimpleNamespace(mem=types.SimpleNamespace(get_mems=lambda kind: [memory]), send_packet=lambda p: None,

@@ -68,6 +68,9 @@ def not_certified(plan: Path = PLAN) -> list[int]:
                          "cannot be read; upload the raw pieces instead (without --compressed)")
     section = json.loads((plan / "result.json").read_text()).get("crazyflie") or {}
     compressed = section.get("compressed") or {}
+    if "error" in compressed:  # no compressed flight was made (a flight too wide for its 16-bit millimetres)
+        raise SystemExit(f"cflib_upload.py: this plan has no compressed flight: {compressed['error']}; upload the "
+                         "raw pieces instead (without --compressed)")
     if "not_certified_robots" not in compressed:
         return list(range(len(section.get("robots") or [])))
     return [int(i) for i in compressed["not_certified_robots"]]
@@ -111,6 +114,12 @@ def start_of(elements: list[Any], compressed: bool) -> tuple[float, float, float
     return (e.x.values[0], e.y.values[0], e.z.values[0])
 
 
+def takeoff_altitude(elements: dict[int, list[Any]], compressed: bool) -> float:
+    """The height every robot takes off to: the highest start (a 2-D plan's altitude; a 3-D plan's top start), so
+    that no robot goes to its start through another's, as ``fly.py`` does."""
+    return max(start_of(e, compressed)[2] for e in elements.values())
+
+
 def duration_of(elements: list[Any], compressed: bool) -> float:
     return float(sum(e.duration for e in (elements[1:-1] if compressed else elements)))
 
@@ -141,8 +150,7 @@ def main(argv: list[str] | None = None) -> int:
         if not args.fly:
             return 0
         swarm.reset_estimators()
-        first = elements[robots[0]]
-        altitude = start_of(first, args.compressed)[2]
+        altitude = takeoff_altitude(elements, args.compressed)
         swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.takeoff(altitude, TAKEOFF_S))
         time.sleep(TAKEOFF_S + SETTLE_S)
         swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.go_to(
