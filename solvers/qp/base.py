@@ -23,6 +23,18 @@ from solvers.qp.solution import Options, Solution, Status
 log = logging.getLogger(__name__)
 
 
+_warned: set[tuple[str, str]] = set()
+
+
+def warn_once(logger: logging.Logger, message: str) -> None:
+    """``message`` as a warning of ``logger``, once per process: an option a backend ignores is set once and
+    solved with many times (a window's every QP), and one line says it."""
+    key = (logger.name, message)
+    if key not in _warned:
+        _warned.add(key)
+        logger.warning("%s", message)
+
+
 def set_attributes(target: object, values: dict) -> None:
     """Set each of ``values`` as an attribute of ``target`` (a backend's settings object)."""
     for key, val in values.items():

@@ -30,7 +30,7 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 
-from solvers.qp.base import PreparedQP, set_attributes
+from solvers.qp.base import PreparedQP, set_attributes, warn_once
 from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
 from solvers.qp.row_split import split_rows
@@ -53,7 +53,7 @@ MAX_ITER = 120
 def _settings(o: Options) -> dict:
     """``Options`` in PIQP's terms (the one place they are translated)."""
     if o.time_limit is not None:
-        log.warning("piqp has no time limit; Options.time_limit=%s is ignored", o.time_limit)
+        warn_once(log, f"piqp has no time limit; Options.time_limit={o.time_limit} is ignored")
     # polish: an interior-point solution needs no polishing; ignored.
     return dict(
         eps_abs=o.eps_abs,

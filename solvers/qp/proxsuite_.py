@@ -45,7 +45,7 @@ import logging
 
 import numpy as np
 
-from solvers.qp.base import PreparedQP, set_attributes
+from solvers.qp.base import PreparedQP, set_attributes, warn_once
 from solvers.qp.capabilities import QPCapabilities
 from solvers.qp.problem import QPProblem
 from solvers.qp.row_split import RowSplit, split_rows
@@ -70,7 +70,7 @@ MAX_ITER = 200
 def _settings(o: Options) -> dict:
     """``Options`` in ProxQP's terms (the one place they are translated)."""
     if o.time_limit is not None:
-        log.warning("proxsuite has no time limit; Options.time_limit=%s is ignored", o.time_limit)
+        warn_once(log, f"proxsuite has no time limit; Options.time_limit={o.time_limit} is ignored")
     # polish: no polishing step in ProxQP; ignored.
     return dict(
         eps_abs=o.eps_abs,

@@ -587,3 +587,24 @@ def test_piqp_without_equilibration_solves_what_it_calls_infeasible_with_it():
     assert QP_OPTIONS.scaling is False
     sol = qp.solve(problem, "piqp", QP_OPTIONS)
     assert sol.status.ok and problem.max_violation(sol.x) <= 1e-6
+
+
+@pytest.mark.parametrize("name", ["piqp", "proxsuite"])
+def test_an_ignored_time_limit_is_said_once_however_many_solves(name, caplog):
+    """A backend without a time limit warns that it ignores one, once per process, not once per QP (a run set
+    with ``smoothing.qp_options.time_limit`` printed the same line for every window)."""
+    pytest.importorskip(name)
+    import logging
+
+    from solvers.qp import base
+
+    base._warned.clear()
+    P, q = sp.csc_matrix(np.eye(2)), np.array([-1.0, -1.0])
+    A = sp.csc_matrix(np.eye(2))
+    problem = qp.QPProblem(P=P, q=q, A=A, l=np.zeros(2), u=np.full(2, 0.5))
+    with caplog.at_level(logging.WARNING):
+        for _ in range(3):
+            sol = qp.solve(problem, name, qp.Options(time_limit=1.0))
+            assert np.allclose(sol.x, [0.5, 0.5], atol=1e-5)
+    said = [r for r in caplog.records if "no time limit" in r.getMessage()]
+    assert len(said) == 1 and "time_limit=1.0 is ignored" in said[0].getMessage()
