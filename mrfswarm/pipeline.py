@@ -265,6 +265,7 @@ class Result:
         f = self.flight
         out["simulation"] = None if f is None else {
             "vehicle": self.config.simulation.vehicle,
+            "backend": f.backend,  # the one that flew: simulation.backend = "auto" picks batched or processes
             "rate_hz": self.config.simulation.rate_hz,
             "max_tracking_error_m": f.max_tracking_error,
             "tracking_error_bound_m": f.tracking_bound,

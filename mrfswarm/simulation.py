@@ -118,8 +118,8 @@ class SwarmFlight:
     min_separation
         Smallest distance between two flown robots (3-D; on a voxel map in the downwash-scaled metric).
     min_clearance
-        Smallest distance from a flown robot to an occupied cell (None: no obstacle): horizontal on a 2-D map,
-        in 3-D on a voxel map.
+        Smallest distance from a flown robot to an occupied cell or the map's edge: horizontal on a 2-D map, in
+        3-D on a voxel map (floor and ceiling included).
     in_obstacle
         True if some flown position lies in an occupied cell.
     tracking_bound
@@ -137,6 +137,7 @@ class SwarmFlight:
     tracking_bound: float | None = None
     max_axis_error: tuple[float, float, float] = (np.nan, np.nan, np.nan)
     rms_axis_error: tuple[float, float, float] = (np.nan, np.nan, np.nan)
+    backend: str = ""
 
     def per_axis(self) -> dict[str, dict[str, float]]:
         """The tracking error per axis for ``result.json``: ``{"max_tracking_error_axis_m": {"x": ..., "y": ...,
@@ -394,7 +395,7 @@ def fly_swarm(trajectories: list[PiecewisePolynomial], altitude: float, grid: Oc
         n_steps = int(np.ceil(duration * rate_hz)) + 1
         with tqdm(total=n_steps, desc=f"flying {len(jobs)} robots", unit="step", disable=not show, leave=False) as bar:
             flights = fly_batched(trajectories, altitude, rate_hz, vehicle, duration, on_block=bar.update)
-        return _measure(flights, grid, vehicle, jerk, speed)
+        return _measure(flights, grid, vehicle, jerk, speed, downwash, backend)
     with tqdm(total=len(jobs), desc="flying", unit="robot", disable=not show, leave=False) as bar:
         if workers <= 1:
             flights = []
@@ -408,12 +409,12 @@ def fly_swarm(trajectories: list[PiecewisePolynomial], altitude: float, grid: Oc
                     f.result()
                     bar.update(1)
                 flights = [f.result() for f in futures]
-    return _measure(flights, grid, vehicle, jerk, speed, downwash)
+    return _measure(flights, grid, vehicle, jerk, speed, downwash, backend)
 
 
 def _measure(flights: list[Flight], grid: OccupancyGrid, vehicle: str, jerk: float | None,
-             speed: float | None, downwash: float = 1.0) -> SwarmFlight:
-    """Tracking, separation and clearance of flights on one time grid."""
+             speed: float | None, downwash: float = 1.0, backend: str = "") -> SwarmFlight:
+    """Tracking, separation and clearance of flights on one time grid (flown by ``backend``)."""
     err = np.concatenate([f.tracking_error for f in flights])
     axis = np.concatenate([f.axis_error for f in flights])  # (S N, 3)
     pts = np.stack([f.positions for f in flights], axis=1)  # (S, N, 3)
@@ -432,4 +433,5 @@ def _measure(flights: list[Flight], grid: OccupancyGrid, vehicle: str, jerk: flo
         min_clearance=None if clr is None else clr * grid.resolution,
         in_obstacle=bool(np.any(~grid.is_free(cells))),
         tracking_bound=None if jerk is None or speed is None else tracking_bound(jerk, speed, vehicle),
+        backend=backend,
     )
