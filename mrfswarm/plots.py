@@ -191,6 +191,16 @@ def _draw_swarm(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], lw: 
     im = ax.imshow(masked, origin="lower", extent=(x0, x1, y0, y1), cmap="Purples", alpha=0.75,
                    interpolation="nearest", norm=_log_norm(1, max(2.0, float(hist.max()))),
                    zorder=1)
+    if grid.ndim == 3:
+        # the voxel columns the view sees partly occupied (a block floating or standing, light grey in draw_map)
+        # shaded again above the density, which covered them where robots flew over or under them
+        frac = grid.occupied.mean(axis=3 - a - b)
+        frac = frac if a < b else frac.T
+        shade = np.zeros((*frac.shape, 4))
+        shade[..., :3] = (0.55 + 0.45 * (1.0 - frac))[..., None]
+        shade[..., 3] = np.where(frac > 0, 0.85, 0.0)
+        ax.imshow(shade.transpose(1, 0, 2), origin="lower", extent=(x0, x1, y0, y1), interpolation="nearest",
+                  zorder=2)
     if colorbar is not False:
         cb = ax.figure.colorbar(im, ax=ax if colorbar is True else colorbar, orientation="horizontal", fraction=0.04,
                                 pad=0.1, aspect=40)

@@ -238,3 +238,32 @@ def test_a_swarms_legend_and_colour_bar_go_to_the_fourth_cell(flight):
     assert len(fig.axes) == 5 and plots.legend_axes(fig, panels) is cell and fig.axes[-1] is not cell
     assert "40 robots" not in fig.axes[-1].get_xlabel() and f"({n} robots)" in fig.axes[-1].get_xlabel()
     plots._plt().close(fig)
+
+
+@pytest.mark.parametrize("view", [(0, 1), (0, 2), (2, 1)])
+def test_a_swarms_density_leaves_partly_occupied_columns_visible(view):
+    """Above INDIVIDUAL_MAX robots the density image (drawn over the map) hid a block floating or standing in a
+    voxel map where robots flew over or under it: those columns are shaded again above the density, the others
+    left clear."""
+    plt = plots._plt()
+    occ = np.zeros((12, 8, 6), dtype=bool)
+    occ[5:7, 3:5, 0:2] = True  # a block standing on the floor, a third of the height
+    grid = OccupancyGrid.from_occupied(occ)
+    rng = np.random.default_rng(0)
+    n = plots.INDIVIDUAL_MAX + 10
+    lo, hi = grid.bounds
+    paths = [np.column_stack([np.linspace(lo[0], hi[0], 40), np.full(40, rng.uniform(lo[1], hi[1])),
+                              np.full(40, rng.uniform(3.0, hi[2]))]) for _ in range(n)]  # over the block
+    fig, ax = plt.subplots()
+    plots.draw_map(ax, grid, view)
+    plots.draw_paths(ax, grid, paths, view=view, colorbar=False)
+    density = next(im for im in ax.images if im.get_zorder() == 1)
+    shade = next(im for im in ax.images if im.get_zorder() == 2)  # above the density, below the paths
+    frac = occ.mean(axis=3 - sum(view))
+    frac = frac if view[0] < view[1] else frac.T
+    alpha = np.asarray(shade.get_array())[..., 3].T  # back to (view[0], view[1]) cells
+    assert np.array_equal(alpha > 0, frac > 0)
+    covered = ~np.ma.getmaskarray(density.get_array()).T
+    # seen from above, the robots that flew over the block cover its columns with density
+    assert np.any(covered & (frac > 0)) == (view == (0, 1))
+    plt.close(fig)
