@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from mrfswarm.cli import _args
@@ -86,4 +87,9 @@ def run(args: argparse.Namespace) -> int:
     if s["simulation"] is not None:
         line += f", flown: max tracking error {s['simulation']['max_tracking_error_m'] * 100:.1f} cm"
     print(f"{line} -> {out}")
+    witness = (s.get("window_attempts") or {}).get("witness", 0)
+    if witness:  # safe, but slow: a window where every planned duration failed flies from rest to rest
+        print(f"mrfswarm: warning: {witness} of {s['windows']} smoothing windows had no solution at their planned "
+              "durations and fly the rest-to-rest witness (slower, with stops): see result.json's windows; "
+              "smoothing.qp_options or the QP backend may be too tight", file=sys.stderr)
     return 0

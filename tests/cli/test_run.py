@@ -198,3 +198,20 @@ def test_a_swarm_that_starts_at_the_goal_plans_a_hover(tmp_path):
     assert res["mrf_steps"] == 0 and res["complete"] is True and res["certificate"]["ok"] is True
     assert res["flight_quality"]["stops_per_robot"] == 0.0
     assert (out / "crazyflie").is_dir() and (out / "trajectories").is_dir()
+
+
+def test_windows_that_fly_the_rest_to_rest_witness_are_said(tmp_path, capsys):
+    """A QP budget too small for any window (max_iter = 1): every window falls back to the certified rest-to-rest
+    witness. The run is safe and complete, but it flies with stops: one warning line says so."""
+    free5 = ["--set", "simulation.enabled=false", "--set", "mrf.max_steps=6"]
+    assert main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(tmp_path / "ok"), *free5]) == 0
+    assert "witness" not in capsys.readouterr().err
+    out = tmp_path / "tight"
+    assert main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(out), *free5,
+                 "--set", "smoothing.qp_options.max_iter=1"]) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if "witness" in line]
+    res = json.loads((out / "result.json").read_text())
+    assert res["window_attempts"].get("witness", 0) > 0 and res["certificate"]["ok"] is True
+    assert err == [f"mrfswarm: warning: {res['window_attempts']['witness']} of {res['windows']} smoothing windows had "
+                   "no solution at their planned durations and fly the rest-to-rest witness (slower, with stops): see "
+                   "result.json's windows; smoothing.qp_options or the QP backend may be too tight"]
