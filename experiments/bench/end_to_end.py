@@ -9,7 +9,9 @@ Variants (all without the quadrotor simulation):
 - ``paper seams``: safe regions with the paper's receding horizon (4 steps planned, 50 %
   executed, at rest at every seam);
 - ``default``: safe regions, 8 steps planned, 50 % executed, continuous up to jerk;
-- ``refined``: the default with each window's step durations refined (Ipopt NLP).
+- ``refined``: the default with each window's step durations refined by the multiplier scaling (the default
+  refinement, ``smoothing.refinement = "scaling"``);
+- ``refined_nlp``: refined by the NLP backend instead (``smoothing.refinement = "nlp"``, Ipopt).
 
 Every variant plans with the paper's discrete rules (Euclidean goal field, contested cells to
 the nearer robot, patience on the swarm energy), the only ones the code before knew, so all
@@ -25,7 +27,7 @@ Targets (issue 9) at v 2, a 4, j 4: corridor makespan <= 35 s, no stop, snap <= 
 continuous stage <= 2 s; swarm100 makespan <= 150 s, planning no slower than before.
 
     python experiments/bench/end_to_end.py [--cases corridor,corridor10,blocks,blocks12,swarm100]
-        [--variants tube,paper,default,refined] [--baseline be04db8]
+        [--variants tube,paper,default,refined,refined_nlp] [--baseline be04db8]
         [--out experiments/bench/results/end_to_end.csv]
 """
 
@@ -49,6 +51,7 @@ VARIANTS = {
     "paper": ("paper seams", ['smoothing.seam="rest"', "smoothing.horizon=4", "smoothing.execution=0.5"]),
     "default": ("default", []),
     "refined": ("refined", ["smoothing.time_refinement=true"]),
+    "refined_nlp": ("refined (Ipopt)", ["smoothing.time_refinement=true", 'smoothing.refinement="nlp"']),
 }
 #: The paper's discrete rules, for every variant: the discrete paths are the same for the code
 #: before and now, so the table compares continuous stages only.
