@@ -126,8 +126,7 @@ def draw_map(ax, grid: OccupancyGrid, view: View = (0, 1)) -> None:
     a, b = view
     occupied = grid.occupied
     if grid.ndim == 3:
-        frac = occupied.mean(axis=3 - a - b)  # the axis the view leaves out; rows and columns stay in axis order
-        image = 0.55 + 0.45 * (1.0 - (frac if a < b else frac.T))
+        image = _column_grey(_occupied_fraction(grid, view))
     else:
         image = np.where(occupied if a < b else occupied.T, 0.55, 1.0)
     lo, hi = grid.bounds
@@ -138,6 +137,19 @@ def draw_map(ax, grid: OccupancyGrid, view: View = (0, 1)) -> None:
     ax.set_aspect("equal")
     ax.set_xlabel(f"{AXES[a]} [m]")
     ax.set_ylabel(f"{AXES[b]} [m]")
+
+
+def _occupied_fraction(grid: OccupancyGrid, view: View) -> np.ndarray:
+    """(cells along view[0], cells along view[1]) the occupied fraction of each voxel column along the axis a 3-D
+    grid's ``view`` leaves out."""
+    a, b = view
+    frac = grid.occupied.mean(axis=3 - a - b)  # rows and columns stay in axis order
+    return frac if a < b else frac.T
+
+
+def _column_grey(frac: np.ndarray) -> np.ndarray:
+    """The grey of voxel columns occupied by ``frac``: 0.55 (full, as a 2-D obstacle) to 1 (empty, white)."""
+    return 0.55 + 0.45 * (1.0 - frac)
 
 
 def draw_paths(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], goal: np.ndarray | None = None,
@@ -194,10 +206,9 @@ def _draw_swarm(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], lw: 
     if grid.ndim == 3:
         # the voxel columns the view sees partly occupied (a block floating or standing, light grey in draw_map)
         # shaded again above the density, which covered them where robots flew over or under them
-        frac = grid.occupied.mean(axis=3 - a - b)
-        frac = frac if a < b else frac.T
+        frac = _occupied_fraction(grid, view)
         shade = np.zeros((*frac.shape, 4))
-        shade[..., :3] = (0.55 + 0.45 * (1.0 - frac))[..., None]
+        shade[..., :3] = _column_grey(frac)[..., None]
         shade[..., 3] = np.where(frac > 0, 0.85, 0.0)
         ax.imshow(shade.transpose(1, 0, 2), origin="lower", extent=(x0, x1, y0, y1), interpolation="nearest",
                   zorder=2)
