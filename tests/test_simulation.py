@@ -66,7 +66,7 @@ def test_the_linear_model_explains_rotorpys_tracking_error():
 
 @pytest.mark.slow
 def test_flown_corridor_keeps_the_separation_within_the_bound():
-    # the default corridor: its flight's own maxima of jerk and speed bound the tracking error to 17.0 cm, so that
+    # the default corridor: its flight's own maxima of jerk and speed bound the tracking error to 17.9 cm, so that
     # twice it leaves more than a Crazyflie's diameter (10 cm) of the 0.5 m safety distance (the limits' own bound,
     # 22.7 cm, would leave 4.5 cm). The fast profile at 3 x with the octagon limits used more jerk (a bound of
     # 20.2 cm, 9.7 cm guaranteed) and this test planned with j_max = 3 for a while.

@@ -248,7 +248,7 @@ NLP_OPTIONS = NLPOptions(tol=1e-4, max_iter=12)
 #: iterations; osqp and clarabel also converge faster without it.
 QP_OPTIONS = QPOptions(eps_abs=1e-7, eps_rel=1e-7, max_iter=50000, scaling=False)
 #: Metres every region and corridor row keeps free for the Crazyflie's compressed format, which moves control
-#: points by up to its error bound (1.7 mm on the arena, 2.4 mm on the corridor: mrfswarm.export.cflib_), so that
+#: points by up to its error bound (1.8 mm on the arena, 1.9 mm on the corridor, 2026-11-29: mrfswarm.export.cflib_), so that
 #: the rounded flight certifies with the robot radius itself.
 EXPORT_SLACK = 3e-3
 #: Share of (v_max, a_max, j_max) the window QP's limit rows keep free for the same rounding. Along the grid's
@@ -1477,7 +1477,8 @@ def _piece_options(pieces: int, steps: int) -> list[int]:
 
 def chunk_size(n: int) -> int:
     """Robots per chunk when ``n`` robots are solved: about ``CHUNK_ROBOTS``, the chunks alike in size
-    (100 robots make two chunks of 50, not 64 and 36, so two workers finish together)."""
+    (30 robots make three chunks of 10, not 12, 12 and 6, so the workers finish together; the chunks'
+    packing, :func:`pack_groups`, may still leave the last one smaller)."""
     return max(1, math.ceil(n / max(1, math.ceil(n / CHUNK_ROBOTS))))
 
 
