@@ -46,3 +46,24 @@ def run_child(script: Path, args: list[str], code: Path | None) -> dict:
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr[-3000:]}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def drop_unknown_keys(data: dict) -> None:
+    """Remove from the TOML ``data`` the keys of each section that the imported code's config does not know: an
+    earlier revision refuses them (``unknown config key mrf.follow``), and a config that sets a later rule sets
+    it to the earlier behaviour, its only one."""
+    import dataclasses
+
+    from mrfswarm.config import Config
+
+    sections = {f.name: f for f in dataclasses.fields(Config)}
+    for name, table in data.items():
+        f = sections.get(name)
+        if f is None or not isinstance(table, dict):
+            continue
+        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+        if not dataclasses.is_dataclass(default):
+            continue
+        known = {g.name for g in dataclasses.fields(default)}
+        for key in [k for k in table if k not in known]:
+            del table[key]

@@ -7,7 +7,7 @@ Variants (all without the quadrotor simulation):
   step, rest seams), run from that revision's code in a child process of the same
   session. That code rejects the config keys it does not know (the paper's scenario configs
   now set ``mrf.follow`` and the later rules back to the paper's): the keys its config lacks
-  are dropped for it (:func:`_drop_unknown`; the corridor flew 69.57 s, 16 stops per robot,
+  are dropped for it (``baseline_code.drop_unknown_keys``; the corridor flew 69.57 s, 16 stops per robot,
   snap 29,396, as the README's "before" column, 2026-11-29);
 - ``paper seams``: safe regions with the paper's receding horizon (4 steps planned, 50 %
   executed, at rest at every seam);
@@ -50,7 +50,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from baseline_code import extract, run_child, use
+from baseline_code import drop_unknown_keys, extract, run_child, use
 
 EXP = Path(__file__).resolve().parents[1]
 RESULTS = Path(__file__).parent / "results"
@@ -108,25 +108,6 @@ def measure(trajectories, grid, v_max: float) -> dict:
     }
 
 
-def _drop_unknown(data: dict) -> None:
-    """Remove from the TOML ``data`` the keys of each section that the running code's config does not know."""
-    import dataclasses
-
-    from mrfswarm.config import Config
-
-    sections = {f.name: f for f in dataclasses.fields(Config)}
-    for name, table in data.items():
-        f = sections.get(name)
-        if f is None or not isinstance(table, dict):
-            continue
-        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
-        if not dataclasses.is_dataclass(default):
-            continue
-        known = {g.name for g in dataclasses.fields(default)}
-        for key in [k for k in table if k not in known]:
-            del table[key]
-
-
 def child(case: str, variant: str, code: str | None) -> None:
     """Plan one case with one variant and print its row as JSON (run in a child process)."""
     use(code)
@@ -139,7 +120,7 @@ def child(case: str, variant: str, code: str | None) -> None:
     for section, key in PAPER_DISCRETE:  # the code before knew only the paper's rules: drop them there
         data.get(section, {}).pop(key, None)
     if code:  # and none of the keys added since (mrf.follow, ...), which the configs now set to the paper's rules
-        _drop_unknown(data)
+        drop_unknown_keys(data)
     extra = [] if code else [f"{section}.{key}={value}" for (section, key), value in PAPER_DISCRETE.items()]
     from mrfswarm.config import apply_overrides
 

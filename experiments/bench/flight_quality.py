@@ -55,13 +55,11 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from baseline_code import ROOT, extract, run_child, use
+from baseline_code import ROOT, drop_unknown_keys, extract, run_child, use
 
 EXP = ROOT / "experiments"
 RESULTS = Path(__file__).parent / "results"
 DEFAULT_CASES = "corridor,doorway,forest,rooms,trap,open50,clutter40,aisles30,arena8"
-#: mrf keys newer than the default baseline (dropped from a case for a baseline that does not know them).
-NEW_KEYS = ("follow", "arrival", "merge_waits", "drop_loops", "straighten")
 VARIANTS = {"default": [], "refined": ["smoothing.time_refinement=true"],
             "refined_nlp": ["smoothing.time_refinement=true", "smoothing.refinement=nlp"]}
 
@@ -192,14 +190,7 @@ def child(case: str, variant: str, code: str | None, overrides: list[str], array
     spec.loader.exec_module(fq)
     data, base = case_config(case)
     if code:  # keys the baseline does not know (the paper's configs set them to its behaviour, its only one)
-        import dataclasses
-
-        from mrfswarm.config import MrfConfig
-
-        known = {f.name for f in dataclasses.fields(MrfConfig)}
-        for key in NEW_KEYS:
-            if key not in known:
-                data.get("mrf", {}).pop(key, None)
+        drop_unknown_keys(data)
     data = apply_overrides(data, ["simulation.enabled=false", *VARIANTS[variant], *overrides])
     cfg = from_dict(data, base)
     t0 = time.perf_counter()

@@ -37,3 +37,16 @@ def test_a_round_that_flies_differently_is_reported():
     rows = [{**row("arena8", "now", "default", 1.0, 2.0), "round": k, "makespan_s": m, "steps": 16}
             for k, m in enumerate([5.78, 5.78, 5.81])]
     assert cost_lines(rows) == ["arena8 (now) default: round 2 flew 5.81 s in 16 steps, round 0 5.78 s in 16"]
+
+
+def test_keys_the_running_code_does_not_know_are_dropped_for_a_baseline():
+    """A baseline refuses keys added after it (``unknown config key mrf.follow``): the benches drop from a case the
+    keys the imported code's config lacks, and keep the rest, nested tables whole."""
+    from baseline_code import drop_unknown_keys
+
+    data = {"mrf": {"follow": False, "added_later": 1}, "scenario": {"map": {"kind": "free", "size": [8, 8]},
+                                                                    "later_key": 2},
+            "smoothing": {"v_max": 1.0}}
+    drop_unknown_keys(data)
+    assert data == {"mrf": {"follow": False}, "scenario": {"map": {"kind": "free", "size": [8, 8]}},
+                    "smoothing": {"v_max": 1.0}}
