@@ -294,6 +294,10 @@ def test_cflib_upload_flies_a_3d_compressed_plan(tmp_path):
     assert script.compressed_plan(tmp_path).z_mm is None
     elements, origin = script.pieces([2], True, tmp_path)
     assert np.allclose(script.start_of(elements[2], True), trs[2].evaluate(0.0), atol=1e-3)
+    # what the drone stores, exactly (the elements' floats carry half a millimetre / millisecond more)
+    assert script.start_of(elements[2], True) == tuple(v / 1000 for v in comp.start_mm(2))
+    assert script.duration_of(elements[2], True) == (comp.knots_ms[2][-1] - comp.knots_ms[2][0]) / 1000
+    assert elements[2][0].x != script.start_of(elements[2], True)[0]
     # --fly takes every robot off to the highest start, as fly.py does (not robot 0's)
     every, _ = script.pieces([0, 1, 2], True, tmp_path)
     top = max(tr.evaluate(0.0)[2] for tr in trs)

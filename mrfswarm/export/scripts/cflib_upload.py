@@ -106,11 +106,22 @@ def upload(cf: Any, elements: list[Any], compressed: bool) -> int:
     return size
 
 
+def stored(elements: list[Any]) -> tuple[list[int], list[int]]:
+    """Compressed elements as the Crazyflie stores them (cflib's own packing, read back): the start (x, y, z in
+    millimetres from the origin) and each segment's duration in milliseconds. The elements' floats carry half a
+    unit more than the stored value (cflib's encoders truncate), so they are not read directly."""
+    from mrfswarm.export import cflib_
+
+    start, segments = cflib_.parse_compressed(cflib_.pack(elements))
+    return start[:3], [ms for ms, _ in segments]
+
+
 def start_of(elements: list[Any], compressed: bool) -> tuple[float, float, float]:
     """Where the trajectory starts, in the frame it is flown in."""
-    e = elements[0]
     if compressed:
-        return (e.x, e.y, e.z)  # CompressedStart, metres from the origin
+        x, y, z = (v / 1000.0 for v in stored(elements)[0])  # metres from the origin
+        return (x, y, z)
+    e = elements[0]
     return (e.x.values[0], e.y.values[0], e.z.values[0])
 
 
@@ -121,7 +132,10 @@ def takeoff_altitude(elements: dict[int, list[Any]], compressed: bool) -> float:
 
 
 def duration_of(elements: list[Any], compressed: bool) -> float:
-    return float(sum(e.duration for e in (elements[1:-1] if compressed else elements)))
+    """Seconds the trajectory lasts as the Crazyflie flies it."""
+    if compressed:
+        return sum(stored(elements)[1]) / 1000.0
+    return float(sum(e.duration for e in elements))
 
 
 def main(argv: list[str] | None = None) -> int:
