@@ -96,8 +96,7 @@ def view_figure(grid: OccupancyGrid, width: float = 6.0, dpi: int = 110):
     if grid.ndim == 2:
         fig, ax = plt.subplots(figsize=(width, width), dpi=dpi)
         return fig, [(ax, (0, 1))]
-    lo, hi = grid.bounds
-    span = hi - lo
+    span = _layout_span(grid)
     w = 1.25 * width
     h = w * (span[1] + span[2]) / (span[0] + span[2]) + 1.0  # room for titles and labels
     fig = plt.figure(figsize=(w, h), dpi=dpi)
@@ -110,6 +109,25 @@ def view_figure(grid: OccupancyGrid, width: float = 6.0, dpi: int = 110):
 
 
 _LEGEND = "legend cell"
+
+#: The side views of a 3-D figure are at least this share of the map's larger horizontal extent high: a flatter
+#: map's heights are drawn stretched (a map one voxel high got side panels a few pixels thick, their ticks overlapping).
+SIDE_SHARE = 0.2
+
+
+def z_stretch(grid: OccupancyGrid) -> float:
+    """How many times a 3-D figure's side views stretch heights (1: drawn to scale; see :data:`SIDE_SHARE`)."""
+    lo, hi = grid.bounds
+    span = hi - lo
+    return max(1.0, SIDE_SHARE * max(span[0], span[1]) / span[2])
+
+
+def _layout_span(grid: OccupancyGrid) -> np.ndarray:
+    """The extents a 3-D figure's panels are sized by: the map's, its height stretched by :func:`z_stretch`."""
+    lo, hi = grid.bounds
+    span = np.array(hi - lo, dtype=float)
+    span[2] *= z_stretch(grid)
+    return span
 
 
 def legend_axes(fig, panels: list):
@@ -134,9 +152,13 @@ def draw_map(ax, grid: OccupancyGrid, view: View = (0, 1)) -> None:
               vmin=0, vmax=1, interpolation="nearest")
     ax.set_xlim(lo[a], hi[a])
     ax.set_ylim(lo[b], hi[b])
-    ax.set_aspect("equal")
-    ax.set_xlabel(f"{AXES[a]} [m]")
-    ax.set_ylabel(f"{AXES[b]} [m]")
+    stretch = z_stretch(grid) if grid.ndim == 3 and 2 in view else 1.0
+    ax.set_aspect(stretch if b == 2 else 1.0 / stretch)  # display length per metre, vertical over horizontal
+    label = {k: f"{AXES[k]} [m]" for k in view}
+    if stretch > 1:
+        label[2] = f"z [m], drawn x{stretch:.3g}"
+    ax.set_xlabel(label[a])
+    ax.set_ylabel(label[b])
 
 
 def _occupied_fraction(grid: OccupancyGrid, view: View) -> np.ndarray:

@@ -184,6 +184,33 @@ def test_projected_map_shades_by_the_occupied_fraction(flight, view):
     plt.close(fig)
 
 
+def test_a_flat_voxel_map_gets_readable_side_views():
+    """A map one voxel high got side panels a few pixels thick with overlapping ticks: its heights are drawn
+    stretched (and say so), so that each side view is at least SIDE_SHARE of the larger horizontal extent; a map
+    tall enough is drawn to scale."""
+    plt = plots._plt()
+    flat = OccupancyGrid.from_occupied(np.zeros((32, 16, 1), dtype=bool))
+    assert plots.z_stretch(flat) == pytest.approx(plots.SIDE_SHARE * 32)
+    fig, panels = plots.view_figure(flat)
+    for ax, view in panels:
+        plots.draw_map(ax, flat, view)
+    fig.canvas.draw()
+    top, side_x, side_y = (ax.get_window_extent() for ax, _ in panels)
+    assert side_x.height >= 0.9 * plots.SIDE_SHARE * top.width  # the x-z view: z against x
+    assert side_y.width >= 0.9 * plots.SIDE_SHARE * top.width
+    assert side_x.width == pytest.approx(top.width, rel=0.02) and side_y.height == pytest.approx(top.height, rel=0.02)
+    assert "drawn x6.4" in panels[1][0].get_ylabel() and "drawn x6.4" in panels[2][0].get_xlabel()
+    assert panels[0][0].get_xlabel() == "x [m]" and panels[0][0].get_aspect() == 1.0
+    plt.close(fig)
+    tall = OccupancyGrid.from_occupied(np.zeros((32, 16, 8), dtype=bool))
+    assert plots.z_stretch(tall) == 1.0
+    fig, panels = plots.view_figure(tall)
+    for ax, view in panels:
+        plots.draw_map(ax, tall, view)
+        assert ax.get_aspect() == 1.0 and "drawn" not in ax.get_xlabel() + ax.get_ylabel()
+    plt.close(fig)
+
+
 def test_2d_map_is_the_plane_as_before():
     plt = plots._plt()
     occ = np.zeros((7, 4), dtype=bool)
