@@ -125,6 +125,7 @@ def fake_crazyflie_py(calls, names):
 
     class Crazyswarm:
         def __init__(self):
+            calls.append(("connect",))  # the radio links: nothing may be refused after this but a server mismatch
             self.allcfs = Server()
             self.timeHelper = TimeHelper()
 
@@ -137,13 +138,36 @@ def fake_crazyflie_py(calls, names):
 
 
 def test_fly_py_refuses_a_flight_that_does_not_fit(per_step_dir, monkeypatch):
-    # 33 pieces do not fit raw: fly.py refuses before any call
+    # 33 pieces do not fit raw: fly.py refuses before any call, the radio link included
     calls = []
-    monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, ["cf1", "cf2"])})
+    monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, ["cf1", "cf2", "cf3", "cf4", "cf5"])})
     fly = load_script(per_step_dir / "crazyswarm2" / "fly.py", "fly_per_step")
     with pytest.raises(SystemExit, match="33 pieces.*31 raw pieces.*--compressed"):
-        fly.main()
+        fly.main([])
     assert calls == []
+
+
+def test_fly_py_help_flies_nothing(run_dir, monkeypatch, capsys):
+    calls = []
+    monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, ["cf1", "cf2", "cf3", "cf4", "cf5"])})
+    fly = load_script(run_dir / "crazyswarm2" / "fly.py", "fly_help")
+    with pytest.raises(SystemExit) as e:
+        fly.main(["--help"])
+    assert e.value.code == 0 and "Crazyswarm2" in capsys.readouterr().out and calls == []
+    with pytest.raises(SystemExit):
+        fly.main(["--fly-now"])  # an unknown argument: refused, nothing flown
+    assert calls == []
+
+
+def test_fly_py_refuses_a_server_with_other_robots(run_dir, monkeypatch):
+    # the server launched with another yaml (a robot more): takeoff would command a robot without a trajectory
+    calls = []
+    names = ["cf1", "cf2", "cf3", "cf4", "cf5", "cf6"]
+    monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, names)})
+    fly = load_script(run_dir / "crazyswarm2" / "fly.py", "fly_other_server")
+    with pytest.raises(SystemExit, match=r"server flies \['cf1', .*'cf6'\], this plan \['cf1', .*'cf5'\]"):
+        fly.main([])
+    assert calls == [("connect",)]
 
 
 def test_fly_py_calls_in_order_with_each_robots_csv(run_dir, monkeypatch):
@@ -151,9 +175,9 @@ def test_fly_py_calls_in_order_with_each_robots_csv(run_dir, monkeypatch):
     calls = []
     names = ["cf1", "cf2", "cf3", "cf4", "cf5"]
     monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, names)})
-    load_script(run_dir / "crazyswarm2" / "fly.py", "fly_corridor").main()
+    load_script(run_dir / "crazyswarm2" / "fly.py", "fly_corridor").main([])
     kinds = [c[0] for c in calls if c[0] != "sleep"]
-    assert kinds == ["upload"] * 5 + ["takeoff"] + ["goTo"] * 5 + ["start", "land"]
+    assert kinds == ["connect"] + ["upload"] * 5 + ["takeoff"] + ["goTo"] * 5 + ["start", "land"]
     seq = [c[0] for c in calls]
     for a, b in (("takeoff", "goTo"), ("goTo", "start"), ("start", "land")):  # a wait between phases
         assert seq[seq.index(b) - 1] == "sleep" and seq.index(a) < seq.index(b)

@@ -4,8 +4,10 @@
    flies ``../trajectories/robot_<k-1>.csv``), its radio ``uri`` and its
    ``initial_position`` (on the ground below the planned start). Place each Crazyflie there.
 2. ``ros2 launch crazyflie launch.py crazyflies_yaml_file:=$PWD/crazyflies.yaml``
-3. ``python3 fly.py``: uploads every robot's trajectory (raw pieces: at most 31 fit a
-   Crazyflie's memory; for longer plans use ``../crazyflie/cflib_upload.py --compressed``),
+3. ``python3 fly.py``: loads every enabled robot's trajectory and refuses, before any radio
+   link, one that does not fit (raw pieces: at most 31 fit a Crazyflie's memory; for longer
+   plans use ``../crazyflie/cflib_upload.py --compressed``); connects, refuses a server whose
+   robots are not this file's; uploads,
    takes off to the plan's altitude (a 3-D plan's: its highest start), goes to each start
    (a 3-D plan's own height), starts all trajectories at once
    (absolute positions: the plan's world frame is the motion-capture frame), lands.
@@ -13,9 +15,11 @@
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 HERE = Path(__file__).resolve().parent
 TRAJECTORIES = HERE.parent / "trajectories"
@@ -32,6 +36,12 @@ def robot_index(name: str) -> int:
     if not (name.startswith("cf") and name[2:].isdigit()):
         raise SystemExit(f"fly.py: robot name {name!r} in crazyflies.yaml is not cf<k>, as mrfswarm wrote it")
     return int(name[2:]) - 1
+
+
+def enabled_robots() -> list[str]:
+    """The names of the enabled robots of ``crazyflies.yaml`` beside this file (the robots this plan flies)."""
+    robots = yaml.safe_load((HERE / "crazyflies.yaml").read_text())["robots"]
+    return sorted(name for name, entry in robots.items() if entry.get("enabled", True))
 
 
 def load(names: list[str]) -> dict:
@@ -59,14 +69,18 @@ def start_of(traj) -> np.ndarray:
     return np.array([p.px.p[0], p.py.p[0], p.pz.p[0]], dtype=float)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args(argv)
+    trajectories = load(enabled_robots())  # every refusal before the radio link
     from crazyflie_py import Crazyswarm
 
     swarm = Crazyswarm()
     time_helper = swarm.timeHelper
     allcfs = swarm.allcfs
     by_name = allcfs.crazyfliesByName
-    trajectories = load(sorted(by_name))
+    if sorted(by_name) != sorted(trajectories):  # takeoff and land command every robot the server knows
+        raise SystemExit(f"fly.py: the Crazyswarm2 server flies {sorted(by_name)}, this plan {sorted(trajectories)}: "
+                         "launch it with this folder's crazyflies.yaml")
     altitude = max(start_of(t)[2] for t in trajectories.values())
     duration = max(t.duration for t in trajectories.values())
 
