@@ -201,7 +201,7 @@ def _certify(P: np.ndarray, limit_norms: list[np.ndarray], regions: Regions, dis
         bounds.append(top)
         if top > lim:
             i, j = (int(v) for v in np.unravel_index(int(np.argmax(piece_top)), piece_top.shape))
-            problems.append(f"robot {i}'s {name} control points reach {top:.4g} > {lim:g} in step {j}")
+            problems.append(f"robot {i}'s {name} control points reach {top:.4g} > {lim:g} in step {j} (by {top - lim:.2g})")
     S = P if scale is None or np.all(np.asarray(scale) == 1.0) else P * np.asarray(scale, dtype=float)
     lo, hi = S.min(axis=2), S.max(axis=2)  # (N, M, d), in the scaled space
     sep, checked = np.inf, 0

@@ -23,18 +23,21 @@ int16 millimetres hold +/-32.767 m, so the points are written relative to a fram
 (:func:`compress`: per axis, 0 when the flight fits around it, else the flight's centre;
 the Crazyflie must then fly in a world frame whose origin is that point). Two roundings:
 
-- every control point to the nearest millimetre: at most 0.5 mm per axis, so, since a
-  Bezier piece is a convex combination of its control points (non-negative weights summing
-  to one), every position of a piece moves by at most 0.5 sqrt(d) mm (d = 2 or 3 stored
-  axes), for all t;
+- every control point to a neighbouring millimetre: the nearest (at most 0.5 mm per axis)
+  or, given the plan's regions and limits, one of its up to 2^d neighbours chosen so that
+  the control points the certificate checks stay in their regions and the derivative ones
+  within the limits (:func:`_round_inside`; at most 1 mm per axis). Since a Bezier piece is
+  a convex combination of its control points (non-negative weights summing to one), every
+  position of a piece moves by at most the largest control-point move, for all t;
 - every knot time (not every duration: the error does not accumulate) to the nearest
   millisecond: a piece of duration T then takes T' = T + e with |e| <= 1 ms, its knots
   within 0.5 ms of the planned ones; a point at time t is the planned point of a time
   within 0.5 ms of t (the map from the new piece's time to the old is affine between
   knots that moved by at most 0.5 ms), so it is at most v_max x 0.5 ms away.
 
-So the compressed flight is within ``0.5 sqrt(d) mm + v_max x 0.5 ms`` of the planned one
-at every instant (:attr:`Compressed.position_error_bound`), in exact arithmetic. All robots
+So the compressed flight is within the largest control-point move ``+ v_max x 0.5 ms`` of the
+planned one at every instant (:attr:`Compressed.position_error_bound`; at most ``sqrt(d) mm + v_max
+x 0.5 ms``, ``0.5 sqrt(d) mm + ...`` rounded to the nearest), in exact arithmetic. All robots
 share the same rounded knots, so the pieces of a step still share their interval and the
 continuous stage's certificate applies to the decoded flight as it stands
 (:mod:`mrfswarm.export.crazyflie_memory` runs it). The firmware's own float32 arithmetic
@@ -76,6 +79,10 @@ MAX_DURATION_MS = 65535
 INSIDE_MM = 1e-6
 """In-region rounding counts a point closer than this to a region's edge (mm) as outside: the certificate
 recomputes it in metres from other arithmetic (measured 1.6e-15 m)."""
+INSIDE_LIMIT = 1e-9
+"""The same for the limits, relative: a rounded derivative control point within this share of a limit counts as
+over it (the certificate recomputes the norms from the decoded pieces; a corridor robot's rounded speed came
+to 2.0000000000004934 against v_max 2, kept by a check without this margin and refused by the certificate)."""
 WINDOW = 3
 """In-region rounding (:func:`_round_inside`) tries every floor/ceil choice of this many consecutive control
 points on one axis at once (one point's millimetre can break a short piece's jerk limit alone)."""
@@ -379,7 +386,7 @@ def _round_inside(P: np.ndarray, origin: np.ndarray, regions: Regions, split: tu
         lo, up = lower[robots[:, None], st][:, :, None], upper[robots[:, None], st][:, :, None]
         excess = [np.maximum(np.maximum(lo - s, s - up) + INSIDE_MM, 0.0).reshape(len(st), st.shape[1], -1)]
         for L in derivative:
-            excess.append(np.maximum(np.linalg.norm(L[st] @ f, axis=-1) - 1.0, 0.0))
+            excess.append(np.maximum(np.linalg.norm(L[st] @ f, axis=-1) - (1.0 - INSIDE_LIMIT), 0.0))
         e = np.concatenate(excess, axis=-1) * ok[:, :, None]
         total = e.sum(axis=(1, 2))
         return (e > 0).sum(axis=(1, 2)) + total / (1.0 + total)

@@ -40,6 +40,13 @@ def corridor_no_slack():
                     workers=1)
 
 
+@pytest.fixture(scope="module")
+def corridor_refined():
+    """The corridor with refined step durations, whose robot 2's rounded speed landed on v_max exactly."""
+    return plan(load_config(EXPERIMENTS / "corridor.toml", ["simulation.enabled=false", "smoothing.time_refinement=true"]),
+                progress=False, workers=1)
+
+
 def _limits(run):
     sm = run.config.smoothing
     return sm.v_max, sm.a_max, sm.j_max
@@ -111,6 +118,18 @@ def test_compressed_rounding_stays_in_the_regions_and_limits(which, request):
         assert cert.ok is (regions is not None), cert.problems
         if regions is None:
             assert any("jerk" in p for p in cert.problems)
+
+
+def test_rounding_keeps_off_a_limit_it_would_only_touch(corridor_refined):
+    """The rounding's limit check counted a rounded control point on the limit (2.0000000000004934 m/s against
+    v_max 2, float noise) as within it; the certificate, computing the norms again from the decoded pieces, did
+    not, and refused the robot's compressed flight. The check keeps a relative margin (INSIDE_LIMIT)."""
+    from mrfswarm.export.crazyflie_memory import memory_report
+
+    report, _ = memory_report(corridor_refined)
+    comp = report["compressed"]
+    assert comp["not_certified_robots"] == [] and comp["certificate"]["ok"] is True, comp["certificate"]["problems"]
+    assert all(r["compressed_within_limits"] for r in report["robots"])
 
 
 def test_the_plans_slack_keeps_nearest_rounding_in_the_regions(corridor, corridor_no_slack):
