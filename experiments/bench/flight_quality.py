@@ -10,7 +10,8 @@ flight simulation off, what a user feels:
 - ``stops``: stops per robot (slower than 0.05 m/s strictly inside its flight), mean and max;
 - ``speed``: mean speed over robots (m/s);
 - ``at goal``: robots in the goal region at the end;
-- ``steps``: MRF steps; ``plan s``: the whole run's wall time.
+- ``steps``: MRF steps; ``plan_s``: the time of :func:`~mrfswarm.pipeline.plan` alone; ``run_s``: the whole
+  run's wall time (importing the package, planning, writing every output), what a user of ``mrfswarm run`` waits.
 
 The same measurement code (this file and the working tree's ``mrfswarm.flight_quality``,
 imported by path) scores the baseline's trajectories, run from ``git archive`` of
