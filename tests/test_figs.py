@@ -295,3 +295,16 @@ def test_authors_swarms_end_in_distinct_cells_and_stay_separated():
         assert d["final_cells_distinct"], name
         assert d["min_separation_discrete_m"] >= 1.0
         assert d["min_separation_continuous_m"] >= 0.5
+
+
+def test_fig6_seams_names_the_refinement_its_run_uses():
+    """The refined panel said "(NLP)" while its run refined by the multiplier scaling (the default): the title is
+    now read from the run's config."""
+    from mrfswarm.figures.runs import SMOOTHING, experiment_config
+
+    refined = experiment_config("corridor", SMOOTHING["refined"])
+    assert refined.smoothing.time_refinement and refined.smoothing.refinement == "scaling"
+    assert trajectories.variant_title("refined", refined) == "ours + step durations refined (multiplier scaling)"
+    by_ipopt = experiment_config("corridor", (*SMOOTHING["refined"], 'smoothing.refinement="nlp"'))
+    assert trajectories.variant_title("refined", by_ipopt).endswith(f"(NLP, {by_ipopt.smoothing.nlp})")
+    assert "paper" in trajectories.variant_title("paper", refined)

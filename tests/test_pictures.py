@@ -177,7 +177,9 @@ def test_projected_map_shades_by_the_occupied_fraction(flight, view):
     drop = 3 - sum(view)
     frac = occ.mean(axis=drop)
     frac = frac if view[0] < view[1] else frac.T
-    assert np.allclose(image, 0.55 + 0.45 * (1 - frac.T))
+    assert np.allclose(image, np.where(frac.T > 0, plots.OCCUPIED_GREY - (plots.OCCUPIED_GREY - 0.55) * frac.T, 1.0))
+    assert plots.OCCUPIED_GREY <= 0.9  # an occupied column is seen however little of it is occupied
+    assert np.all((image < 1.0) == (frac.T > 0))  # a column with any occupied voxel is seen
     lo, hi = flight.grid.bounds
     assert ax.images[0].get_extent() == [lo[view[0]], hi[view[0]], lo[view[1]], hi[view[1]]]
     assert ax.get_xlabel() == f"{'xyz'[view[0]]} [m]" and ax.get_ylabel() == f"{'xyz'[view[1]]} [m]"

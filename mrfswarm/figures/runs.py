@@ -28,7 +28,7 @@ SCENARIOS = ("free5", "free10", "corridor", "blocks")
 #: path (Fig. 6e, f: "optimized trajectories"); ``paper``: the paper's receding horizon
 #: (4 steps planned, 50 % executed, rest at the seams); ``default``: ours (safe regions,
 #: 8 steps planned, 50 % executed, continuous up to jerk at the seams; Fig. 6g, h);
-#: ``refined``: ours with the step durations refined by the NLP.
+#: ``refined``: ours with the step durations refined (the default refinement, the multiplier scaling).
 SMOOTHING: dict[str, tuple[str, ...]] = {
     "discrete": ("smoothing.enabled=false",),
     "single": ("smoothing.horizon=100000", "smoothing.execution=1.0"),

@@ -388,7 +388,7 @@ def make_fig8(out: Path, quick: bool = False) -> list[Path]:
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8.5)
-        plots.panel_title(ax, "a, extra", "steps to converge against n")
+        plots.panel_title(ax, "extra", "steps to converge against the search order n")
 
         ax = axes[2]
         orders = sorted({r["n"] for r in times})
@@ -399,6 +399,11 @@ def make_fig8(out: Path, quick: bool = False) -> list[Path]:
                     color=cmap(j / max(1, len(orders))), label=f"n = {n}")
         ax.set_xscale("log")
         ax.set_yscale("log")
+        from matplotlib.ticker import FuncFormatter
+
+        plain = FuncFormatter(lambda v, _: f"{v:g}")
+        ax.yaxis.set_major_formatter(plain)  # "4", not "4 x 10^0"
+        ax.yaxis.set_minor_formatter(plain)
         ax.set_xlabel("number of robots N")
         ax.set_ylabel("time per MRF step [ms]")
         ax.grid(alpha=0.3, which="both")

@@ -24,6 +24,7 @@ from scipy.spatial import ConvexHull
 from scipy.spatial.distance import pdist, squareform
 
 from mrfswarm import plots
+from mrfswarm.config import Config
 from mrfswarm.figures.runs import SCENARIOS, discrete_run, scenario_run
 from mrfswarm.metrics import distance_series
 from mrfswarm.pipeline import Result
@@ -271,11 +272,21 @@ def variant_numbers(name: str = "corridor") -> dict:
     return out
 
 
+def variant_title(variant: str, config: Config) -> str:
+    """How ``fig6_seams`` names a variant of :data:`VARIANTS`, the refinement as ``config`` runs it."""
+    if variant == "paper":
+        return "paper: rest at every seam (H = 4, 50 %)"
+    if variant == "default":
+        return "ours: safe regions, continuous seams"
+    sm = config.smoothing
+    how = "multiplier scaling" if sm.refinement == "scaling" else f"NLP, {sm.nlp}"
+    return f"ours + step durations refined ({how})"
+
+
 def make_fig6_seams(out: Path, quick: bool = False) -> list[Path]:
     """Write ``fig6_seams.png``: the corridor smoothed by the paper's receding horizon, ours, and ours refined."""
     nums = variant_numbers("corridor")
-    titles = {"paper": "paper: rest at every seam (H = 4, 50 %)", "default": "ours: safe regions, continuous seams",
-              "refined": "ours + step durations refined (NLP)"}
+    titles = {v: variant_title(v, scenario_run("corridor", v).config) for v in VARIANTS}
     plt = plots._plt()
     with plots.paper_style():
         fig = plt.figure(figsize=(17, 9.5), layout="constrained")
@@ -301,7 +312,9 @@ def make_fig6_seams(out: Path, quick: bool = False) -> list[Path]:
         speed_ax.set_xlabel("time [s]")
         speed_ax.set_ylabel("speed of each robot [m/s]")
         speed_ax.grid(alpha=0.3)
-        speed_ax.legend(fontsize=9, loc="upper right")
+        v_max = scenario_run("corridor", "default").config.smoothing.v_max
+        speed_ax.set_ylim(0, 1.3 * v_max)  # the legend's two rows above the speeds, which stay within v_max
+        speed_ax.legend(fontsize=9, loc="upper center", ncol=2)
         plots.panel_title(speed_ax, "d", "speed over time: the paper's seams stop the swarm every 2 steps; "
                           "ours do not")
         fig.suptitle("Corridor (5 robots): the continuous stage three ways (goes beyond the paper). All three are "
