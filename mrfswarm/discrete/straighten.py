@@ -222,12 +222,17 @@ def _slack(P: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
     counts = np.zeros((T + 1, N, len(caps)), dtype=np.int64)  # moves of each cap up to each step
     counts[1:] = np.cumsum(kind[..., None] == np.arange(len(caps)), axis=0)
     C = np.concatenate([np.zeros((1, N)), np.cumsum(L, axis=0)])
+    # the ways searched are of unit moves (:func:`unit_moves`): a window with a longer move (mrf.order >= 4: two
+    # cells along an axis) is kept as it is (searched, its far end lay outside the box of the steps' reach)
+    long = np.concatenate([np.zeros((1, N), dtype=np.int64),
+                           np.cumsum(np.abs(np.diff(P, axis=0)).max(axis=-1) > 1, axis=0)])
     out = np.zeros((T, N, window + 1), dtype=bool)
     uncapped = np.zeros((T, N), dtype=bool)
     for k in range(2, min(window, T) + 1):
         own = C[k:] - C[:-k]  # (T - k + 1, N)
         offset = np.sort(np.abs(P[k:] - P[:-k]), axis=-1)
         maybe = own > shortest_lengths(offset) + 1e-6  # longer than the free-map way without caps: may have room
+        maybe &= long[k:] == long[:-k]
         if not maybe.any():
             continue
         uncapped[:T - k + 1] |= maybe

@@ -35,6 +35,33 @@ def test_a_lone_robots_zigzag_becomes_a_straight_run():
     np.testing.assert_array_equal(out[:, 0], [[x, 1] for x in range(5)])
 
 
+def test_a_window_with_a_longer_move_is_kept_and_the_rest_straightened():
+    """mrf.order >= 4 moves a robot two cells along an axis in one step; the search (unit moves) then looked for a
+    way to a cell beyond its box and crashed (mrf.order = 5 on every map with straightening on). Such a window is
+    kept as it is; a zigzag of unit moves elsewhere in the path is still straightened. Random paths of order-5
+    moves: no error, the ends kept, no move longer."""
+    col = np.array([[0, 1], [2, 2], [3, 1], [4, 2], [5, 1], [6, 2], [7, 1], [8, 2], [9, 1], [10, 2], [11, 1],
+                    [12, 2], [13, 1], [14, 2]])
+    out, done = straighten(col[:, None], np.ones((16, 4), dtype=bool))
+    assert done >= 1 and np.array_equal(out[:2, 0], col[:2])
+    assert lengths(out).sum() < lengths(col[:, None]).sum() - 1e-6
+    rng = np.random.default_rng(0)
+    moves = np.array([(dx, dy) for dx in range(-2, 3) for dy in range(-2, 3) if dx * dx + dy * dy <= 5])
+    for _ in range(100):
+        col = np.concatenate([[[12, 12]], 12 + np.cumsum(moves[rng.integers(0, len(moves), 10)], axis=0)])[:, None]
+        out, _ = straighten(col, np.ones((30, 30), dtype=bool))
+        assert np.array_equal(out[[0, -1]], col[[0, -1]]) and np.all(lengths(out) <= lengths(col) + 1e-9)
+
+
+def test_a_plan_of_order_5_is_straightened_without_error():
+    data = tomllib.loads((EXPERIMENTS / "arena.toml").read_text())
+    cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "smoothing.enabled=false", "mrf.order=5"]),
+                    EXPERIMENTS)
+    assert cfg.mrf.straighten
+    r = plan(cfg, progress=False)
+    assert r.metrics.reached_goal and all(robot.at_goal for robot in r.robots())
+
+
 def test_a_wait_stays_a_wait_and_no_move_grows():
     # diagonal, wait, diagonal back: the way is shorter as straight, wait, straight, the wait in its step
     col = np.array([[0, 1], [1, 2], [1, 2], [2, 1], [3, 1]])
