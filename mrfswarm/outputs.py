@@ -60,28 +60,45 @@ def write_discrete_csv(path: Path, paths_world: np.ndarray, altitude: float) -> 
     return atomic_write(path, write)
 
 
-def check_output_dir(out: Path, overwrite: bool = False) -> None:
-    """Refuse an output folder that holds files, unless ``overwrite`` and it is a run's folder.
+def check_output_dir(out: Path, overwrite: bool = False, marker: str = RUN_MARKER, what: str = "run") -> None:
+    """Refuse an output folder that holds files, unless ``overwrite`` and it is a run's folder (one holding
+    ``marker``; ``what`` names it in the messages: ``mrfswarm sweep`` checks its folders as a sweep's).
 
     Raises
     ------
     ExportError
         ``out`` is not empty and ``overwrite`` is false; or ``out`` holds files but no
-        ``result.json`` (not a run's folder: ``overwrite`` never deletes that).
+        ``marker`` (not a run's folder: ``overwrite`` never deletes that); or ``out`` is the
+        current folder or holds it (a run replaces its folder as a whole, by renaming).
     """
     out = Path(out)
+    here, folder = Path.cwd().resolve(), out.resolve()
+    if folder == here or folder in here.parents:
+        raise ExportError(f"output folder {str(out)!r} is the current folder or holds it: a {what} replaces its output "
+                          f"folder as a whole; give --out a folder of its own (e.g. --out {what}1)")
     if not out.is_dir():
         return
     names = sorted(p.name + "/" * p.is_dir() for p in out.iterdir())
     if not names:
         return
     listed = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
-    if not (out / RUN_MARKER).is_file():
-        raise ExportError(f"output folder {str(out)!r} holds files that are not an mrfswarm run's ({listed}: no "
-                          f"{RUN_MARKER}); choose another --out")
+    if not (out / marker).is_file():
+        raise ExportError(f"output folder {str(out)!r} holds files that are not an mrfswarm {what}'s ({listed}: no "
+                          f"{marker}); choose another --out")
     if not overwrite:
-        raise ExportError(f"output folder {str(out)!r} already holds a run ({listed}); give --overwrite to replace "
+        raise ExportError(f"output folder {str(out)!r} already holds a {what} ({listed}); give --overwrite to replace "
                           f"it, or another --out")
+
+
+def set_aside(out: Path) -> Path | None:
+    """Move the folder ``out`` (if it holds anything) to a hidden folder beside it, and return that (None if there
+    was nothing): what replaces it is written in its place, the old one deleted once that is complete."""
+    out = Path(out)
+    if not out.is_dir() or not any(out.iterdir()):
+        return None
+    old = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.old-"))
+    os.rename(out, old / out.name)
+    return old
 
 
 def write_outputs(result: Result, out: Path, animate: bool = False, overwrite: bool = False) -> list[Path]:
@@ -119,10 +136,12 @@ def _swap(stage: Path, out: Path) -> None:
     if not out.exists():
         os.rename(stage, out)
         return
-    old = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.old-"))
-    os.rename(out, old / out.name)
+    old = set_aside(out)
+    if old is None:  # an empty folder
+        out.rmdir()
     os.rename(stage, out)
-    shutil.rmtree(old, ignore_errors=True)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
 
 
 def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -> list[Path]:

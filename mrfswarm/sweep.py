@@ -24,6 +24,7 @@ import math
 import numbers
 import os
 import re
+import shutil
 import sys
 import time
 import uuid
@@ -35,6 +36,9 @@ from typing import Any
 from mrfswarm.config import Config, current_key, load_config, parse_override
 from mrfswarm.errors import ConfigError, MrfswarmError, PlanError, SolversError
 from mrfswarm.pools import process_pool
+
+#: The file that makes a folder a sweep's (what ``--overwrite`` may replace).
+SWEEP_MARKER = "sweep.json"
 
 log = logging.getLogger(__name__)
 
@@ -79,7 +83,7 @@ class SweepResult:
 
     @property
     def json_path(self) -> Path:
-        return self.out_dir / "sweep.json"
+        return self.out_dir / SWEEP_MARKER
 
     @property
     def failed(self) -> list[dict]:
@@ -418,7 +422,7 @@ def _write_table(out_dir: Path, rows: list[dict], columns: list[str], meta: dict
                 w.writerow([_cell(r.get(c)) for c in columns])
 
     atomic_write(out_dir / "sweep.csv", write)
-    write_json(out_dir / "sweep.json", {**meta, "finished": len(rows), "columns": columns, "rows": rows})
+    write_json(out_dir / SWEEP_MARKER, {**meta, "finished": len(rows), "columns": columns, "rows": rows})
 
 
 # --- the sweep -----------------------------------------------------------------------------
@@ -426,7 +430,8 @@ def _write_table(out_dir: Path, rows: list[dict], columns: list[str], meta: dict
 
 def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | Path, *, scheduler: Any = None,
               workers: int | None = None, progress: bool | None = None, seeds: Sequence[int] | None = None,
-              overrides: Sequence[str] = (), figures: bool = False, connect_timeout: float = 10.0) -> SweepResult:
+              overrides: Sequence[str] = (), figures: bool = False, connect_timeout: float = 10.0,
+              overwrite: bool = False) -> SweepResult:
     """Plan every point of ``grid`` (and every seed) and tabulate the results.
 
     Parameters
@@ -459,6 +464,10 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
         Also write each point's figures and paths (as ``mrfswarm run``) into its folder.
     connect_timeout
         Seconds to wait for the scheduler.
+    overwrite
+        Replace the sweep ``out_dir`` holds (a folder with ``sweep.json``): it is set aside when this one starts
+        and deleted when this one completes (an interrupted sweep leaves it beside, in ``.<name>.old-*``).
+        Without it a folder that holds anything is refused, as is one that is not a sweep's in any case.
 
     Returns
     -------
@@ -474,6 +483,9 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
     ConfigError
         A bad grid, or a point whose config is invalid (unknown key, wrong type, out of
         range): raised before any point runs and before anything is written.
+    ExportError
+        ``out_dir`` holds files and is not a sweep's, or is one and ``overwrite`` is false, or is the current
+        folder (:func:`~mrfswarm.outputs.check_output_dir`); before any point runs.
     SchedulerError
         An unreachable scheduler, or Dask not installed.
     """
@@ -515,6 +527,9 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
             tasks.append(_Task(cfg, s, str(d.resolve()), figures))
             bases.append(base)
 
+    from mrfswarm.outputs import check_output_dir
+
+    check_output_dir(out_dir, overwrite, marker=SWEEP_MARKER, what="sweep")
     client, owned = (None, False) if scheduler is None else connect(scheduler, connect_timeout)
     try:
         return _sweep(config, grid, seeds, overrides, out_dir, tasks, bases, keys, client, workers, progress)
@@ -527,8 +542,9 @@ def _sweep(config: Path, grid: dict, seeds: list[int] | None, overrides: list[st
            bases: list[dict], keys: list[str], client: Any, workers: int | None, progress: bool | None) -> SweepResult:
     from tqdm import tqdm
 
-    from mrfswarm.outputs import write_json
+    from mrfswarm.outputs import set_aside, write_json
 
+    earlier = set_aside(out_dir)  # the sweep --overwrite replaces (check_output_dir let nothing else through)
     out_dir.mkdir(parents=True, exist_ok=True)
     lead = ["point", *keys] + ([] if seeds is None else ["seed"])
     meta = {"config": str(config.resolve()), "overrides": overrides, "grid": {k: list(v) for k, v in grid.items()},
@@ -571,5 +587,10 @@ def _sweep(config: Path, grid: dict, seeds: list[int] | None, overrides: list[st
         ordered, columns = table()
         if ordered or complete:
             _write_table(out_dir, ordered, columns, meta | {"complete": complete})
+        if earlier is not None:
+            if complete:
+                shutil.rmtree(earlier, ignore_errors=True)
+            else:
+                log.warning("the sweep this one replaces is kept in %s", earlier / out_dir.name)
     return SweepResult(rows=ordered, csv_path=out_dir / "sweep.csv", out_dir=out_dir, columns=columns,
                        grid={k: list(v) for k, v in grid.items()})

@@ -174,6 +174,42 @@ def test_cli_sweep(tmp_path, capsys):
     assert all(int(r[table[0].index("mrf_steps")]) <= 4 for r in table[1:])
 
 
+def test_a_folder_holding_a_sweep_is_refused_or_replaced_with_overwrite(tmp_path, capsys, monkeypatch):
+    """A second sweep into a sweep's folder mixed its points with the first's (four old points beside one new);
+    a folder that is not a sweep's was written into as well."""
+    out = tmp_path / "out"
+    args = ["sweep", str(FREE5), "--out", str(out), "--workers", "1", "--set", "smoothing.enabled=false",
+            "--set", "mrf.max_steps=4"]
+    assert main([*args, "--grid", "interaction.k=2,3"]) == 0
+    first = sorted(p.name for p in (out / "points").iterdir())
+    assert len(first) == 2
+    capsys.readouterr()
+    assert main([*args, "--grid", "interaction.k=2"]) == 2  # refused before planning
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "already holds a sweep" in err and "--overwrite" in err
+    assert sorted(p.name for p in (out / "points").iterdir()) == first
+    assert main([*args, "--grid", "interaction.k=4", "--overwrite"]) == 0
+    assert [p.name for p in (out / "points").iterdir()] == ["000_k=4"]
+    assert len(read_csv(out / "sweep.csv")) == 2 and not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep me")
+    capsys.readouterr()
+    assert main([*args[:2], "--out", str(mine), *args[4:], "--grid", "interaction.k=2", "--overwrite"]) == 2
+    assert "not an mrfswarm sweep's" in capsys.readouterr().err and [p.name for p in mine.iterdir()] == ["notes.txt"]
+    # a replacing sweep that fails keeps the one it replaces, beside
+    import mrfswarm.pipeline
+
+    def broken(cfg, **kw):
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(mrfswarm.pipeline, "plan", broken)
+    with pytest.raises(RuntimeError, match="a bug"):
+        run_sweep(FREE5, {"interaction.k": [2]}, out, workers=1, overwrite=True)
+    kept = [p for p in tmp_path.iterdir() if p.name.startswith(".out.old-")]
+    assert len(kept) == 1 and [p.name for p in (kept[0] / "out" / "points").iterdir()] == ["000_k=4"]
+
+
 BAD = {
     "no equals sign": (["--grid", "interaction.k_a"], "expected KEY=V1,V2"),
     "empty value list": (["--grid", "interaction.k_a="], "empty value list"),

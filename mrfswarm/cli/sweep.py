@@ -27,6 +27,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key for every point (repeatable)")
     p.add_argument("--figures", action="store_true", help="also write each point's figures and paths")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the sweep the output folder holds (deleted once this one completes)")
     p.add_argument("--connect-timeout", type=_args.positive_float, default=10.0, metavar="S",
                    help="seconds to wait for the Dask scheduler (default 10)")
     p.set_defaults(func=run)
@@ -53,7 +55,8 @@ def run(args: argparse.Namespace) -> int:
     grid = parse_grid(args.grid)
     seeds = None if args.seeds is None else parse_seeds(args.seeds)
     res = run_sweep(args.config, grid, args.out, scheduler=args.scheduler, workers=args.workers, seeds=seeds,
-                    overrides=args.overrides, figures=args.figures, connect_timeout=args.connect_timeout)
+                    overrides=args.overrides, figures=args.figures, connect_timeout=args.connect_timeout,
+                    overwrite=args.overwrite)
     failed = len(res.failed)
     print(f"{len(res.rows)} runs ({failed} failed) -> {res.csv_path}")
     return 0

@@ -58,6 +58,20 @@ def test_a_folder_that_is_not_a_run_is_never_replaced(tmp_path, capsys):
     assert (out / "notes.txt").read_text() == "keep me" and len(list(out.iterdir())) == 1
 
 
+@pytest.mark.parametrize("name", [".", ".."])
+def test_the_current_folder_is_refused_before_planning(tmp_path, monkeypatch, capsys, name):
+    """--out . planned, then failed on its own staging folder (empty folder) or with a traceback renaming '.' (a
+    run's folder with --overwrite); a run replaces its folder as a whole, so the current folder is refused."""
+    here = tmp_path / "here"
+    here.mkdir()
+    (here / "result.json").write_text("{}")  # a run's folder: --overwrite would replace it
+    monkeypatch.chdir(here)
+    assert run(tmp_path, 3, name, "--overwrite") == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is the current folder or holds it" in err
+    assert sorted(p.name for p in here.iterdir()) == ["result.json"] and (here / "result.json").read_text() == "{}"
+
+
 def test_an_empty_folder_is_used(tmp_path):
     out = tmp_path / "empty"
     out.mkdir()
