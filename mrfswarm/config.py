@@ -515,6 +515,8 @@ def _validate(cfg: Config) -> None:
          "must be 0 (off) or >= 100")
     need(sm.max_pieces >= 0, "smoothing.max_pieces", sm.max_pieces, "must be >= 0 (0: one piece per step)")
     need(sm.v_max > 0, "smoothing.v_max", sm.v_max, "must be > 0")
+    need(sm.speed is None or sm.speed <= sm.v_max, "smoothing.speed", sm.speed,
+         f"must be <= smoothing.v_max = {sm.v_max:g} (a cruise above the speed limit has no solution)")
     need(sm.a_max > 0, "smoothing.a_max", sm.a_max, "must be > 0")
     need(sm.j_max > 0, "smoothing.j_max", sm.j_max, "must be > 0")
     for key, cls in SOLVER_OPTIONS.items():  # the options class's own range checks

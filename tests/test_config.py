@@ -203,6 +203,8 @@ def test_set_reaches_the_options_tables_from_the_cli(tmp_path):
     # a degree the run's own outputs cannot hold is refused before planning, not after it
     ("smoothing.degree=9", "smoothing.degree = 9: must be <= 7"),
     ("smoothing.derivative=5", "smoothing.derivative = 5: must be in 1..4"),
+    # a cruise speed above the limit was accepted and flew slower than the default (its steps stretched)
+    ("smoothing.speed=5", "smoothing.speed = 5.0: must be <= smoothing.v_max = 2"),
 ])
 def test_bad_solver_options_are_one_line_naming_the_key(tmp_path, capsys, override, message):
     with pytest.raises(ConfigError) as e:
