@@ -499,6 +499,9 @@ def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float
     gt: dict[str, float] = {}
     weights = graph_weights(pos, problem.k, gt)
     base, congested = problem, 0
+    if arrival and _arrived(problem, pos):  # there already: no step (one moved a robot for nothing)
+        energy.append(swarm_energy(problem, pos, weights))
+        converged, reason, max_steps = True, "arrived", 0
     for t in range(1, max_steps + 1):
         cong = base.congestion
         if cong is not None and t > 1 and (t - 2) % cong.every == 0:

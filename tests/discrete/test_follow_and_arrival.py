@@ -69,6 +69,19 @@ def test_the_plan_ends_at_the_first_step_with_every_robot_in_the_goal_region():
     np.testing.assert_array_equal(longer.paths[:len(plan.paths)], plan.paths)  # the same plan, cut short
 
 
+def test_a_swarm_that_starts_in_the_goal_region_takes_no_step():
+    """Every robot in the goal region at the start: the arrival was checked only after a step, and one robot moved
+    (a 2.7 s flight at 3.8 x its lower bound for nothing)."""
+    problem = corridor_queue(True)
+    from dataclasses import replace
+
+    there = replace(problem, start=np.array([[15, 1], [14, 1], [13, 1], [12, 1]]))
+    plan = plan_discrete(there, max_steps=60, arrival=True)
+    assert plan.stop_reason == "arrived" and plan.converged and plan.n_steps == 0
+    np.testing.assert_array_equal(plan.paths, there.start[None])
+    assert len(plan.energy) == 1 and np.isfinite(plan.energy[0])
+
+
 def test_a_swarm_cut_off_from_the_goal_has_not_arrived():
     """No robot has a free path to the goal (a wall across the map, the euclidean field pulling at it): the
     arrival rule has no robot to wait for, and the plan must not end "arrived" after one step."""
