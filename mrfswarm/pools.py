@@ -19,8 +19,10 @@ from multiprocessing.context import BaseContext
 
 
 def ignore_sigint() -> None:
-    """Pool workers leave Ctrl-C to the parent, which stops them."""
+    """Pool workers leave Ctrl-C to the parent, which stops them; SIGTERM (the parent's :func:`stop`) ends them at
+    once, whatever handler the parent had (the command's turns it into an exception)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def stop(pool: cf.ProcessPoolExecutor) -> None:

@@ -14,7 +14,9 @@ import argparse
 import importlib
 import logging
 import pkgutil
+import signal
 import sys
+import threading
 import warnings
 from typing import Any, NoReturn
 
@@ -39,10 +41,21 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(BaseException):
+    """SIGTERM, raised where the command is, so that it stops as on Ctrl-C: its worker processes stopped, no
+    output folder half-written (killed outright, the pool's workers outlived the command, holding its pipes)."""
+
+
+def _terminate(signum: int, frame: Any) -> NoReturn:
+    raise Terminated
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    main_thread = threading.current_thread() is threading.main_thread()
+    before = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
     try:
         with warnings.catch_warnings():  # restores showwarning on the way out
             warnings.showwarning = _one_line(warnings.showwarning)
@@ -54,6 +67,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("mrfswarm: interrupted", file=sys.stderr)
         return 130
+    except Terminated:
+        print("mrfswarm: terminated", file=sys.stderr)
+        return 128 + signal.SIGTERM
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL if before is None else before)
     return int(rc or 0)
 
 

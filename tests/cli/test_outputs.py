@@ -114,6 +114,53 @@ def test_killed_run_leaves_no_result(tmp_path):
     assert run(tmp_path, 6, out) == 0  # and the next run is not bothered by it
 
 
+def _children(pid: int) -> list[int]:
+    """The live processes whose parent is ``pid`` (from /proc)."""
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            out.append(int(stat.parent.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_sigterm_stops_the_workers_and_writes_nothing(tmp_path):
+    """SIGTERM killed the command outright and its pool's workers lived on, holding its pipes (a caller waiting
+    for the end of its output hung). Now it stops as on Ctrl-C: exit 143, one line, the workers gone, no folder."""
+    out = tmp_path / "out"
+    cfg = tmp_path / "swarm14.toml"  # two chunks: the window QPs go to worker processes
+    starts = ", ".join(f"[{3 + 2 * i}, 5]" for i in range(14))
+    cfg.write_text(f"[scenario]\nmap = {{ kind = \"free\", size = [40, 12] }}\nstart = {{ positions = [{starts}] }}\n"
+                   "goal = [30, 9]\n[interaction]\nk = 2\n[mrf]\nmax_steps = 6\n[simulation]\nenabled = false\n")
+    slow = tmp_path / "slow.py"  # the real CLI, its window QPs slow so the signal lands while the workers work
+    slow.write_text("import sys, time\nimport mrfswarm.continuous.receding_horizon as rh\nreal = rh.solve_window\n"
+                    "def solve(*a, **k):\n    print('solving', flush=True)\n    time.sleep(0.5)\n    return real(*a, **k)\n"
+                    "rh.solve_window = solve\nfrom mrfswarm.cli import main\nsys.exit(main(sys.argv[1:]))\n")
+    proc = subprocess.Popen([sys.executable, str(slow), "run", str(cfg), "--out", str(out), "--workers", "2"],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            env={**os.environ, "PYTHONPATH": str(ROOT)})
+    workers: list[int] = []
+    while len(workers) < 2:  # until the pool is up (its workers start with their first chunks)
+        assert proc.stdout.readline().strip() == b"solving" and proc.poll() is None
+        workers = _children(proc.pid)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)  # returns: nothing holds the pipes
+    assert proc.returncode == 143 and err.decode().strip().splitlines()[-1] == "mrfswarm: terminated"
+    assert not [pid for pid in workers if _alive(pid)]
+    assert not out.exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".out.")]
+
+
 def test_check_output_dir_guards(tmp_path):
     from mrfswarm.errors import ExportError
 
