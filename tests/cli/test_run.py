@@ -215,3 +215,30 @@ def test_windows_that_fly_the_rest_to_rest_witness_are_said(tmp_path, capsys):
     assert err == [f"mrfswarm: warning: {res['window_attempts']['witness']} of {res['windows']} smoothing windows had "
                    "no solution at their planned durations and fly the rest-to-rest witness (slower, with stops): see "
                    "result.json's windows; smoothing.qp_options or the QP backend may be too tight"]
+
+
+def test_a_simulated_flight_closer_than_the_plan_is_said(tmp_path, capsys, monkeypatch):
+    """The flown (simulated) separation below the safety distance, or a robot in an obstacle, exited 0 with only
+    "flown: max tracking error" on the summary line (the arena: robots 0.183 m apart, safety 0.2 m). One warning
+    line now names it; a flight within the plan says nothing."""
+    import mrfswarm.pipeline
+
+    real = mrfswarm.pipeline.Result.summary
+    flown = {"min_separation_m": 0.5, "entered_obstacle": False, "max_tracking_error_m": 0.065,
+             "tracking_error_bound_m": 0.18, "guaranteed_separation_m": -0.16}
+
+    def summary(self):  # the simulation's numbers, as RotorPy would give them (its flight is not this test's)
+        return {**real(self), "simulation": dict(flown)}
+
+    monkeypatch.setattr(mrfswarm.pipeline.Result, "summary", summary)
+    args = ["run", str(EXPERIMENTS / "free5.toml"), "--set", "simulation.enabled=false", "--set", "mrf.max_steps=4"]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 0  # 0.5 m apart, robot radius 0.25: the plan's distance
+    assert "warning" not in capsys.readouterr().err
+    flown["min_separation_m"] = 0.183
+    assert main([*args, "--out", str(tmp_path / "b")]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("mrfswarm: warning: the simulated flight came closer than the plan: "
+                                               "two robots 0.183 m apart (safety distance 0.5 m); tracking error 6.5 cm")
+    flown["min_separation_m"], flown["entered_obstacle"] = 0.6, True
+    assert main([*args, "--out", str(tmp_path / "c")]) == 0
+    assert "a robot inside an obstacle" in capsys.readouterr().err
