@@ -242,3 +242,29 @@ def test_a_simulated_flight_closer_than_the_plan_is_said(tmp_path, capsys, monke
     flown["min_separation_m"], flown["entered_obstacle"] = 0.6, True
     assert main([*args, "--out", str(tmp_path / "c")]) == 0
     assert "a robot inside an obstacle" in capsys.readouterr().err
+
+
+def test_logged_warnings_read_as_the_commands_own(tmp_path):
+    """Warnings came in three formats ("mrfswarm: warning: ...", "WARNING mrfswarm.maps.inline: ...", "WARNING
+    solvers.qp.piqp_: ..."); a logged warning is now written as the command's own, progress keeps its module."""
+    import logging
+    import subprocess
+    import sys
+
+    from mrfswarm.cli import _Formatter
+
+    def line(level: int, name: str) -> str:
+        return _Formatter().format(logging.LogRecord(name, level, __file__, 1, "%d pieces", (3,), None))
+
+    assert line(logging.WARNING, "solvers.qp.piqp_") == "mrfswarm: warning: 3 pieces"
+    assert line(logging.ERROR, "mrfswarm.x") == "mrfswarm: error: 3 pieces"
+    assert line(logging.INFO, "mrfswarm.continuous.receding_horizon") == "INFO mrfswarm.continuous.receding_horizon: 3 pieces"
+    # the command as a user runs it: a box partly outside the map is a logged warning
+    cfg = tmp_path / "box.toml"
+    cfg.write_text('[scenario]\nmap = { kind = "boxes", size = [12, 8], boxes = [{ center = [20, 4], size = [2, 2] }] }\n'
+                   'start = { positions = [[1, 2], [1, 5]] }\ngoal = [7, 4]\n[interaction]\nk = 1\n[mrf]\nmax_steps = 2\n'
+                   '[smoothing]\nenabled = false\n[simulation]\nenabled = false\n')
+    proc = subprocess.run([sys.executable, "-m", "mrfswarm.cli", "run", str(cfg), "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True, timeout=120)
+    warned = [x for x in proc.stderr.splitlines() if "warning" in x.lower()]
+    assert proc.returncode == 0 and warned and all(x.startswith("mrfswarm: warning: ") for x in warned), proc.stderr
