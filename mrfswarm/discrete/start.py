@@ -96,6 +96,22 @@ def place(grid: OccupancyGrid, points: np.ndarray, what: str = "robot", downwash
     return cells.astype(np.intp)
 
 
+def say_snapped(grid: OccupancyGrid, points: np.ndarray, cells: np.ndarray, key: str, what: str) -> None:
+    """Warn (one line) when the world ``points`` given under ``key`` are not their ``cells``' centres: the plan
+    starts (or ends) there, up to half a cell away from what was asked."""
+    pts = np.atleast_2d(np.asarray(points, dtype=float))
+    moved = np.linalg.norm(grid.cell_to_world(np.atleast_2d(cells)) - pts, axis=-1)
+    if moved.max(initial=0.0) <= 1e-6 * grid.resolution:
+        return
+    i = int(np.argmax(moved))
+    at = f"{format_point(pts[i])} -> {format_point(grid.cell_to_world(np.atleast_2d(cells)[i]))}"
+    if len(pts) == 1:
+        log.warning("%s: placed at its cell's centre, %.3g m away: %s", key, moved[i], at)
+    else:
+        log.warning("%s: placed at cell centres, %d of %d moved, the most %s %d by %.3g m: %s", key,
+                    int(np.count_nonzero(moved > 1e-6 * grid.resolution)), len(pts), what, i, moved[i], at)
+
+
 def _points(value: object, key: str, d: int) -> np.ndarray:
     """World points (N, d) from a config list of N lists of d numbers (N >= 1); ``key`` names it.
 
@@ -149,7 +165,10 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None, downwa
         if extra:
             raise ConfigError(f"unknown config key scenario.start.{sorted(extra)[0]} next to positions; "
                               "give either positions or center/n_robots/sigma/seed")
-        return place(grid, _points(spec["positions"], "scenario.start.positions", d), downwash=downwash)
+        pts = _points(spec["positions"], "scenario.start.positions", d)
+        cells = place(grid, pts, downwash=downwash)
+        say_snapped(grid, pts, cells, "scenario.start.positions", "robot")
+        return cells
     unknown = keys - _SAMPLED_KEYS
     if unknown:
         raise ConfigError(f"unknown config key scenario.start.{sorted(unknown)[0]}; allowed: positions, or "

@@ -61,6 +61,21 @@ def test_positions_in_3d_snap_to_their_voxels():
     assert cells.tolist() == [[0, 0, 0], [1, 3, 3], [9, 7, 4]] and cells.dtype == np.intp
 
 
+def test_positions_and_a_goal_off_their_cell_centres_are_said(caplog):
+    """Explicit positions and the goal are moved to their cells' centres, up to half a cell; that was silent (a robot
+    placed 0.5 m off "started" elsewhere). One warning line each, naming the largest move; none at the centres."""
+    with caplog.at_level("WARNING"):
+        start_cells({"positions": [[0, 0, 0], [1.4, 2.6, 3.2], [9, 7, 4]]}, room())
+        goal_cell((8.0, 6.0, 3.0), room())
+    assert caplog.messages == ["scenario.start.positions: placed at cell centres, 1 of 3 moved, the most robot 1 by "
+                               "0.6 m: (1.4, 2.6, 3.2) -> (1, 3, 3)"]
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        goal_cell((7.6, 6.0, 3.0), room())
+        start_cells({"positions": [[0, 0, 0], [9, 7, 4]]}, room())
+    assert caplog.messages == ["scenario.goal: placed at its cell's centre, 0.4 m away: (7.6, 6, 3) -> (8, 6, 3)"]
+
+
 @pytest.mark.parametrize("positions, match", [
     ([[1, 1, 1], [5, 4, 2]], r"^robot 1 at \(5, 4, 2\) is inside an obstacle \(cell \(5, 4, 2\)\)$"),
     ([[1, 1, 1], [1, 1, 5]], r"^robot 1 at \(1, 1, 5\) is off the map \(x in \[-0\.5, 9\.5\), y in \[-0\.5, 7\.5\), "
