@@ -70,14 +70,18 @@ def test_only_writes_the_named_figures(tmp_path, capsys):
     assert main(["figs", "--quick", "--only", "fig2,fig4", "--out", str(tmp_path)]) == 0
     pngs = sorted(p.name for p in tmp_path.glob("*.png"))
     assert pngs == sorted(expected_files(quick=True, only=["fig2", "fig4"]))
-    assert "fig2" in capsys.readouterr().out
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("fig2") and out[-1].startswith("2 figure files and measured.json in ")
 
 
 def test_unknown_figure_name_is_a_one_line_error(tmp_path, capsys):
     assert main(["figs", "--only", "fig99", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "fig99" in err and "fig2" in err
+    assert err.count("\n") == 0 and "fig99" in err and "fig2" in err and "fig6_seams" in err
     assert not list(tmp_path.iterdir())
+    # an empty list ran every figure, animations included (50 s); it names no figure
+    assert main(["figs", "--only", " , ", "--out", str(tmp_path)]) == 2
+    assert "no figure named" in capsys.readouterr().err and not list(tmp_path.iterdir())
 
 
 def test_animations_are_registered_but_skipped_when_quick():

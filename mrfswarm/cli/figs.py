@@ -16,21 +16,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quick", action="store_true",
                    help="fewer sweep points and sizes, no animations (a smoke run of every figure)")
     p.add_argument("--only", default=None, metavar="NAME,...",
-                   help="comma-separated figure names (fig1, ..., fig8, authors, gifs); default: all")
+                   help="comma-separated figure names (an unknown name is refused with the list of them); "
+                        "default: all")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from mrfswarm.figures import make_figures, select
+    from mrfswarm.errors import ConfigError
+    from mrfswarm.figures import MEASURED, make_figures, select
 
-    only = [s.strip() for s in args.only.split(",") if s.strip()] if args.only else None
-    select(only, args.quick)  # an unknown name fails before anything is computed
+    only = None if args.only is None else [s.strip() for s in args.only.split(",") if s.strip()]
+    if only == []:  # not "every figure": that is --only left out
+        raise ConfigError(f"--only {args.only!r}: no figure named")
+    width = max(len(f.name) for f in select(only, args.quick))  # an unknown name fails before anything is computed
 
     def report(fig, files, seconds) -> None:
-        print(f"{fig.name:5s} {seconds:6.1f} s  {', '.join(str(f) for f in files)}", flush=True)
+        print(f"{fig.name:{width}s} {seconds:6.1f} s  {', '.join(str(f) for f in files)}", flush=True)
 
     t0 = time.perf_counter()
     written = make_figures(args.out, quick=args.quick, only=only, on_figure=report)
     n = sum(len(v) for v in written.values())
-    print(f"{n} files in {time.perf_counter() - t0:.1f} s -> {args.out}")
+    print(f"{n} figure files and {MEASURED} in {time.perf_counter() - t0:.1f} s -> {args.out}")
     return 0
