@@ -243,8 +243,13 @@ def current_grid(grid: Mapping[str, Sequence]) -> dict[str, Sequence]:
 
 
 def _slug(values: dict[str, Any], seed: int | None, limit: int = 60) -> str:
-    """``k_a=8_k_r=2`` from the last part of each key; only filename-safe characters."""
-    parts = [f"{k.rsplit('.', 1)[-1]}={_cell(v)}" for k, v in values.items()]
+    """``k_a=8_k_r=2`` from the last part of each key (a list's items joined by ``x``: ``goal=4x3``, not
+    ``goal=-4-3``, which read as negative numbers); only filename-safe characters."""
+
+    def text(v: Any) -> str:
+        return "x".join(text(e) for e in v) if isinstance(v, (list, tuple)) else _cell(v)
+
+    parts = [f"{k.rsplit('.', 1)[-1]}={text(v)}" for k, v in values.items()]
     s = re.sub(r"[^A-Za-z0-9_.=+-]+", "-", "_".join(parts)).strip("-")[:limit]
     return s if seed is None else f"{s}_seed={seed}"
 

@@ -347,3 +347,11 @@ def test_a_smoothed_sweep_tabulates_the_flight_against_its_lower_bound(tmp_path)
         assert row["makespan_over_bound"] > 1 and "stops" not in row  # the per-robot list stays in result.json
     header = read_csv(res.csv_path)[0]
     assert {"makespan_over_bound", "stops_per_robot", "lower_bound_s"} <= set(header)
+
+
+def test_point_folders_name_list_values_readably():
+    """A list value gave ``goal=-4-3`` (read as negative numbers); its items are joined by ``x``."""
+    from mrfswarm.sweep import _slug
+
+    assert _slug({"scenario.goal": [4, 3]}, None) == "goal=4x3"
+    assert _slug({"scenario.goal": [-4, 3.5], "interaction.k_a": 8}, 2) == "goal=-4x3.5_k_a=8_seed=2"
