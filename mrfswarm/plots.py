@@ -336,8 +336,26 @@ def plot_xy(path: Path, t: np.ndarray, positions: np.ndarray) -> Path:
     axes[-1].set_xlabel("time [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
+    axes[0].set_title(f"each robot's {', '.join(AXES[:d])} over time", fontsize=10)
+    _robot_legend(axes[0], positions.shape[1])
     fig.tight_layout()
     return save_figure(fig, path, dpi=110)
+
+
+#: Robots up to this many get a legend of their colours in the plots over time (more: the colours as in the
+#: trajectory figure, which draws the same robots in the same colours).
+LEGEND_ROBOTS = 10
+
+
+def _robot_legend(ax, n: int) -> None:
+    """A legend naming each robot's colour (:func:`_time_lines`' colours), right of ``ax``, for a few robots."""
+    if n > LEGEND_ROBOTS:
+        return
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], color=c, lw=1.5) for c in _robot_colors(n)]
+    ax.legend(handles, [f"robot {i}" for i in range(n)], fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+              borderaxespad=0.0)
 
 
 def _time_lines(ax, t: np.ndarray, values: np.ndarray, lw: float = 1.2) -> None:
@@ -360,6 +378,9 @@ def plot_tracking(path: Path, t: np.ndarray, errors: np.ndarray) -> Path:
     if errors.shape[1] > INDIVIDUAL_MAX:
         ax.plot(t, errors.max(axis=1) * 100, color="k", lw=1.0, label="maximum over robots")
         ax.legend(fontsize=8)
+    else:
+        _robot_legend(ax, errors.shape[1])
+    ax.set_title("tracking error of each robot in the simulated flight", fontsize=10)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("tracking error [cm]")
     ax.grid(alpha=0.3)

@@ -296,3 +296,25 @@ def test_a_swarms_density_leaves_partly_occupied_columns_visible(view):
     # seen from above, the robots that flew over the block cover its columns with density
     assert np.any(covered & (frac > 0)) == (view == (0, 1))
     plt.close(fig)
+
+
+@pytest.mark.parametrize("n", [3, plots.LEGEND_ROBOTS + 1])
+def test_plots_over_time_name_the_robots_colours(tmp_path, n, monkeypatch):
+    """robot_xy.png and tracking_error.png had no title and no legend: which curve is which robot could not be
+    told. A few robots get a legend of their colours (more: the trajectory figure's colours), both a title."""
+    saved = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path, dpi=110: saved.append(fig) or path)
+    t = np.linspace(0.0, 2.0, 21)
+    plots.plot_xy(tmp_path / "xy.png", t, np.random.default_rng(0).normal(size=(21, n, 2)))
+    plots.plot_tracking(tmp_path / "e.png", t, np.abs(np.random.default_rng(1).normal(size=(21, n))) / 100)
+    for fig in saved:
+        ax = fig.axes[0]
+        assert ax.get_title()
+        legend = ax.get_legend()
+        if n <= plots.LEGEND_ROBOTS:
+            assert [x.get_text() for x in legend.get_texts()] == [f"robot {i}" for i in range(n)]
+            colors = [h.get_color() for h in legend.legend_handles]
+            assert colors == list(plots._robot_colors(n))
+        else:
+            assert legend is None
+        plots._plt().close(fig)
