@@ -270,6 +270,8 @@ def plot_paths(path: Path, grid: OccupancyGrid, paths_world: Sequence[np.ndarray
         draw_map(ax, grid, view)
         if beneath is not None:
             _lines(ax, [np.asarray(p)[:, list(view)] for p in beneath], "0.5", lw=0.8, ls=":")
+            if k == 0:
+                ax.plot([], [], color="0.5", lw=0.8, ls=":", label="discrete paths")
         draw_paths(ax, grid, paths_world, goal, waypoints=waypoints, view=view,
                    colorbar=(k == 0) and (len(panels) == 1 or legend_axes(fig, panels)))
     size = {} if title_size is None else {"fontsize": title_size}

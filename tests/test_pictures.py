@@ -318,3 +318,17 @@ def test_plots_over_time_name_the_robots_colours(tmp_path, n, monkeypatch):
         else:
             assert legend is None
         plots._plt().close(fig)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_the_discrete_paths_beneath_are_in_the_legend(tmp_path, monkeypatch, flight, d):
+    """trajectories.png draws the discrete paths dotted under the smooth ones; its legend did not say what they are."""
+    saved = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path, dpi=110: saved.append(fig) or path)
+    grid = flight.grid if d == 3 else OccupancyGrid.from_occupied(np.zeros((10, 8), dtype=bool))
+    paths = [np.array([[1.0, 1.0, 1.0], [5.0, 3.0, 1.0]])[:, :d], np.array([[1.0, 5.0, 2.0], [6.0, 6.0, 2.0]])[:, :d]]
+    for beneath in (paths, None):
+        plots.plot_paths(tmp_path / "p.png", grid, paths, None, "t", beneath=beneath)
+        texts = [t.get_text() for ax in saved[-1].axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+        assert ("discrete paths" in texts) is (beneath is not None)
+        plots._plt().close(saved[-1])
