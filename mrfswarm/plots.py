@@ -87,14 +87,18 @@ def views(ndim: int) -> list[View]:
 def view_figure(grid: OccupancyGrid, width: float = 6.0, dpi: int = 110):
     """A figure with one panel per :func:`views` of ``grid``: ``(fig, [(ax, view), ...])``.
 
-    A 2-D grid gets one square figure ``width`` wide. A 3-D grid gets the three projections
+    A 2-D grid gets one figure ``width`` wide, as high as the map's aspect asks. A 3-D grid gets the three projections
     on a 2 x 2 grid whose rows and columns are sized by the map's extents, the top view's
     x shared with the x-z view below it and its y with the z-y view beside it; the fourth
     cell holds the legend (:func:`legend_axes`).
     """
     plt = _plt()
     if grid.ndim == 2:
-        fig, ax = plt.subplots(figsize=(width, width), dpi=dpi)
+        lo, hi = grid.bounds
+        # as high as the map is for its width (a 100 x 60 m map in a square figure left a band empty), within
+        # half and one and a half times the width, plus room for the title and labels
+        aspect = float(np.clip((hi[1] - lo[1]) / (hi[0] - lo[0]), 0.5, 1.5))
+        fig, ax = plt.subplots(figsize=(width, width * aspect * 0.85 + 1.4), dpi=dpi)
         return fig, [(ax, (0, 1))]
     span = _layout_span(grid)
     w = 1.25 * width
@@ -244,7 +248,7 @@ def _draw_swarm(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], lw: 
                   zorder=2)
     if colorbar is not False:
         cb = ax.figure.colorbar(im, ax=ax if colorbar is True else colorbar, orientation="horizontal", fraction=0.04,
-                                pad=0.1, aspect=40)
+                                pad=0.16, aspect=40)  # below the x label
         cb.set_label(f"samples of the {n} robots per cell" if colorbar is True  # else beside: two lines
                      else f"samples per cell\n({n} robots)")
     pick = highlighted(n)

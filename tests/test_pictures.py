@@ -332,3 +332,16 @@ def test_the_discrete_paths_beneath_are_in_the_legend(tmp_path, monkeypatch, fli
         texts = [t.get_text() for ax in saved[-1].axes if ax.get_legend() for t in ax.get_legend().get_texts()]
         assert ("discrete paths" in texts) is (beneath is not None)
         plots._plt().close(saved[-1])
+
+
+def test_a_wide_2d_map_gets_a_figure_as_wide():
+    """A 100 x 60 m map was drawn in a square figure, a band of it empty above and below the map."""
+    wide = OccupancyGrid.from_occupied(np.zeros((100, 60), dtype=bool))
+    square = OccupancyGrid.from_occupied(np.zeros((40, 40), dtype=bool))
+    ratios = {}
+    for name, grid in (("wide", wide), ("square", square)):
+        fig, _ = plots.view_figure(grid)
+        w, h = fig.get_size_inches()
+        ratios[name] = h / w
+        plots._plt().close(fig)
+    assert ratios["wide"] < 0.8 < 1.0 < ratios["square"] < 1.2
