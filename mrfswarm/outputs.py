@@ -72,8 +72,12 @@ def check_output_dir(out: Path, overwrite: bool = False, marker: str = RUN_MARKE
         current folder or holds it (a run replaces its folder as a whole, by renaming).
     """
     out = Path(out)
-    here, folder = Path.cwd().resolve(), out.resolve()
-    if folder == here or folder in here.parents:
+    try:
+        here = Path.cwd().resolve()
+    except OSError:  # the current folder was deleted: no output folder can hold it
+        here = None
+    folder = out.resolve()
+    if here is not None and (folder == here or folder in here.parents):
         raise ExportError(f"output folder {str(out)!r} is the current folder or holds it: a {what} replaces its output "
                           f"folder as a whole; give --out a folder of its own (e.g. --out {what}1)")
     if not out.is_dir():
