@@ -100,11 +100,12 @@ def say_snapped(grid: OccupancyGrid, points: np.ndarray, cells: np.ndarray, key:
     """Warn (one line) when the world ``points`` given under ``key`` are not their ``cells``' centres: the plan
     starts (or ends) there, up to half a cell away from what was asked."""
     pts = np.atleast_2d(np.asarray(points, dtype=float))
-    moved = np.linalg.norm(grid.cell_to_world(np.atleast_2d(cells)) - pts, axis=-1)
+    centres = grid.cell_to_world(np.atleast_2d(cells))
+    moved = np.linalg.norm(centres - pts, axis=-1)
     if moved.max(initial=0.0) <= 1e-6 * grid.resolution:
         return
     i = int(np.argmax(moved))
-    at = f"{format_point(pts[i])} -> {format_point(grid.cell_to_world(np.atleast_2d(cells)[i]))}"
+    at = f"{format_point(pts[i])} -> {format_point(centres[i])}"
     if len(pts) == 1:
         log.warning("%s: placed at its cell's centre, %.3g m away: %s", key, moved[i], at)
     else:

@@ -223,7 +223,7 @@ def _slack(P: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
     counts[1:] = np.cumsum(kind[..., None] == np.arange(len(caps)), axis=0)
     C = np.concatenate([np.zeros((1, N)), np.cumsum(L, axis=0)])
     # the ways searched are of unit moves (:func:`unit_moves`): a window with a longer move (mrf.order >= 4: two
-    # cells along an axis) is kept as it is (searched, its far end lay outside the box of the steps' reach)
+    # cells along an axis) is kept as it is (its far end can lie beyond the search box: that crashed)
     long = np.concatenate([np.zeros((1, N), dtype=np.int64),
                            np.cumsum(np.abs(np.diff(P, axis=0)).max(axis=-1) > 1, axis=0)])
     out = np.zeros((T, N, window + 1), dtype=bool)
