@@ -145,15 +145,15 @@ def test_sigterm_stops_the_workers_and_writes_nothing(tmp_path):
                    "goal = [30, 9]\n[interaction]\nk = 2\n[mrf]\nmax_steps = 6\n[simulation]\nenabled = false\n")
     slow = tmp_path / "slow.py"  # the real CLI, its window QPs slow so the signal lands while the workers work
     slow.write_text("import sys, time\nimport mrfswarm.continuous.receding_horizon as rh\nreal = rh.solve_window\n"
-                    "def solve(*a, **k):\n    print('solving', flush=True)\n    time.sleep(0.5)\n    return real(*a, **k)\n"
+                    "def solve(*a, **k):\n    sys.stdout.write('solving\\n'); sys.stdout.flush()\n    time.sleep(0.5)\n    return real(*a, **k)\n"
                     "rh.solve_window = solve\nfrom mrfswarm.cli import main\nsys.exit(main(sys.argv[1:]))\n")
     proc = subprocess.Popen([sys.executable, str(slow), "run", str(cfg), "--out", str(out), "--workers", "2"],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             env={**os.environ, "PYTHONPATH": str(ROOT)})
     workers: list[int] = []
     while len(workers) < 2:  # until the pool is up (its workers start with their first chunks)
-        line = proc.stdout.readline()  # two workers may print at once: "solvingsolving"
-        assert line.startswith(b"solving") and proc.poll() is None, line
+        line = proc.stdout.readline()  # one write a line, atomic on a pipe: whole lines from the two workers
+        assert line == b"solving\n" and proc.poll() is None, line
         workers = _children(proc.pid)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)  # returns: nothing holds the pipes
