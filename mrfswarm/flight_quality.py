@@ -8,6 +8,10 @@ voxels the 26-connected graph without edge or corner cutting), flown at ``v_max`
 A **stop** is a robot slower than :data:`STOP_SPEED` somewhere strictly inside its own
 flight: after it first exceeds that speed and before it last does (the departure and
 the final approach are excluded). Each maximal slow interval counts once.
+
+Planners that are free to choose which robot takes which final cell (the swarm has one
+goal, not labelled ones) are compared on :func:`assignment_free_bound`: the same bound
+minimized over every one-to-one assignment of the robots to the final cells.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.sparse import csr_array
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import dijkstra, maximum_bipartite_matching
 
 if TYPE_CHECKING:
     from mrfswarm.trajectory import PiecewisePolynomial
@@ -74,6 +78,48 @@ def free_path_lengths(free: np.ndarray, starts: np.ndarray, ends: np.ndarray, re
         out[i] = d[_flat(starts[i], free.shape)]
         best = max(best, float(out[i]))
     return out
+
+
+def free_distances(free: np.ndarray, starts: np.ndarray, ends: np.ndarray, resolution: float = 1.0) -> np.ndarray:
+    """(N, M) shortest free-path length (metres) from every ``starts[i]`` to every ``ends[j]`` (cells), on the
+    graph of :func:`free_path_lengths`; ``inf`` where no path joins them."""
+    free = np.asarray(free, dtype=bool)
+    starts, ends = np.asarray(starts, dtype=np.intp), np.asarray(ends, dtype=np.intp)
+    if len(starts) == 0 or len(ends) == 0:
+        return np.zeros((len(starts), len(ends)))
+    d = dijkstra(_graph(free, resolution), directed=True, indices=_flat(ends, free.shape), limit=np.inf)
+    return np.asarray(d[:, _flat(starts, free.shape)].T)
+
+
+def assignment_free_bound(free: np.ndarray, starts: np.ndarray, ends: np.ndarray, resolution: float,
+                          v_max: float) -> float:
+    """Seconds: :func:`makespan_lower_bound` minimized over every one-to-one assignment of the robots at ``starts``
+    to the cells ``ends`` (as many cells as robots, or more): the smallest, over assignments, of the longest
+    shortest free path, flown at ``v_max`` (the bottleneck assignment). No plan that brings the robots onto those
+    cells, whichever robot takes which, ends sooner; ``inf`` when no assignment joins them all."""
+    d = free_distances(free, starts, ends, resolution)
+    n = len(d)
+    if n == 0:
+        return 0.0
+    if d.shape[1] < n:
+        raise ValueError(f"{n} robots and only {d.shape[1]} cells to end in")
+    values = np.unique(d[np.isfinite(d)])
+    lo, hi = 0, len(values) - 1  # the smallest threshold under which every robot can be matched
+    if hi < 0 or not _all_matched(d <= values[hi]):
+        return float("inf")
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if _all_matched(d <= values[mid]):
+            hi = mid
+        else:
+            lo = mid + 1
+    return float(values[lo]) / v_max
+
+
+def _all_matched(allowed: np.ndarray) -> bool:
+    """Whether the bipartite graph ``allowed`` (robots x cells) matches every robot."""
+    match = maximum_bipartite_matching(csr_array(allowed.astype(np.int8)), perm_type="column")
+    return bool(np.all(match >= 0))
 
 
 def free_move_counts(free: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:

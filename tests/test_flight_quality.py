@@ -9,7 +9,14 @@ import numpy as np
 import pytest
 
 from mrfswarm.discrete.goal_distance import goal_distance
-from mrfswarm.flight_quality import count_stops, free_move_counts, free_path_lengths, makespan_lower_bound
+from mrfswarm.flight_quality import (
+    assignment_free_bound,
+    count_stops,
+    free_distances,
+    free_move_counts,
+    free_path_lengths,
+    makespan_lower_bound,
+)
 from mrfswarm.geometry import segment_clear
 from mrfswarm.trajectory import PiecewisePolynomial
 
@@ -140,3 +147,41 @@ def test_free_move_counts_count_a_diagonal_as_one_move_and_go_around_walls():
     blocked = free.copy()
     blocked[3, 4] = False
     assert free_move_counts(blocked, np.array([[2, 0]]), np.array([[4, 0]]))[0] == np.inf
+
+
+def test_free_distances_hold_every_start_to_every_end():
+    free = np.ones((7, 7), dtype=bool)
+    free[3, 0:6] = False
+    starts, ends = np.array([[0, 0], [5, 5], [1, 3]]), np.array([[6, 0], [1, 1]])
+    d = free_distances(free, starts, ends)
+    assert d.shape == (3, 2)
+    for i, j in itertools.product(range(3), range(2)):
+        assert d[i, j] == pytest.approx(free_path_lengths(free, starts[[i]], ends[[j]])[0])
+
+
+def test_the_assignment_free_bound_is_the_best_assignments_longest_path():
+    free = np.ones((12, 3), dtype=bool)
+    starts = np.array([[0, 0], [1, 0], [2, 0]])
+    ends = np.array([[11, 0], [5, 0], [6, 0]])
+    # robot 0 -> 11 alone is 11 m; robot 2 -> 11 is 9 m, the best bottleneck: 2 -> 11, 1 -> 6 (5), 0 -> 5 (5)
+    assert makespan_lower_bound(free, starts, ends, 1.0, 1.0) == 11.0
+    assert assignment_free_bound(free, starts, ends, 1.0, 2.0) == 4.5
+    # brute force over all assignments of random starts to random cells of a cluttered map
+    rng = np.random.default_rng(3)
+    free = rng.random((9, 8)) > 0.2
+    cells = np.argwhere(free)
+    for _ in range(5):
+        pick = rng.choice(len(cells), 8, replace=False)
+        s, e = cells[pick[:4]], cells[pick[4:]]
+        d = free_distances(free, s, e, 0.5)
+        best = min(max(d[i, p[i]] for i in range(4)) for p in itertools.permutations(range(4)))
+        assert assignment_free_bound(free, s, e, 0.5, 1.0) == pytest.approx(best)
+
+
+def test_the_assignment_free_bound_is_inf_without_an_assignment_and_refuses_too_few_cells():
+    free = np.ones((5, 5), dtype=bool)
+    free[2, :] = False  # two halves
+    starts, ends = np.array([[0, 0], [0, 1]]), np.array([[1, 0], [4, 4]])
+    assert assignment_free_bound(free, starts, ends, 1.0, 1.0) == float("inf")
+    with pytest.raises(ValueError, match="2 robots and only 1 cells"):
+        assignment_free_bound(free, starts, ends[:1], 1.0, 1.0)
