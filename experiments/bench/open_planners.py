@@ -86,7 +86,7 @@ def run_open_planner(binary: Path, free: np.ndarray, starts: np.ndarray, goals: 
         cmd = [str(binary), "-i", str(src), "-o", str(out)] + (["-w", str(w)] if binary.name.startswith("e") else [])
         t0 = time.perf_counter()
         try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=tmp)  # it writes files there
         except subprocess.TimeoutExpired:
             return None, time.perf_counter() - t0, f"timeout {timeout:g} s"
         wall = time.perf_counter() - t0
