@@ -83,7 +83,7 @@ def run_open_planner(binary: Path, free: np.ndarray, starts: np.ndarray, goals: 
     with tempfile.TemporaryDirectory() as tmp:
         src, out = Path(tmp) / "in.yaml", Path(tmp) / "out.yaml"
         src.write_text(yaml.safe_dump(problem_yaml(free, starts, goals)))
-        cmd = [str(binary), "-i", str(src), "-o", str(out)] + (["-w", str(w)] if binary.name.startswith("e") else [])
+        cmd = [str(binary.resolve()), "-i", str(src), "-o", str(out)] + (["-w", str(w)] if binary.name.startswith("e") else [])
         t0 = time.perf_counter()
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=tmp)  # it writes files there
