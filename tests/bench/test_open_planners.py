@@ -7,7 +7,7 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).parents[2] / "experiments" / "bench"))
-from open_planners import problem_yaml, schedule_paths  # noqa: E402
+from open_planners import problem_yaml, schedule_paths, unsafe_steps  # noqa: E402
 
 
 def test_the_problem_gives_every_robot_every_goal_cell_and_the_obstacles_in_our_axes():
@@ -40,3 +40,13 @@ schedule:
     assert paths.shape == (5, 2, 2)
     assert paths[:, 0].tolist() == [[0, 0], [1, 0], [1, 0], [2, 0], [2, 1]]
     assert paths[:, 1].tolist() == [[0, 2]] + [[0, 1]] * 4  # arrived at step 1, held after
+
+
+def test_a_step_that_breaks_two_invariants_counts_once():
+    free = np.ones((6, 6), dtype=bool)
+    # step 1: robots 0 and 1 share a cell and come 0 cells close (two findings); step 2: they leave it, 0 cells close
+    paths = np.array([[[0, 0], [2, 0], [1, 3]],
+                      [[1, 0], [1, 0], [1, 3]],
+                      [[2, 0], [1, 1], [1, 2]]])
+    assert unsafe_steps(paths, free, 1.0) == 2
+    assert unsafe_steps(paths[:1], free, 1.0) == 0
