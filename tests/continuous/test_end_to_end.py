@@ -311,16 +311,17 @@ def test_regions_and_corridors_keep_room_for_the_compressed_rounding():
         assert RecedingHorizon(paths, grid, SmoothingConfig(), radius).slack == pytest.approx(slack)
 
 
-def test_a_failing_attempt_solves_the_chunk_that_failed_last_first_and_stops_there(monkeypatch):
-    """Durations no chunk can meet: the first attempt solves every chunk, the next only the chunk that failed
-    (the others are not solved, the attempt fails the same); durations every chunk meets give the same
-    solutions in either order."""
+def test_a_failing_attempt_stops_at_the_chunk_that_fails_and_solves_it_first_next_time(monkeypatch):
+    """Two chunks, one of still robots (any durations do), one of moving robots that too short durations fail:
+    an attempt solves chunks until that one fails, the next attempt solves it first and it alone; durations
+    every chunk meets give the same solutions in either order."""
     import mrfswarm.continuous.receding_horizon as rhm
     from mrfswarm.maps import OccupancyGrid
 
     monkeypatch.setattr(rhm, "CHUNK_ROBOTS", 6)
     block = np.array([[3 * i, 3 * j] for i in range(4) for j in range(3)]) + 2  # 12 robots, 2 chunks, no pairs
-    paths = np.array([block + k * np.array([1, 0]) for k in range(5)])
+    moving = np.arange(12) >= 6
+    paths = np.array([block + k * np.array([1, 0]) * moving[:, None] for k in range(5)])
     grid = OccupancyGrid.from_occupied(np.zeros((20, 12), bool))
     rh = RecedingHorizon(paths, grid, SmoothingConfig(), 0.25, workers=1)
     calls = []
@@ -328,15 +329,58 @@ def test_a_failing_attempt_solves_the_chunk_that_failed_last_first_and_stops_the
     monkeypatch.setattr(rhm, "solve_window", lambda spec, *a: calls.append(spec) or real(spec, *a))
     a, c, b = rh.windows()[0]
     start = rh._witness(a, b, rh.witness[a:b], None).Y[:, 0]
-    rh.limit_rows[a:b] = True  # every limit row on: too short durations are infeasible
-    for attempt in range(2):
+    rh.limit_rows[a:b] = True  # every limit row on: too short durations are infeasible for the moving robots
+    still_first = None
+    for attempt in range(3):
         calls.clear()
+        if attempt == 2:  # the still chunk first: the attempt still stops at the moving one, having solved both
+            rh._hard[:] = ~moving
         sol, why = rh._solve(a, b, start, np.full(b - a, 0.05), WindowRecord(a=a, c=c, b=b))
-        assert sol is None and "6 robots" in why and len(calls) == (2 if attempt == 0 else 1), (attempt, why)
-    hard = rh._hard.copy()
-    assert hard.sum() == 6
+        assert sol is None and "6 robots" in why, (attempt, why)
+        np.testing.assert_array_equal(rh._hard, moving)  # the chunk that failed
+        solved_moving = [not np.allclose(spec.end, spec.start[:, 0]) for spec in calls]
+        assert solved_moving[-1] and not any(solved_moving[:-1]), (attempt, solved_moving)  # stopped there
+        if attempt == 0:
+            still_first = len(calls) == 2
+        else:
+            assert len(calls) == (1 if attempt == 1 else 2), (attempt, len(calls))
+    assert still_first is not None
     good = rh.witness[a:b]
     first, _ = rh._solve(a, b, start, good, WindowRecord(a=a, c=c, b=b))
-    rh._hard[:] = ~hard  # the other chunk first
+    rh._hard[:] = ~rh._hard  # the other chunk first
     second, _ = rh._solve(a, b, start, good, WindowRecord(a=a, c=c, b=b))
     np.testing.assert_array_equal(first.Y, second.Y)
+
+
+def _slow_task(k: int, folder: str):
+    """A chunk's stand-in for the pool: the first fails at once, the others take a while and leave a mark."""
+    import pathlib
+    import time
+
+    if k == 0:
+        return "failed"
+    time.sleep(0.5)
+    (pathlib.Path(folder) / f"ran{k}").touch()
+    return k
+
+
+def test_the_workers_do_not_start_chunks_queued_behind_a_failure(tmp_path):
+    """In the worker processes, the calls not yet started when one fails are cancelled: one worker, eight calls,
+    the first failing at once: the last three never run (the pool hands a worker's queue up to two calls ahead,
+    so the next three may have started before the failure comes back; each takes half a second)."""
+    from mrfswarm.maps import OccupancyGrid
+    from mrfswarm.pools import process_pool
+
+    paths = np.array([[[2, 2]], [[3, 2]]])
+    rh = RecedingHorizon(paths, OccupancyGrid.from_occupied(np.zeros((6, 6), bool)), SmoothingConfig(), 0.25)
+    with process_pool(1) as pool:
+        rh._pool = pool
+        out = rh._map(_slow_task, [(k, str(tmp_path)) for k in range(8)])
+    rh._pool = None
+    assert out[0] == "failed" and out[5:] == [None] * 3, out
+    assert not any((tmp_path / f"ran{k}").exists() for k in (5, 6, 7))
+    # without a failure every call runs, results in order
+    with process_pool(2) as pool:
+        rh._pool = pool
+        assert rh._map(_slow_task, [(k, str(tmp_path)) for k in (1, 2, 3)]) == [1, 2, 3]
+    rh._pool = None
