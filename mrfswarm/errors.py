@@ -42,6 +42,11 @@ class DeprecatedKeyWarning(FutureWarning):
     """
 
 
+class UnusedSettingWarning(UserWarning):
+    """A setting asked for by name that the run does not use (``--nlp`` without the time refinement): the run goes
+    on without it, and the warning says what would use it."""
+
+
 class PlanError(MrfswarmError):
     """A plan stopped after its discrete stage; ``result`` holds what was computed.
 
@@ -58,6 +63,7 @@ class PlanError(MrfswarmError):
 __all__ = [
     "ConfigError",
     "DeprecatedKeyWarning",
+    "UnusedSettingWarning",
     "ExportError",
     "InfeasibleError",
     "InvalidProblem",

@@ -7,6 +7,7 @@ import logging
 import numbers
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -19,7 +20,7 @@ from mrfswarm.config import Config, check_nlp, load_config
 from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, plan_discrete
 from mrfswarm.discrete.pruning import prune_paths
 from mrfswarm.discrete.robot_outcomes import RobotOutcome, robot_outcomes
-from mrfswarm.errors import ConfigError, PlanError, ScenarioError, SolversError
+from mrfswarm.errors import ConfigError, PlanError, ScenarioError, SolversError, UnusedSettingWarning
 from mrfswarm.metrics import DiscreteMetrics, discrete_metrics
 from mrfswarm.scenario import Scenario, build_scenario
 from solvers import mrf as mrf_solvers
@@ -317,6 +318,11 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     if nlp is not None:  # naming an NLP backend asks for the NLP refinement
         check_nlp(nlp)  # the config's own check of the key
         cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, nlp=nlp, refinement="nlp"))
+        if not (cfg.smoothing.enabled and cfg.smoothing.time_refinement):
+            warnings.warn(f"NLP backend {nlp!r} not used: smoothing.time_refinement is off "
+                          "(--set smoothing.time_refinement=true)" if cfg.smoothing.enabled else
+                          f"NLP backend {nlp!r} not used: the continuous stage is off", UnusedSettingWarning,
+                          stacklevel=2)
     mrf_solvers.METHODS.get(cfg.mrf.method)  # fail now, not after the map is loaded
     if cfg.smoothing.backend not in solvers.qp.BACKENDS:  # a name no backend has is wrong with the stage off too
         solvers.qp.BACKENDS.get(cfg.smoothing.backend)

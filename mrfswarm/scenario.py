@@ -14,7 +14,7 @@ from mrfswarm.discrete.interaction_graph import check_k
 from mrfswarm.discrete.planner import DiscreteProblem
 from mrfswarm.discrete.potentials import Morse, goal_distances, obstacle_field, static_field
 from mrfswarm.discrete.robot_outcomes import goal_region_radius
-from mrfswarm.discrete.start import format_point, say_snapped, start_cells
+from mrfswarm.discrete.start import format_point, map_box, say_snapped, start_cells
 from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.maps import OccupancyGrid, load_map
 from mrfswarm.maps.spec import AXES
@@ -174,7 +174,7 @@ def goal_cell(goal: tuple[float, ...], grid: OccupancyGrid) -> np.ndarray:
                             f"give {AXES[grid.ndim]}")
     gc = grid.world_to_cell(g)
     if not grid.in_bounds(gc):
-        raise ScenarioError(f"scenario.goal {format_point(g)} is off the map")
+        raise ScenarioError(f"scenario.goal {format_point(g)} is off the map ({map_box(grid)})")
     if not grid.is_free(gc):
         raise ScenarioError(f"scenario.goal {format_point(g)} is inside an obstacle (cell {format_point(gc)})")
     say_snapped(grid, g, gc, "scenario.goal", "goal")

@@ -25,7 +25,8 @@ from a constant speed (``--speed``). Time can then be optimized:
   snap against time and does not see the limits.
 
 Bad input is a one-line error (exit 2) and nothing is written at ``--out``: every
-value is checked before any work, and the file is written last, atomically.
+value is checked before any work, and the file is written last, atomically. An existing
+``--out`` is refused unless ``--overwrite`` is given.
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description=__doc__.splitlines()[0])
     p.add_argument("waypoints", metavar="WAYPOINTS.csv", help="CSV with a header line and columns x,y[,z]")
     p.add_argument("--out", required=True, metavar="TRAJ.csv", help="output trajectory (uav_trajectories format)")
+    p.add_argument("--overwrite", action="store_true", help="replace --out if it exists (refused otherwise)")
     p.add_argument("--durations", metavar="d1,d2,...", help="piece durations in seconds, one per segment")
     p.add_argument("--speed", type=float, metavar="V", help=f"constant speed for the durations (default {DEFAULT_SPEED} m/s)")
     p.add_argument("--qp", default=CLOSED_FORM, metavar="NAME",
@@ -147,6 +149,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--out: directory {str(out.parent)!r} does not exist")
     if out.is_dir():
         raise ConfigError(f"--out: {str(out)!r} is a directory")
+    if out.exists() and not args.overwrite:
+        raise ConfigError(f"--out: {str(out)!r} exists; give --overwrite to replace it, or another --out")
 
     W = read_waypoints_csv(args.waypoints)
     check_waypoints(W, source=args.waypoints)

@@ -42,7 +42,7 @@ def format_point(p: np.ndarray | tuple[float, ...]) -> str:
 _TOO_CLOSE = 1.0 - 1e-9
 
 
-def _off_map(grid: OccupancyGrid) -> str:
+def map_box(grid: OccupancyGrid) -> str:
     """The map's box, as an off-map message states it: ``x in [x0, x1), y in [y0, y1)[, z in [z0, z1)]``."""
     lo, hi = grid.bounds
     return ", ".join(f"{a} in [{lo[k]:g}, {hi[k]:g})" for k, a in enumerate("xyz"[:grid.ndim]))
@@ -82,7 +82,7 @@ def place(grid: OccupancyGrid, points: np.ndarray, what: str = "robot", downwash
         i = int(bad[0])
         p, c = pts[i], cells[i]
         if not inside[i]:
-            raise ScenarioError(f"{what} {i} at {format_point(p)} is off the map ({_off_map(grid)})")
+            raise ScenarioError(f"{what} {i} at {format_point(p)} is off the map ({map_box(grid)})")
         if not free[i]:
             raise ScenarioError(f"{what} {i} at {format_point(p)} is inside an obstacle (cell {format_point(c)})")
         near = np.linalg.norm((cells[:i] - c) * scale, axis=-1) < _TOO_CLOSE
@@ -195,7 +195,7 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None, downwa
     c = np.asarray(center, dtype=float)
     cc = grid.world_to_cell(c)
     if not grid.in_bounds(cc):
-        raise ScenarioError(f"scenario.start.center {format_point(c)} is off the map ({_off_map(grid)})")
+        raise ScenarioError(f"scenario.start.center {format_point(c)} is off the map ({map_box(grid)})")
     n_free = int(grid.free.sum())
     if n > n_free:
         raise ScenarioError(f"scenario.start.n_robots = {n}: the map has only {n_free} free cells")

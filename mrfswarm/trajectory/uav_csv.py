@@ -106,6 +106,8 @@ def read_uav_csv(path: str | os.PathLike, dim: int = 3) -> PiecewisePolynomial:
         text = path.read_text()
     except OSError as e:
         raise ScenarioError(f"cannot read trajectory file {path}: {e.strerror or e}") from e
+    except UnicodeDecodeError:
+        raise ScenarioError(f"{path}: not a text file") from None
     rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
     if not rows:
         raise ScenarioError(f"{path}: empty trajectory file")

@@ -128,6 +128,16 @@ def test_missing_config_file(capsys):
     assert "cannot read config '/no/such/config.toml'" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("command", [["run"], ["sweep", "--grid", "interaction.k=2,3"]])
+def test_a_config_that_is_not_utf8_text_is_one_line(command, tmp_path, capsys):
+    cfg = tmp_path / "binary.toml"
+    cfg.write_bytes(b"\xff\xfe[scenario]\n")
+    assert main([command[0], str(cfg), *command[1:], "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot read config" in err[0] and "not UTF-8 text (byte 0)" in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
 def test_discrete_paths_csv_matches_result(tmp_path):
     out = tmp_path / "out"
     main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(out), "--set", "smoothing.enabled=false"])
@@ -268,3 +278,19 @@ def test_logged_warnings_read_as_the_commands_own(tmp_path):
                           capture_output=True, text=True, timeout=120)
     warned = [x for x in proc.stderr.splitlines() if "warning" in x.lower()]
     assert proc.returncode == 0 and warned and all(x.startswith("mrfswarm: warning: ") for x in warned), proc.stderr
+
+
+@pytest.mark.parametrize("sets, why", [([], "smoothing.time_refinement is off"),
+                                       (["--set", "smoothing.enabled=false"], "the continuous stage is off")])
+def test_an_nlp_backend_the_run_does_not_use_is_one_warning_line(sets, why, tmp_path, capsys):
+    out = tmp_path / "o"
+    argv = ["run", str(EXPERIMENTS / "free5.toml"), "--nlp", "slsqp", "--set", "simulation.enabled=false", *sets]
+    assert main([*argv, "--out", str(out)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"mrfswarm: warning: NLP backend 'slsqp' not used: {why}"
+                   + (" (--set smoothing.time_refinement=true)" if not sets else "")], err
+    assert json.loads((out / "result.json").read_text())["nlp"] is None
+    if not sets:  # with the refinement on, no warning, and the backend refines
+        assert main([*argv, "--set", "smoothing.time_refinement=true", "--out", str(tmp_path / "r")]) == 0
+        assert "not used" not in capsys.readouterr().err
+        assert json.loads((tmp_path / "r" / "result.json").read_text())["nlp"] == "slsqp"

@@ -353,3 +353,15 @@ def test_subprocess_time_options(tmp_path):
     assert bad.returncode == 2
     assert bad.stderr.strip().splitlines() == ["mrfswarm: error: --retime toppra retimes to the limits: give --a-max"]
     assert not (tmp_path / "b.csv").exists()
+
+
+def test_an_existing_out_is_refused_and_kept_unless_overwrite(tmp_path, capsys):
+    wp = write(tmp_path, "x,y\n0,0\n1,1\n2,0\n")
+    out = tmp_path / "t.csv"
+    out.write_text("an earlier trajectory\n")
+    assert main(["smooth", str(wp), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "exists" in err and "--overwrite" in err and len(err.strip().splitlines()) == 1
+    assert out.read_text() == "an earlier trajectory\n"
+    assert main(["smooth", str(wp), "--out", str(out), "--overwrite"]) == 0
+    assert read_uav_csv(out, dim=2).pieces == 2

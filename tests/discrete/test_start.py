@@ -190,8 +190,8 @@ def test_goal_cell_in_3d():
     ((8.0, 6.0), "3d", r"^scenario\.goal = \[8\.0, 6\.0\]: 2 coordinates on a 3-D map, give \[x, y, z\]$"),
     ((1.0, 2.0, 3.0), "2d", r"^scenario\.goal = \[1\.0, 2\.0, 3\.0\]: 3 coordinates on a 2-D map, give \[x, y\]$"),
     ((5.0, 4.0, 1.0), "3d", r"^scenario\.goal \(5, 4, 1\) is inside an obstacle \(cell \(5, 4, 1\)\)$"),
-    ((5.0, 4.0, 5.0), "3d", r"^scenario\.goal \(5, 4, 5\) is off the map$"),
-    ((-1.0, 2.0), "2d", r"^scenario\.goal \(-1, 2\) is off the map$"),
+    ((5.0, 4.0, 5.0), "3d", r"^scenario\.goal \(5, 4, 5\) is off the map \(x in .*, z in \[-0\.5, 4\.5\)\)$"),
+    ((-1.0, 2.0), "2d", r"^scenario\.goal \(-1, 2\) is off the map \(x in \[-0\.5, .*\)\)$"),
 ])
 def test_bad_goals_name_the_value(goal, grid, match):
     g = room() if grid == "3d" else load_map({"kind": "free", "size": [5, 5]}, ".")
