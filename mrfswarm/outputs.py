@@ -219,10 +219,11 @@ def write_scene(result: Result, out: Path) -> Path:
 def write_crazyflie_outputs(result: Result, out: Path) -> list[Path]:
     """crazyswarm2/ (crazyflies.yaml, fly.py), crazyflie/ (cflib_upload.py and, when the flight fits the
     compressed format, compressed.json: the rounded pieces whose decoding ``result.json`` certifies)."""
-    from mrfswarm.export.crazyswarm2 import starts_of, write_crazyswarm2
+    from mrfswarm.export.crazyswarm2 import lowest_points, starts_of, write_crazyswarm2
 
     c = result.smoothed()
-    written = write_crazyswarm2(starts_of(c.trajectories), out, result.config.scenario.robot_radius)
+    lowest = lowest_points(c.trajectories) if c.trajectories and c.trajectories[0].dim == 3 else None
+    written = write_crazyswarm2(starts_of(c.trajectories), out, result.config.scenario.robot_radius, lowest)
     _, comp = result._crazyflie_export()
     if comp is not None:
         written.append(write_json(out / "crazyflie" / "compressed.json", compressed_json(comp)))

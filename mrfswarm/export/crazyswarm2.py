@@ -50,8 +50,8 @@ def crazyflies_config(starts: np.ndarray, uri: str | None = None) -> dict:
         "fileversion": 3,
         "robots": robots,
         "robot_types": {ROBOT_TYPE: {
-            "motion_capture": {"tracking": "librigidbodytracker", "marker": "default_single_marker",
-                               "dynamics": "default"},
+            "motion_capture": {"enabled": True, "tracking": "librigidbodytracker",
+                               "marker": "default_single_marker", "dynamics": "default"},
             "big_quad": False,
             "battery": {"voltage_warning": 3.8, "voltage_critical": 3.7},
         }},
@@ -75,19 +75,50 @@ def shared_ground(starts: np.ndarray, distance: float) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(i, k)]
 
 
-def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0) -> list[Path]:
+def lowest_points(trajectories: Sequence, per_piece: int = 64) -> np.ndarray:
+    """(N,) the lowest z each 3-D trajectory reaches (sampled, ``per_piece`` times per piece and at its knots)."""
+    out = []
+    for tr in trajectories:
+        edges = np.concatenate([[0.0], np.cumsum(tr.durations)])
+        t = np.unique(np.concatenate([np.linspace(a, b, per_piece + 1) for a, b in zip(edges[:-1], edges[1:])]))
+        out.append(float(np.asarray(tr.evaluate(t))[:, 2].min()))
+    return np.array(out)
+
+
+def below_ground(lowest: np.ndarray, radius: float) -> np.ndarray:
+    """The robots whose flight comes nearer than ``radius`` to the ground of the export (z = 0, where
+    crazyflies.yaml places them): their lowest z (:func:`lowest_points`) below ``radius``."""
+    return np.flatnonzero(np.asarray(lowest, dtype=float) < radius)
+
+
+def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0,
+                      lowest: np.ndarray | None = None) -> list[Path]:
     """``out/crazyswarm2/crazyflies.yaml``, ``out/crazyswarm2/fly.py`` and ``out/crazyflie/cflib_upload.py``.
 
     Robots whose ground spots come nearer than ``2 radius`` (:func:`shared_ground`) are named in a warning
-    and in the file's comments: their take-off is not the scripts' to fly."""
+    and in the file's comments: their take-off is not the scripts' to fly. So are, in a 3-D plan (``lowest``:
+    each robot's lowest z), the robots that fly nearer than ``radius`` to the ground the export takes off
+    from, z = 0 (:func:`below_ground`): a 3-D map's floor is at ``origin[2] - resolution / 2``, by default
+    below 0, and flown as planned they would go into the floor of the room."""
     from mrfswarm.atomic import atomic_write
 
     header = "# Crazyswarm2 robots of this mrfswarm run: cf<k> flies trajectories/robot_<k-1>.csv (see fly.py)\n"
+    texts = []
     pairs = shared_ground(starts, 2 * radius) if radius > 0 else []
     if pairs:
         names = ", ".join(f"{robot_name(i)} and {robot_name(k)}" for i, k in pairs)
-        text = (f"robots start above the same ground spot ({names}): crazyflies.yaml places them there; put "
-                f"one elsewhere and fly it to its start by hand (fly.py and cflib_upload.py take off straight up)")
+        texts.append(f"robots start above the same ground spot ({names}): crazyflies.yaml places them there; put "
+                     f"one elsewhere and fly it to its start by hand (fly.py and cflib_upload.py take off straight up)")
+    z_min = None if lowest is None else np.asarray(lowest, dtype=float)
+    low = below_ground(z_min, radius) if z_min is not None else np.array([], dtype=int)
+    if z_min is not None and len(low):
+        worst = low[np.argsort(z_min[low])]
+        names = ", ".join(f"{robot_name(int(i))} down to z = {z_min[i]:.3g} m" for i in worst[:3])
+        more = f" and {len(low) - 3} more" if len(low) > 3 else ""
+        texts.append(f"{len(low)} robot{'s' * (len(low) != 1)} fly nearer than the robot radius ({radius:g} m) to "
+                     f"the ground at z = 0 that crazyflies.yaml takes off from ({names}{more}): put the map's floor "
+                     f"at z = 0 (origin[2] = resolution / 2) and plan again before flying it")
+    for text in texts:
         log.warning("crazyswarm2: %s", text)
         header += f"# WARNING: {text}\n"
     written = [atomic_write(out / "crazyswarm2" / "crazyflies.yaml", lambda p: p.write_text(

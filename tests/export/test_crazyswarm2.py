@@ -62,6 +62,36 @@ def test_robots_started_one_above_the_other_are_named_in_a_warning_and_the_yaml(
     assert not caplog.text and "WARNING" not in (tmp_path / "b" / "crazyswarm2" / "crazyflies.yaml").read_text()
 
 
+def test_robots_that_fly_into_the_ground_of_the_export_are_named_in_a_warning_and_the_yaml(tmp_path, caplog):
+    """A 3-D plan whose map keeps its floor below z = 0 (the default origin): its robots' lowest points are found
+    on the curves, between knots too, and those nearer than the radius to z = 0 named, lowest first."""
+    from mrfswarm.export.crazyswarm2 import below_ground, lowest_points, write_crazyswarm2
+    from mrfswarm.trajectory import PiecewisePolynomial
+
+    # z(t) = 1 - 4 t (1 - t) on [0, 1]: lowest 0 at t = 0.5, inside the piece; then a second, flat piece
+    def dip(depth, z0=1.0):
+        c = np.zeros((2, 3, 3))  # (pieces, coefficients in t, axes)
+        c[0, :, 0], c[1, 0, 0] = [0.0, 1.0, 0.0], 1.0
+        c[0, :, 2] = [z0, -4 * (z0 - depth), 4 * (z0 - depth)]
+        c[1, 0, 2] = z0
+        return PiecewisePolynomial(np.array([1.0, 1.0]), c)
+
+    trs = [dip(0.5), dip(-0.2), dip(0.1), dip(1.0)]
+    np.testing.assert_allclose(lowest_points(trs), [0.5, -0.2, 0.1, 1.0], atol=1e-12)
+    lowest = lowest_points(trs)
+    assert below_ground(lowest, 0.25).tolist() == [1, 2]
+    starts = np.array([[0.0, y, 1.0] for y in range(4)])
+    with caplog.at_level("WARNING"):
+        write_crazyswarm2(starts, tmp_path / "a", radius=0.25, lowest=lowest)
+    text = (tmp_path / "a" / "crazyswarm2" / "crazyflies.yaml").read_text()
+    assert "2 robots fly nearer than the robot radius (0.25 m)" in caplog.text
+    assert "(cf2 down to z = -0.2 m, cf3 down to z = 0.1 m)" in caplog.text and "# WARNING: 2 robots fly" in text
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        write_crazyswarm2(starts, tmp_path / "b", radius=0.25, lowest=lowest_points([dip(0.5), dip(0.3)]))
+    assert not caplog.text and "WARNING" not in (tmp_path / "b" / "crazyswarm2" / "crazyflies.yaml").read_text()
+
+
 def test_yaml_as_crazyswarm2_launch_reads_it(run_dir):
     c = yaml.safe_load((run_dir / "crazyswarm2" / "crazyflies.yaml").read_text())
     fileversion = c.get("fileversion", 1)
@@ -77,6 +107,8 @@ def test_yaml_as_crazyswarm2_launch_reads_it(run_dir):
     ids = [int(v["uri"][-2:], 16) for v in c["robots"].values()]  # crazyflie_py's cfid
     assert ids == [1, 2, 3, 4, 5] and c["robots"]["cf1"]["uri"] == "radio://0/80/2M/E7E7E7E701"
     assert c["all"]["firmware_params"]["commander"]["enHighLevel"] == 1
+    # crazyflie_server (C++) counts a type as tracked by motion capture when it says so, as upstream's file does
+    assert all(c["robot_types"][v["type"]]["motion_capture"]["enabled"] is True for v in c["robots"].values())
 
 
 class FakeTrajectory:
@@ -145,6 +177,27 @@ def test_fly_py_refuses_a_flight_that_does_not_fit(per_step_dir, monkeypatch):
     with pytest.raises(SystemExit, match="33 pieces.*31 raw pieces.*--compressed"):
         fly.main([])
     assert calls == []
+
+
+def test_fly_py_without_crazyswarm2_is_one_line_saying_what_provides_it(run_dir, monkeypatch, capsys):
+    fly = load_script(run_dir / "crazyswarm2" / "fly.py", "fly_missing")
+    monkeypatch.setitem(sys.modules, "crazyflie_py", None)  # import crazyflie_py raises ImportError
+    with pytest.raises(SystemExit) as e:
+        fly.main([])
+    msg = str(e.value.code)
+    assert msg.startswith("fly.py: Crazyswarm2's Python package crazyflie_py is not importable") and "\n" not in msg
+    assert "source install/setup.bash" in msg
+
+
+def test_cflib_upload_without_cflib_is_one_line_saying_what_to_install(run_dir, monkeypatch):
+    script = load_script(run_dir / "crazyflie" / "cflib_upload.py", "cflib_upload_missing")
+    for name in [m for m in sys.modules if m == "cflib" or m.startswith("cflib.")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "cflib", None)
+    with pytest.raises(SystemExit) as e:
+        script.run(["--robots", "0"])
+    msg = str(e.value.code)
+    assert msg.startswith("cflib_upload.py: ") and "cflib" in msg and "pip install" in msg and "\n" not in msg, msg
 
 
 def test_fly_py_help_flies_nothing(run_dir, monkeypatch, capsys):

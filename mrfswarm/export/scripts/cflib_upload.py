@@ -139,7 +139,7 @@ def duration_of(elements: list[Any], compressed: bool) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--compressed", action="store_true", help="compressed pieces (fit 131 instead of 31)")
     ap.add_argument("--fly", action="store_true", help="after uploading, take off, fly and land")
     ap.add_argument("--robots", default=None, help="comma-separated robot indices (default: all in the yaml)")
@@ -179,5 +179,20 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def run(argv: list[str] | None = None) -> int:
+    """:func:`main`, with a missing package or a plan the Crazyflie cannot hold as one line (what to install or
+    change), not a traceback."""
+    try:
+        from mrfswarm.errors import MrfswarmError
+    except ImportError as e:
+        raise SystemExit(f"cflib_upload.py: {e}: pip install 'mrfswarm[crazyflie]' (mrfswarm and cflib)") from None
+    try:
+        return main(argv)
+    except ImportError as e:
+        raise SystemExit(f"cflib_upload.py: {e}: pip install 'mrfswarm[crazyflie]' (cflib)") from None
+    except MrfswarmError as e:
+        raise SystemExit(f"cflib_upload.py: {e}") from None
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run())

@@ -44,9 +44,21 @@ def enabled_robots() -> list[str]:
     return sorted(name for name, entry in robots.items() if entry.get("enabled", True))
 
 
+def crazyflie_py():
+    """Crazyswarm2's Python package, or a one-line refusal saying what provides it."""
+    try:
+        import crazyflie_py
+        import crazyflie_py.uav_trajectory
+    except ImportError as e:
+        raise SystemExit(f"fly.py: Crazyswarm2's Python package crazyflie_py is not importable ({e}): source the "
+                         "ROS 2 workspace where Crazyswarm2 is built (source install/setup.bash) and run fly.py "
+                         "again") from None
+    return crazyflie_py
+
+
 def load(names: list[str]) -> dict:
     """Each robot's Crazyswarm2 ``Trajectory``, loaded from its CSV; refuses one that does not fit the memory."""
-    from crazyflie_py.uav_trajectory import Trajectory
+    Trajectory = crazyflie_py().uav_trajectory.Trajectory
 
     out = {}
     for name in names:
@@ -70,11 +82,9 @@ def start_of(traj) -> np.ndarray:
 
 
 def main(argv: list[str] | None = None) -> None:
-    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args(argv)
+    argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter).parse_args(argv)
     trajectories = load(enabled_robots())  # every refusal before the radio link
-    from crazyflie_py import Crazyswarm
-
-    swarm = Crazyswarm()
+    swarm = crazyflie_py().Crazyswarm()
     time_helper = swarm.timeHelper
     allcfs = swarm.allcfs
     by_name = allcfs.crazyfliesByName
