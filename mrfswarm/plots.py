@@ -323,7 +323,8 @@ def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndar
     ax.set_ylabel(ylabel)
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    # above the axes, in one row: inside them it covered the safety line or a curve (the arena's, at the start)
+    ax.legend(fontsize=8, loc="lower left", bbox_to_anchor=(0.0, 1.01), ncol=3, frameon=False, borderaxespad=0.0)
     fig.tight_layout()
     return save_figure(fig, path, dpi=110)
 
