@@ -103,7 +103,7 @@ def read_uav_csv(path: str | os.PathLike, dim: int = 3) -> PiecewisePolynomial:
         raise InvalidProblem(f"dim must be 1..4, got {dim}")
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except OSError as e:
         raise ScenarioError(f"cannot read trajectory file {path}: {e.strerror or e}") from e
     except UnicodeDecodeError:

@@ -28,7 +28,7 @@ def read_waypoints_csv(path: str | os.PathLike) -> np.ndarray:
     """
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except OSError as e:
         raise ScenarioError(f"cannot read waypoints file {path}: {e.strerror or e}") from e
     except UnicodeDecodeError:

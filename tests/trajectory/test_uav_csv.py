@@ -79,3 +79,10 @@ def test_read_errors(tmp_path, text, match):
     path.write_text(text)
     with pytest.raises(ScenarioError, match=match):
         read_uav_csv(path)
+
+
+def test_a_file_that_is_not_text_is_one_error_naming_it(tmp_path):
+    p = tmp_path / "binary.csv"
+    p.write_bytes(b"\xff\xfe\x00duration,x^0\n")
+    with pytest.raises(ScenarioError, match=r"binary\.csv: not a text file$"):
+        read_uav_csv(p)
