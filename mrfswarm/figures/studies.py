@@ -341,7 +341,7 @@ def make_fig7(out: Path, quick: bool = False) -> list[Path]:
         if ex["rise_from_s"] is not None:
             ax.annotate(f"initial expansion: {ex['start_m']:.1f} -> {ex['peak_m']:.1f} m\n"
                         f"({ex['rise_from_s']:.1f}-{ex['peak_reached_s']:.1f} s)",
-                        xy=(ex["peak_reached_s"], ex["peak_m"]), xytext=(ex["peak_reached_s"] + 18, ex["peak_m"] - 0.6),
+                        xy=(ex["peak_reached_s"], ex["peak_m"]), xytext=(ex["peak_reached_s"] + 4, ex["peak_m"] - 0.1),
                         arrowprops={"arrowstyle": "->", "color": "0.3"}, fontsize=9, va="top")
         ax.set_xlabel("time [s]")
         ax.set_ylabel("distance [m]")
