@@ -275,7 +275,9 @@ def discrete_metrics(paths: np.ndarray, occupied: np.ndarray, resolution: float 
     """All metrics of discrete paths (T + 1, N, d) in cells, reported in metres.
 
     ``reached_goal``: the swarm's centroid at the end within ``goal_radius`` metres of the
-    goal, or every robot in the goal region (``arrived``: the plan ended by the arrival rule,
+    goal with a robot there too (a swarm stopped around a goal it cannot reach, the straight-line
+    field's robots in front of the walls of an enclosed goal, has its centroid there and no robot),
+    or every robot in the goal region (``arrived``: the plan ended by the arrival rule,
     ``mrf.arrival``; a large swarm fills a region wider than ``goal_radius``, and its centroid
     can sit off it); None without a goal. ``downwash``: c of the separation's scaled metric.
     """
@@ -288,7 +290,8 @@ def discrete_metrics(paths: np.ndarray, occupied: np.ndarray, resolution: float 
     reached = dist = None
     if goal is not None:
         dist = float(norm(paths[-1].mean(axis=0) - goal)) * resolution
-        reached = bool(arrived or (goal_radius is not None and dist <= goal_radius))
+        nearest = float(norm(paths[-1] - goal).min()) * resolution
+        reached = bool(arrived or (goal_radius is not None and dist <= goal_radius and nearest <= goal_radius))
     return DiscreteMetrics(
         min_separation=min_separation(paths, downwash) * resolution,
         mean_distance=mean_d * resolution,

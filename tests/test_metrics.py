@@ -44,6 +44,14 @@ def test_discrete_metrics_summary():
     assert far.reached_goal is False  # centroid 3 m away
     # ... unless the plan ended by the arrival rule (every robot in the goal region)
     assert discrete_metrics(paths, occ, 0.5, np.array([8, 1]), 1.0, arrived=True).reached_goal is True
+    # a swarm stopped around a goal it cannot reach (four robots in front of the walls of an enclosure): its
+    # centroid on the goal, no robot within goal_radius: not reached
+    ring = np.array([[[5, 10], [10, 5], [15, 10], [10, 15]]])
+    around = discrete_metrics(ring, np.zeros((20, 20), bool), 1.0, np.array([10, 10]), 2.0)
+    assert around.final_goal_distance == pytest.approx(0.0) and around.reached_goal is False
+    one_in = discrete_metrics(ring.copy() - np.array([[[0, 0]] * 3 + [[0, 4]]]), np.zeros((20, 20), bool), 1.0,
+                              np.array([10, 10]), 2.0)
+    assert one_in.final_goal_distance == pytest.approx(1.0) and one_in.reached_goal is True
 
 
 def test_a_big_swarm_that_arrived_reached_the_goal():
