@@ -386,6 +386,14 @@ def _short_count(problem: DiscreteProblem, cells: np.ndarray) -> int:
     return int(np.count_nonzero(np.isfinite(d) & ~(d <= problem.goal_region_radius)))
 
 
+def _short_way(problem: DiscreteProblem, cells: np.ndarray) -> float:
+    """The free-path distance (cells) to the goal summed over the robots :func:`_short_count` counts."""
+    if problem.goal_path is None:
+        return 0.0
+    d = cell_values(problem.goal_path, cells)
+    return float(d[np.isfinite(d) & ~(d <= problem.goal_region_radius)].sum())
+
+
 def _short_of_goal(problem: DiscreteProblem, cells: np.ndarray) -> bool:
     """Some robot that has a free path to the goal is outside the goal region (never without a goal)."""
     return _short_count(problem, cells) > 0
@@ -438,8 +446,10 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         robots shuffling around the goal, flown as a slow tail.
 
     With ``problem.contested = "auto"`` the stage plans once per rule of :data:`AUTO_RULES` and
-    returns the plan with the fewest robots short of the goal region, then the one the sooner
-    by :func:`flight_time`, then the first. When the first plan has every robot at the goal, a
+    returns the plan with the fewest robots short of the goal region, then (with robots short) the one that
+    leaves them the shortest way to the goal in sum, then the one the sooner by :func:`flight_time`, then the
+    first. Without the second rule a plan that stopped at its start (0 steps, no flight) beat one whose
+    robots had come most of the way but not all (a bend of 1-cell corridor with the paper's patience rule). When the first plan has every robot at the goal, a
     later rule's plan ends after :data:`AUTO_STEP_CAP` times its steps (cut there, it has robots
     short of the goal, or flies later by the model). ``on_step`` sees each plan's steps from 1.
 
@@ -456,13 +466,14 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     if problem.contested != "auto":
         return one(problem, max_steps)
     best: DiscretePlan | None = None
-    best_key: tuple[int, float] = (0, 0.0)
+    best_key: tuple[int, float, float] = (0, 0.0, 0.0)
     cap = max_steps
     for rule in AUTO_RULES:
         plan = one(replace(problem, contested=rule), cap)
-        key = (_short_count(problem, plan.paths[-1]), flight_time(problem, plan.paths))
-        log.info("discrete stage, contested = %r: %d steps, %d robots short of the goal, %.2f s by the flight model",
-                 rule, plan.n_steps, *key)
+        key = (_short_count(problem, plan.paths[-1]), _short_way(problem, plan.paths[-1]),
+               flight_time(problem, plan.paths))
+        log.info("discrete stage, contested = %r: %d steps, %d robots short of the goal (%.1f cells of way left), "
+                 "%.2f s by the flight model", rule, plan.n_steps, *key)
         if best is None or key < best_key:
             best, best_key = plan, key
         if rule == AUTO_RULES[0] and key[0] == 0:  # arrived: a plan of many more steps would fly later

@@ -81,6 +81,35 @@ def test_a_plan_cut_short_is_not_kept_though_it_flies_sooner(monkeypatch):
     assert auto.contested == AUTO_RULES[0] and np.array_equal(auto.paths, first.paths)
 
 
+def bend() -> dict:
+    """10 robots in a room whose only way out is a bent corridor one cell wide (a new user's map)."""
+    rows = ["##############################"] + ["#.......######################"] * 3 + [
+        "#...................##########"] + ["#.......###########.##########"] * 3 + [
+        "###################.##########"] * 3 + ["###################.####.....#"] * 4 + [
+        "###################..........#"] + ["########################.....#"] * 3 + [
+        "##############################"]
+    scn = {"map": {"kind": "ascii", "rows": rows}, "goal": [26, 15], "goal_radius": 1.0,
+           "start": {"center": [4.0, 4.0], "n_robots": 10, "sigma": 2.0, "seed": 0}}
+    return {"scenario": scn, "interaction": {"k": 4},
+            "mrf": {"patience": 3, "progress": "energy", "follow": False}}
+
+
+def test_with_robots_short_either_way_the_plan_that_brings_them_nearer_is_kept():
+    """On the bend with the paper's patience rule, one rule's plan stops at its start (no step, nothing to fly)
+    and the other's comes nearer; both leave every robot short of the goal region. Kept: the nearer one (the
+    plan of no step was kept before, for flying sooner, and the run then failed with "the swarm cannot move")."""
+    cfg, problem = problem_of(bend())
+    plans = {rule: plan(problem, cfg, rule) for rule in AUTO_RULES}
+    assert sorted(p.n_steps == 0 for p in plans.values()) == [False, True]
+    assert all(_short_count(problem, p.paths[-1]) == 10 for p in plans.values())
+    moved = next(rule for rule, p in plans.items() if p.n_steps > 0)
+    assert flight_time(problem, plans[moved].paths) > 0  # the flight model alone prefers the plan of no step
+    auto = plan(problem, cfg)
+    assert auto.contested == moved and np.array_equal(auto.paths, plans[moved].paths)
+    r = mrfswarm.plan(cfg, progress=False)  # the whole run: smoothed, no error
+    assert r.discrete.n_steps > 0 and r.continuous is not None
+
+
 def test_without_a_flight_model_the_longest_moves_decide():
     """With smoothing off (no time grid), each step counts its longest move in cells."""
     cfg = from_dict(apply_overrides(clutter_map(), ["simulation.enabled=false", "smoothing.enabled=false"]))
