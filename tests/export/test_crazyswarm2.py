@@ -87,6 +87,10 @@ def test_robots_that_fly_into_the_ground_of_the_export_are_named_in_a_warning_an
     assert "2 robots fly nearer than the robot radius (0.25 m)" in caplog.text
     assert "(cf2 down to z = -0.2 m, cf3 down to z = 0.1 m)" in caplog.text and "# WARNING: 2 robots fly" in text
     caplog.clear()
+    with caplog.at_level("WARNING"):  # a robot flying on the ground itself: no float noise in the message
+        write_crazyswarm2(starts[:1], tmp_path / "c", radius=0.25, lowest=np.array([-6.98e-23]))
+    assert "(cf1 down to z = 0 m)" in caplog.text
+    caplog.clear()
     with caplog.at_level("WARNING"):
         write_crazyswarm2(starts, tmp_path / "b", radius=0.25, lowest=lowest_points([dip(0.5), dip(0.3)]))
     assert not caplog.text and "WARNING" not in (tmp_path / "b" / "crazyswarm2" / "crazyflies.yaml").read_text()
