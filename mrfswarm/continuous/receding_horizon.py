@@ -115,6 +115,7 @@ from mrfswarm.continuous.time_grid import (
     motion_profile,
     next_moves,
     nominal_durations,
+    reachable_speed,
     rest_times,
     witness_durations,
 )
@@ -611,9 +612,19 @@ class RecedingHorizon:
         self._exit = np.full((self.T, self.N), self.T)
         if cfg.speed is None and self.T:
             drift = drift_room(grid.resolution, self.radius)
-            self.profiles = [motion_profile(self.paths, grid.resolution, cruise * cfg.v_max,
-                                            motion_acceleration(cfg.v_max, cfg.a_max, cfg.j_max, acc),
-                                            drift if name != "cautious" else 0.0, self.limits)
+            # the speed the profiles are set for (their cruise, their acceleration over a speed change of it, and
+            # their braking): v_max, or less where no robot's way is long enough to reach it (time_grid.
+            # reachable_speed). Set for v_max, a short flight at a loose v_max got an acceleration the jerk limit
+            # does not allow over the speeds it reaches (see motion_acceleration), every profile failed, and it flew
+            # later than at a tighter v_max: 4 robots on 14 x 10 m, 9.0 s at v_max 20 or 50 against 6.1 at 5; now
+            # 6.6 s from v_max 6 to 50 (their ways reach 5.2 m/s; capping the cruise and acceleration alone, not the
+            # braking: 6.0 s from 6 to 20, 6.6 at 50). Every flight-quality map reaches v_max: the same flights.
+            longest = float(np.linalg.norm(np.diff(self.X, axis=0), axis=-1).sum(axis=0).max())  # metres
+            change = reachable_speed(longest, cfg.v_max, cfg.a_max, cfg.j_max)
+            reach = (min(self.limits[0], change), *self.limits[1:])
+            self.profiles = [motion_profile(self.paths, grid.resolution, cruise * change,
+                                            motion_acceleration(change, cfg.a_max, cfg.j_max, acc),
+                                            drift if name != "cautious" else 0.0, reach)
                              for name, cruise, acc in PROFILES]
             self.nominal = self.profiles[[name for name, _, _ in PROFILES].index("nominal")].durations
             moves = np.diff(self.X, axis=0)

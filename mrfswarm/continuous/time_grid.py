@@ -93,6 +93,20 @@ def rest_times(distance: np.ndarray, v_max: float, a_max: float, j_max: float) -
     return np.where(d <= s[-1], np.interp(d, s, t), t[-1] + (d - s[-1]) / v_max)
 
 
+def reachable_speed(distance: float, v_max: float, a_max: float, j_max: float) -> float:
+    """The top speed of the fastest move from rest to rest over ``distance`` metres under the limits.
+
+    Half the way speeds up, half brakes: the top speed v is the one whose fastest start from rest to v at zero
+    acceleration (:func:`_rest_curve` with v_max = v) covers ``distance / 2``: :math:`v^{3/2}/\\sqrt{j}` while
+    a_max is not reached (v <= a^2 / j), else :math:`v (a/j + v/a) / 2`; v_max where that is higher.
+    """
+    a, j, half = float(a_max), float(j_max), 0.5 * float(distance)
+    v = (half * math.sqrt(j)) ** (2.0 / 3.0)
+    if v > a * a / j:
+        v = 0.5 * (-a * a / j + math.sqrt((a * a / j) ** 2 + 8.0 * a * half))
+    return float(min(v, v_max))
+
+
 @dataclass(frozen=True)
 class SwarmProfile:
     """The speed profile of the swarm's progress over the steps (see :func:`motion_profile`).

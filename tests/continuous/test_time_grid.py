@@ -88,3 +88,37 @@ def test_a_window_stop_keeps_to_the_jerk_limit_and_the_flights_end_does_not():
     np.testing.assert_allclose(win[:4], plain.window(10, 18)[:4])  # far from the stop: the same pace
     np.testing.assert_allclose(limited.window(20, 29), plain.window(20, 29))  # the flight's end: no floor
     np.testing.assert_allclose(limited.durations, plain.durations)
+
+
+def test_reachable_speed_is_the_top_of_the_fastest_rest_to_rest_move():
+    from mrfswarm.continuous.time_grid import reachable_speed
+
+    assert reachable_speed(30.0, 2.0, 4.0, 4.0) == 2.0  # a long way reaches v_max
+    # jerk alone (a_max out of reach): an S-curve to v over half the way, v^1.5 / sqrt(j) = L / 2
+    L, j = 2.0, 4.0
+    assert reachable_speed(L, 50.0, 100.0, j) == pytest.approx((L / 2 * np.sqrt(j)) ** (2 / 3), rel=1e-3)
+    # with a_max binding: the fastest start to v (rest_times's curve at v_max = v) ends at zero acceleration half
+    # the way along, and takes its own time there (no cruise)
+    from mrfswarm.continuous.time_grid import _rest_curve
+
+    for L in (12.0, 3.0, 0.5):
+        v = reachable_speed(L, 50.0, 4.0, 4.0)
+        t, s = _rest_curve(v, 4.0, 4.0)
+        assert s[-1] == pytest.approx(L / 2, rel=1e-4), (L, v)
+    assert reachable_speed(12.0, 50.0, 4.0, 4.0) > 4.0  # a_max reached on 12 m: the trapezoid branch
+
+
+def test_a_looser_speed_limit_does_not_slow_a_short_flight():
+    """Four robots around a wall on a 14 x 10 m map: their ways (about 12 m) reach 5.5 m/s at most under a_max 4
+    and j_max 4. Raising v_max past that changes nothing the robots can do; the profiles' acceleration was set
+    for a speed change of v_max (8 m/s^2 at v_max 20 instead of 4.6 for the speed they reach), every
+    profile failed and the flight took 9.0 s against 6.1 at v_max 5."""
+    from mrfswarm.config import apply_overrides, from_dict
+    from mrfswarm.pipeline import plan
+
+    data = {"scenario": {"map": {"kind": "boxes", "size": [14, 10], "boxes": [{"center": [7, 2.5], "size": [1, 5]}]},
+                         "start": {"positions": [[1, 2], [1, 4], [2, 6], [3, 3]]}, "goal": [12, 3],
+                         "goal_radius": 1.0}}
+    makespan = {v: plan(from_dict(apply_overrides(data, ["simulation.enabled=false", f"smoothing.v_max={v}"])),
+                        progress=False).continuous.makespan_s for v in (5, 20)}
+    assert makespan[20] <= 1.1 * makespan[5], makespan
