@@ -69,6 +69,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         print("mrfswarm: interrupted", file=sys.stderr)
+        if argv is None and main_thread:
+            # the command's own process ends here: a second Ctrl-C (or the SIGINT `timeout -s INT` sends the
+            # command and then its process group) during the interpreter's exit, where the worker pool joins its
+            # threads, printed concurrent.futures' traceback after the line above (3 of 16 such runs)
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
         return 130
     except Terminated:
         print("mrfswarm: terminated", file=sys.stderr)
