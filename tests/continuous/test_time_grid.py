@@ -122,3 +122,23 @@ def test_a_looser_speed_limit_does_not_slow_a_short_flight():
     makespan = {v: plan(from_dict(apply_overrides(data, ["simulation.enabled=false", f"smoothing.v_max={v}"])),
                         progress=False).continuous.makespan_s for v in (5, 20)}
     assert makespan[20] <= 1.1 * makespan[5], makespan
+
+
+@pytest.mark.parametrize("sets, warns", [((), False), (("smoothing.execution=1.0",), True),
+                                         (("smoothing.horizon=1",), True),
+                                         (("smoothing.execution=1.0", "smoothing.seam=rest"), False)])
+def test_windows_flown_to_their_end_are_said_to_stop_at_every_seam(sets, warns, caplog):
+    """A continuous seam needs the next window to take over before the last one's end, where it plans the
+    robots at rest: flying the whole window (execution 1, or a window of one step) stops there, and one warning
+    says so (the paper's rest seams stop by design: no warning)."""
+    from mrfswarm.config import SmoothingConfig, apply_overrides
+    from mrfswarm.continuous import RecedingHorizon
+    from mrfswarm.maps import OccupancyGrid
+
+    smoothing = apply_overrides({}, list(sets)).get("smoothing", {})
+    cfg = SmoothingConfig(**smoothing)
+    paths = np.array([[[1 + k, 2], [1 + k, 4]] for k in range(12)])
+    grid = OccupancyGrid.from_occupied(np.zeros((16, 8), bool))
+    with caplog.at_level("WARNING"):
+        RecedingHorizon(paths, grid, cfg, 0.25)
+    assert ("flies every window to its end" in caplog.text) == warns, caplog.text
