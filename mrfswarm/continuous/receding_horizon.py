@@ -948,12 +948,14 @@ class RecedingHorizon:
                     break
             return out
         futures = {self._pool.submit(fn, *a): k for k, a in enumerate(args)}
-        for done in as_completed(futures):
-            out[futures[done]] = done.result()
-            if isinstance(out[futures[done]], str):
-                for f in futures:
-                    f.cancel()
-                break
+        try:
+            for done in as_completed(futures):
+                out[futures[done]] = done.result()
+                if isinstance(out[futures[done]], str):
+                    break
+        finally:  # after a failure, and on the way out of an interrupt as the pool's own map does
+            for f in futures:
+                f.cancel()
         return out
 
     def _control_points(self, Y: np.ndarray, B: np.ndarray, durations: np.ndarray) -> list[np.ndarray]:
