@@ -449,7 +449,8 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     returns the plan with the fewest robots short of the goal region, then (with robots short) the one that
     leaves them the shortest way to the goal in sum, then the one the sooner by :func:`flight_time`, then the
     first. Without the second rule a plan that stopped at its start (0 steps, no flight) beat one whose
-    robots had come most of the way but not all (a bend of 1-cell corridor with the paper's patience rule). When the first plan has every robot at the goal, a
+    robots had come most of the way but not all (a bend of 1-cell corridor with the paper's patience rule).
+    When the first plan has every robot at the goal, a
     later rule's plan ends after :data:`AUTO_STEP_CAP` times its steps (cut there, it has robots
     short of the goal, or flies later by the model). ``on_step`` sees each plan's steps from 1.
 
