@@ -279,13 +279,21 @@ MAX_SLOWDOWN = 1e3
 #: m/s; see MAX_SLOWDOWN.
 REFERENCE_SPEED = 1.0
 #: Share of the QP backend's iteration budget (``QPCapabilities.iteration_budget``) given to the bold and moderate
-#: profiles' attempts, which a slower attempt follows, and to the time refinement's trial points (a trial without a
-#: solution is only a shorter step: clutter40 refined 51.4 s -> 31.0 of planning, makespan 68.5 s -> 69.2). PIQP solves window QPs in 15 iterations on average (at most
+#: profiles' attempts, which a slower attempt follows (the time refinement's trial points: :data:`TRIAL_BUDGET`). PIQP solves window QPs in 15 iterations on average (at most
 #: 96 measured), and the attempts that fail run its cap of 120: on the 40 robots in clutter of the flight-quality
 #: bench, those failures were 58 % of the QP time. At 40 iterations clutter40, forest and aisles30 planned the same
 #: flights in less time (clutter40 10.1 s -> 7.0), open50 one window differently (makespan 41.02 s -> 41.11, 11.0 s
 #: of planning -> 8.1).
 OPTIMISTIC_BUDGET = 1 / 3
+#: Share of the iteration budget given to the time refinement's trial points: a trial without a solution is only a
+#: step the refinement does not take. At 1/3 (40 of PIQP's 120, twice what a solved window takes) clutter40
+#: refined planned 51.4 s -> 31.0 against the full budget (makespan 68.5 s -> 69.2; 2026-11-26). 1/3 -> 1/4 (30
+#: iterations; 2026-11-29, flight_quality.py --baseline 0ba6d1a, the machine loaded by a second job): clutter40
+#: refined 43.07 -> 43.81 s (1.18 -> 1.20 x), its planning over the default's 3.10 -> 2.60 x (median of three
+#: rounds); clutter40's maps of seeds 2-6 and the rest of the bench the same flights within 0.3 % (the forest 21.82
+#: -> 21.86 s, the open field 28.92 -> 29.00); seed 7 47.19 -> 47.65 s (0.12 -> 0.05 stops per robot), its
+#: planning 27.7 -> 23.6 s. At 1/6 clutter40 flew 46.38 s.
+TRIAL_BUDGET = 1 / 4
 #: Seconds by which a refined window may outlast its QP's durations and still count as "not longer": the scaling caps
 #: its points at the QP's sum (``duration_scaling.scale_durations``, ``total``), which rounding can pass by 1e-15 s;
 #: compared exactly, refined clutter40 lost two of its 17 windows' refinements that way (2026-11-28, tenth session).
@@ -583,6 +591,7 @@ class RecedingHorizon:
         budget = solvers.qp.BACKENDS.get(self.backend).capabilities.iteration_budget(self.qp_options.max_iter)
         self.optimistic_options = dataclasses.replace(self.qp_options,
                                                       max_iter=max(1, math.ceil(OPTIMISTIC_BUDGET * budget)))
+        self.trial_options = dataclasses.replace(self.qp_options, max_iter=max(1, math.ceil(TRIAL_BUDGET * budget)))
         self.T, self.N = len(self.paths) - 1, self.paths.shape[1]
         self.E = max(1, round(cfg.execution * cfg.horizon))
         if cfg.seam == "continuous" and self.E >= cfg.horizon and self.T > self.E:
@@ -782,7 +791,7 @@ class RecedingHorizon:
                gradient: bool = False, merged: np.ndarray | None = None,
                optimistic: bool = False, creep: int | None = None,
                limits: bool = True, hold: bool = False,
-               release: np.ndarray | None = None) -> tuple[_Solution | None, str]:
+               release: np.ndarray | None = None, trial: bool = False) -> tuple[_Solution | None, str]:
         """The window's QP at ``durations``, its corridor and limit rows added lazily (without ``limits``, none of
         the limit rows: the caller clears them).
 
@@ -816,7 +825,7 @@ class RecedingHorizon:
                 mine[robots] = True
                 specs.append(self._spec(a, b, robots, start, cand[self.active[cand] & mine[seps.first]], merged, creep,
                                         hold, release))
-            results, why = self._solve_chunks(chunks, specs, durations, gradient, optimistic)
+            results, why = self._solve_chunks(chunks, specs, durations, gradient, optimistic, trial)
             rec.rounds += 1
             if why:
                 return None, why
@@ -899,7 +908,7 @@ class RecedingHorizon:
         return out
 
     def _solve_chunks(self, chunks: list[np.ndarray], specs: list[WindowSpec], durations: np.ndarray,
-                      gradient: bool, optimistic: bool = False) -> tuple[list, str]:
+                      gradient: bool, optimistic: bool = False, trial: bool = False) -> tuple[list, str]:
         """:func:`solve_window` of every chunk, the chunks holding robots that failed last time first, until one
         fails.
 
@@ -910,7 +919,7 @@ class RecedingHorizon:
         a failing attempt is cheaper. Returns the chunks' solutions (None where not solved) and "" or, when a chunk
         failed, why (and solutions that must not be used).
         """
-        options = self.optimistic_options if optimistic else self.qp_options
+        options = self.trial_options if trial else self.optimistic_options if optimistic else self.qp_options
         args = [(spec, durations, self.backend, options, gradient) for spec in specs]
         first = [k for k, robots in enumerate(chunks) if self._hard[robots].any()]
         rest = [k for k in range(len(chunks)) if k not in set(first)]
@@ -1214,7 +1223,7 @@ class RecedingHorizon:
         its nominal duration (at least 1 ms) and twice its witness or nominal one, and
         around ``sol``'s durations.
 
-        Evaluations run the smaller iteration budget of :data:`OPTIMISTIC_BUDGET`: a point the
+        Evaluations run the smaller iteration budget of :data:`TRIAL_BUDGET`: a point the
         QP does not solve within it counts as one without a solution.
 
         Every evaluation starts from the lazy rows of the best point solved so far (those active when this is
@@ -1249,7 +1258,7 @@ class RecedingHorizon:
                 self.active, self.limit_rows = best[0].copy(), best[1].copy()
                 solved[key] = self._solve(a, b, start, np.asarray(T, dtype=float), rec, gradient=True,
                                           merged=merged, optimistic=True, creep=rec.c if rec.creep else None,
-                                          hold=rec.hold, release=release)[0]
+                                          hold=rec.hold, release=release, trial=True)[0]
                 rows[key] = (self.active, self.limit_rows)
             return solved[key]
 
