@@ -261,5 +261,5 @@ def write_discrete_outputs(result: Result, out: Path) -> list[Path]:
     m = result.metrics
     written.append(atomic_write(figs / "discrete_distances.png", lambda p: plots.plot_distances(
         p, np.arange(len(m.mean_distance)), m.min_distance, m.mean_distance, xlabel="MRF step",
-        mean_pairs=m.mean_distance_pairs)))
+        mean_pairs=m.mean_distance_pairs, safety=float(grid.resolution), safety_label="one cell ({:g} m): the least")))
     return written

@@ -96,9 +96,10 @@ def view_figure(grid: OccupancyGrid, width: float = 6.0, dpi: int = 110):
     if grid.ndim == 2:
         lo, hi = grid.bounds
         # as high as the map is for its width (a 100 x 60 m map in a square figure left a band empty), within
-        # half and one and a half times the width, plus room for the title and labels
-        aspect = float(np.clip((hi[1] - lo[1]) / (hi[0] - lo[0]), 0.5, 1.5))
-        fig, ax = plt.subplots(figsize=(width, width * aspect * 0.85 + 1.4), dpi=dpi)
+        # a fifth and one and a half times the width (a 60 x 8 m map at half of it: bands above and below), plus
+        # room for the title, the legend and the labels
+        aspect = float(np.clip((hi[1] - lo[1]) / (hi[0] - lo[0]), 0.2, 1.5))
+        fig, ax = plt.subplots(figsize=(width, width * aspect * 0.85 + 1.6), dpi=dpi)
         return fig, [(ax, (0, 1))]
     span = _layout_span(grid)
     w = 1.25 * width
@@ -280,8 +281,10 @@ def plot_paths(path: Path, grid: OccupancyGrid, paths_world: Sequence[np.ndarray
                    colorbar=(k == 0) and (len(panels) == 1 or legend_axes(fig, panels)))
     size = {} if title_size is None else {"fontsize": title_size}
     if len(panels) == 1:
-        panels[0][0].legend(loc="upper left", fontsize=8, framealpha=0.9)
-        panels[0][0].set_title(title, **size)
+        # above the map in one row: inside it, the legend covered a long thin map's start
+        panels[0][0].legend(loc="lower left", bbox_to_anchor=(0.0, 1.01), ncol=5, fontsize=8, frameon=False,
+                            borderaxespad=0.0, markerscale=0.8)
+        fig.suptitle(title, **size)
     else:
         handles, labels = panels[0][0].get_legend_handles_labels()
         legend_axes(fig, panels).legend(handles, labels, loc="center", fontsize=8, framealpha=0.9)
@@ -307,18 +310,23 @@ def plot_energy(path: Path, energies: dict[str, np.ndarray], title: str = "Swarm
 
 
 def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndarray, safety: float | None = None,
-                   xlabel: str = "time [s]", mean_pairs: int | None = None, ylabel: str = "distance [m]") -> Path:
+                   xlabel: str = "time [s]", mean_pairs: int | None = None, ylabel: str = "distance [m]",
+                   safety_label: str | None = None) -> Path:
     """Minimum and average inter-robot distance over time (the paper's Fig. 7c).
 
     ``mean_pairs``: when the average is over a sample of pairs, how many (said in the legend).
     ``ylabel``: which distance (the downwash-scaled one of a 3-D run says so).
+    ``safety``: a dashed line at that distance, named ``safety_label`` formatted with it (default: "safety distance
+    {:g} m").
     """
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 3.5), dpi=110)
     ax.plot(t, mean_d, label="average distance" + (f" ({mean_pairs:,} random pairs)" if mean_pairs else ""))
     ax.plot(t, min_d, label="minimum distance")
     if safety is not None:
-        ax.axhline(safety, color="r", ls="--", lw=1, label=f"safety distance {safety:g} m")
+        # beneath the curves: a minimum on the line stays visible
+        ax.axhline(safety, color="r", ls="--", lw=1, zorder=1,
+                   label=(safety_label or "safety distance {:g} m").format(safety))
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_ylim(bottom=0)

@@ -345,3 +345,45 @@ def test_a_wide_2d_map_gets_a_figure_as_wide():
         ratios[name] = h / w
         plots._plt().close(fig)
     assert ratios["wide"] < 0.8 < 1.0 < ratios["square"] < 1.2
+
+
+def test_a_long_thin_maps_legend_covers_no_robot(tmp_path, monkeypatch):
+    """A 60 x 8 m map's legend sat inside the map, over its start room (upper left), and its figure was half empty
+    above and below the map: the legend is above the map now, and the figure about as high as the map asks."""
+    saved = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path, dpi=110: saved.append(fig) or path)
+    grid = OccupancyGrid.from_occupied(np.zeros((60, 8), dtype=bool))
+    paths = [np.array([[2.0, y], [55.0, 4.0]]) for y in (2.0, 4.0, 6.0)]
+    plots.plot_paths(tmp_path / "p.png", grid, paths, np.array([55.0, 4.0]), "thin")
+    fig = saved[-1]
+    ax = fig.axes[0]
+    fig.canvas.draw()
+    box = ax.get_legend().get_window_extent()
+    assert box.y0 >= ax.get_window_extent().y1  # above the map
+    assert fig._suptitle.get_text() == "thin" and fig._suptitle.get_window_extent().y0 >= box.y1
+    w, h = fig.get_size_inches()
+    assert h / w < 0.5
+    plots._plt().close(fig)
+
+
+def test_the_discrete_distances_show_the_one_cell_line(tmp_path, monkeypatch):
+    """The discrete plan keeps its robots on distinct cells: its distance figure draws one cell (the least it can
+    hold) as the flight's figure draws the safety distance."""
+    from mrfswarm import outputs
+    from mrfswarm.config import load_config
+    from mrfswarm.pipeline import plan
+
+    calls = []
+    real = plots.plot_distances
+    monkeypatch.setattr(plots, "plot_distances", lambda *a, **kw: calls.append(kw) or real(*a, **kw))
+    toml = tmp_path / "small.toml"
+    rows = ", ".join(['"' + "." * 10 + '"'] * 5)  # 5 x 2.5 m at 0.5 m
+    toml.write_text(f"""[scenario]
+goal = [4.5, 1.0]
+map = {{ kind = "ascii", resolution = 0.5, rows = [{rows}] }}
+start = {{ positions = [[0.5, 0.5], [0.5, 1.0], [1.0, 0.5], [1.0, 1.0]] }}
+""")
+    cfg = load_config(toml, overrides=["smoothing.enabled=false", "simulation.enabled=false"])
+    outputs.write_discrete_outputs(plan(cfg, progress=False), tmp_path)
+    (kw,) = calls
+    assert kw["safety"] == 0.5 and kw["safety_label"].format(kw["safety"]) == "one cell (0.5 m): the least"
