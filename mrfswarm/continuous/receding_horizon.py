@@ -292,7 +292,9 @@ OPTIMISTIC_BUDGET = 1 / 3
 #: refined 43.07 -> 43.81 s (1.18 -> 1.20 x), its planning over the default's 3.10 -> 2.60 x (median of three
 #: rounds); clutter40's maps of seeds 2-6 and the rest of the bench the same flights within 0.3 % (the forest 21.82
 #: -> 21.86 s, the open field 28.92 -> 29.00); seed 7 47.19 -> 47.65 s (0.12 -> 0.05 stops per robot), its
-#: planning 27.7 -> 23.6 s. At 1/6 clutter40 flew 46.38 s.
+#: planning 27.7 -> 23.6 s. At 1/6 clutter40 flew 46.38 s. The NLP backends' trial points keep OPTIMISTIC_BUDGET: at
+#: 1/4, Ipopt at time weight 10000 flew the arena 5.38 -> 5.52 s (its line search meets more points without a
+#: solution).
 TRIAL_BUDGET = 1 / 4
 #: Seconds by which a refined window may outlast its QP's durations and still count as "not longer": the scaling caps
 #: its points at the QP's sum (``duration_scaling.scale_durations``, ``total``), which rounding can pass by 1e-15 s;
@@ -1223,8 +1225,8 @@ class RecedingHorizon:
         its nominal duration (at least 1 ms) and twice its witness or nominal one, and
         around ``sol``'s durations.
 
-        Evaluations run the smaller iteration budget of :data:`TRIAL_BUDGET`: a point the
-        QP does not solve within it counts as one without a solution.
+        Evaluations run a smaller iteration budget (the scaling's :data:`TRIAL_BUDGET`, the NLP backends'
+        :data:`OPTIMISTIC_BUDGET`): a point the QP does not solve within it counts as one without a solution.
 
         Every evaluation starts from the lazy rows of the best point solved so far (those active when this is
         called, before any) and leaves ``self.active``/``self.limit_rows`` at the rows it needed; the caller puts back
@@ -1240,6 +1242,8 @@ class RecedingHorizon:
             key = np.asarray(sol.durations, dtype=float).tobytes()
             solved[key], rows[key] = sol, (base[0].copy(), base[1].copy())
 
+        # the scaling's trial points run the smaller budget; the NLP backends' the attempts' (TRIAL_BUDGET)
+        scaling = self.cfg.refinement == "scaling"
         release = None
         if rec.released:
             release = np.zeros(self.N, dtype=bool)
@@ -1258,7 +1262,7 @@ class RecedingHorizon:
                 self.active, self.limit_rows = best[0].copy(), best[1].copy()
                 solved[key] = self._solve(a, b, start, np.asarray(T, dtype=float), rec, gradient=True,
                                           merged=merged, optimistic=True, creep=rec.c if rec.creep else None,
-                                          hold=rec.hold, release=release, trial=True)[0]
+                                          hold=rec.hold, release=release, trial=scaling)[0]
                 rows[key] = (self.active, self.limit_rows)
             return solved[key]
 
