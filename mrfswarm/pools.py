@@ -13,12 +13,26 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import logging
+import multiprocessing
 import signal
 from collections.abc import Iterator
 from multiprocessing.context import BaseContext
 
 #: Seconds :func:`stop` waits for the pool's manager thread to end after terminating the workers.
 STOP_JOIN_S = 5.0
+
+log = logging.getLogger(__name__)
+
+
+def usable_workers(workers: int) -> int:
+    """``workers``, or 1 in a daemonic process, which may not start processes of its own: a Dask worker's (its
+    nanny starts it so) planned the window QPs or flew the robots in a pool and failed with "daemonic processes are
+    not allowed to have children"."""
+    if workers > 1 and multiprocessing.current_process().daemon:
+        log.info("in a daemonic process (a Dask worker's): %d workers -> 1, in this process", workers)
+        return 1
+    return workers
 
 
 def ignore_sigint() -> None:

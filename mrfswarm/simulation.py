@@ -69,7 +69,7 @@ from mrfswarm.errors import ConfigError, SolverNotFound
 from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.metrics import min_pair_distances, obstacle_clearance
-from mrfswarm.pools import process_pool
+from mrfswarm.pools import process_pool, usable_workers
 from mrfswarm.trajectory import PiecewisePolynomial
 
 log = logging.getLogger(__name__)
@@ -389,7 +389,7 @@ def fly_swarm(trajectories: list[PiecewisePolynomial], altitude: float, grid: Oc
     from tqdm import tqdm
 
     jobs = [(tr, altitude, rate_hz, vehicle, duration) for tr in trajectories]
-    workers = min(len(jobs), workers or os.cpu_count() or 1)
+    workers = usable_workers(min(len(jobs), workers or os.cpu_count() or 1))
     show = sys.stderr.isatty() if progress is None else progress
     if backend == "batched":
         n_steps = int(np.ceil(duration * rate_hz)) + 1

@@ -53,6 +53,27 @@ def local(tmp_path_factory):
     return run_sweep(FREE5, GRID, tmp_path_factory.mktemp("local"), workers=2, overrides=FAST)
 
 
+SWARM14 = """[scenario]
+map = { kind = "free", size = [24, 16] }
+start = { positions = [%s] }
+goal = [10, 8]
+
+[simulation]
+backend = "processes"
+""" % ", ".join(f"[{x}, {y}]" for x in (2, 4) for y in range(2, 16, 2))
+
+
+def test_a_dask_worker_plans_and_flies_without_a_pool_of_its_own(cluster, tmp_path):
+    """A Dask worker runs in a daemonic process, which may not start processes: 14 robots (the window QPs solved
+    in a pool from 13) flown one robot per process failed with "daemonic processes are not allowed to have
+    children", and the sweep wrote no table. The worker now solves and flies them in its own process."""
+    config = tmp_path / "swarm14.toml"
+    config.write_text(SWARM14)
+    r = run_sweep(config, {"interaction.k": [3, 4]}, tmp_path / "dask", scheduler=cluster.scheduler_address)
+    assert [row["error"] for row in r.rows] == [None, None]
+    assert all(row["n_robots"] == 14 and row["simulation_max_tracking_error_m"] > 0 for row in r.rows)
+
+
 def test_same_table_in_process_and_on_dask(local, cluster, tmp_path):
     ref = values(local.rows)
     assert [(r["point"], r["interaction.k_a"], r["interaction.k_r"]) for r in ref] == [

@@ -124,7 +124,7 @@ from mrfswarm.errors import UnsafeTrajectoryError
 from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.maps.obstacles import ObstacleIndex
-from mrfswarm.pools import process_pool
+from mrfswarm.pools import process_pool, usable_workers
 from mrfswarm.trajectory import PiecewisePolynomial
 from mrfswarm.trajectory.bernstein import control_point_matrix
 from mrfswarm.trajectory.piece_stack import map_coefficients
@@ -672,7 +672,7 @@ class RecedingHorizon:
         # on together, on all quarters, until 2026-11-27: the 300-robot crossing's window QPs took 111 s, per
         # face 37 s; the open field of 50 planned in 20.3 s, per face and quarter 5.6 s (the same flights)
         self.limit_rows = np.zeros((self.T, self.N, 3, len(limit_polytope(self.dim)[0]), LIMIT_PARTS), dtype=bool)
-        self.workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
+        self.workers = usable_workers(max(1, workers if workers is not None else (os.cpu_count() or 1)))
         self._pool: ProcessPoolExecutor | None = None
         # robots of the chunk whose QP failed last: solved first, so a failing attempt costs one chunk
         self._hard = np.zeros(self.N, dtype=bool)
