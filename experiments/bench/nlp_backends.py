@@ -55,12 +55,12 @@ class Benchmarked(RecedingHorizon):
         super().__init__(*args, **kwargs)
         self.bench_windows, self.backends, self.rows = windows, backends, []
 
-    def _refine(self, sol, a, start, rec):
+    def _refine(self, sol, a, start, rec, merged=None):
         window = len({r["window"] for r in self.rows})
         if window < self.bench_windows:
             for setting, options in SETTINGS.items():
                 for name in self.backends:
-                    alloc = self.time_allocation(sol, a, start, rec)
+                    alloc = self.time_allocation(sol, a, start, rec, merged)
                     f0 = alloc.problem.fun(alloc.problem.x0)  # cached: not counted below
                     t0 = time.perf_counter()
                     res = nlp.minimize(alloc.problem, name, options)
@@ -75,7 +75,7 @@ class Benchmarked(RecedingHorizon):
                                           f_start=f0, objective=res.objective,
                                           best_seen=min(v.cost + alloc.weight * v.durations.sum()
                                                         for v in alloc.solved.values() if v is not None)))
-        return super()._refine(sol, a, start, rec)
+        return super()._refine(sol, a, start, rec, merged)
 
 
 def with_baseline(rows: list[dict]) -> list[dict]:
