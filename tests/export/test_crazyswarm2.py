@@ -204,6 +204,25 @@ def test_cflib_upload_without_cflib_is_one_line_saying_what_to_install(run_dir, 
     assert msg.startswith("cflib_upload.py: ") and "cflib" in msg and "pip install" in msg and "\n" not in msg, msg
 
 
+def test_cflib_upload_without_a_radio_is_one_line_saying_which_links(run_dir, monkeypatch, capsys):
+    """Without a Crazyradio (or a robot answering), cflib logs a traceback per link and its swarm raises from a
+    thread: about 200 lines. The upload says in one line which links did not open, and why, through cflib itself
+    (no radio here; a Crazyradio plugged in would be found)."""
+    pytest.importorskip("cflib")
+    from cflib.drivers import crazyradio
+
+    if crazyradio._find_devices():
+        pytest.skip("a Crazyradio is plugged in")
+    script = load_script(run_dir / "crazyflie" / "cflib_upload.py", "cflib_upload_radio")
+    monkeypatch.chdir(run_dir / "crazyflie")
+    with pytest.raises(SystemExit) as e:
+        script.run(["--robots", "0,1", "--compressed", "--fly"])
+    msg = str(e.value.code)
+    assert msg.startswith("cflib_upload.py: cannot open the links to radio://") and "\n" not in msg, msg
+    assert "Crazyradio" in msg and msg.count("radio://") == 2
+    assert "Traceback" not in capsys.readouterr().err
+
+
 def test_fly_py_help_flies_nothing(run_dir, monkeypatch, capsys):
     calls = []
     monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, ["cf1", "cf2", "cf3", "cf4", "cf5"])})

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 import time
 from pathlib import Path
@@ -138,6 +139,29 @@ def duration_of(elements: list[Any], compressed: bool) -> float:
     return float(sum(e.duration for e in elements))
 
 
+def open_swarm(uris: list[str], factory: Any) -> Any:
+    """A cflib ``Swarm`` of ``uris`` with its links open, or one line saying why not (no Crazyradio, a robot that does
+    not answer): cflib logs a traceback for each link it cannot open, and its swarm raises from a thread, pages of
+    them in all."""
+    from cflib.crazyflie.swarm import Swarm
+
+    swarm = Swarm(uris, factory=factory)
+    quiet = logging.getLogger("cflib")
+    level = quiet.level
+    quiet.setLevel(logging.CRITICAL)  # its tracebacks of a link that fails; the cause is said below
+    try:
+        swarm.open_links()
+    except Exception as e:
+        root: BaseException = e
+        while (root.__cause__ or root.__context__) is not None:
+            root = root.__cause__ or root.__context__  # type: ignore[assignment]
+        why = (str(root).strip().splitlines() or [type(root).__name__])[0]
+        raise SystemExit(f"cflib_upload.py: cannot open the links to {', '.join(uris)}: {why}") from None
+    finally:
+        quiet.setLevel(level)
+    return swarm
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--compressed", action="store_true", help="compressed pieces (fit 131 instead of 31)")
@@ -154,11 +178,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"compressed positions are relative to {origin.tolist()} m: the positioning system's origin must be there")
 
     import cflib.crtp
-    from cflib.crazyflie.swarm import CachedCfFactory, Swarm
+    from cflib.crazyflie.swarm import CachedCfFactory
 
     cflib.crtp.init_drivers()
     by_uri = {addresses[i]: i for i in robots}
-    with Swarm(list(by_uri), factory=CachedCfFactory(rw_cache=str(HERE / "cache"))) as swarm:
+    swarm = open_swarm(list(by_uri), CachedCfFactory(rw_cache=str(HERE / "cache")))
+    try:
         swarm.parallel_safe(lambda scf: print(scf.cf.link_uri, upload(scf.cf, elements[by_uri[scf.cf.link_uri]],
                                                                       args.compressed), "bytes"))
         if not args.fly:
@@ -176,6 +201,8 @@ def main(argv: list[str] | None = None) -> int:
         swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.land(0.04, LAND_S))
         time.sleep(LAND_S + SETTLE_S)
         swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.stop())
+    finally:
+        swarm.close_links()
     return 0
 
 
