@@ -158,14 +158,16 @@ def main() -> None:
     rows = []
     cols = ["makespan_s", "makespan_over_bound", "stops_max", "snap_integral", "min_separation_m", "min_clearance_m",
             "discrete_s", "continuous_s"]
-    print(f"{'case':<11} {'variant':<14} " + " ".join(f"{c[:13]:>13}" for c in cols))
+    width = max(len(c) for c in cols)
+    print(f"{'case':<11} {'variant':<14} " + " ".join(f"{c:>{width}}" for c in cols))
     with tempfile.TemporaryDirectory() as tmp:
         old = extract(args.baseline, Path(tmp)) if "tube" in variants else None
         for case in args.cases.split(","):
             for v in variants:
                 row = run_child(Path(__file__), ["--child", case, v], old if v == "tube" else None)
                 rows.append(row)
-                print(f"{case:<11} {row['variant']:<14} " + " ".join(f"{str(row[c]):>13}" for c in cols), flush=True)
+                print(f"{case:<11} {row['variant']:<14} " + " ".join(f"{str(row[c]):>{width}}" for c in cols),
+                      flush=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with open(args.out, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))

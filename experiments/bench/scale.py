@@ -177,7 +177,10 @@ def main() -> None:
     new = [r for r in rows if r["code"] == "new"]
     slopes = {s: exponent([r["N"] for r in new], [r[f"{s}_s"] for r in new]) for s in stages}
     slopes.update({s: exponent([r["N"] for r in new], [r[f"{s}_ms"] for r in new]) for s in ("step", *STEP_PARTS)})
-    print("fitted exponent of time in N (new): " + ", ".join(f"{s} {v:.2f}" for s, v in slopes.items()))
+    if len({r["N"] for r in new}) < 2:
+        print("fitted exponent of time in N: needs two sizes or more (--sizes)")
+    else:
+        print("fitted exponent of time in N (new): " + ", ".join(f"{s} {v:.2f}" for s, v in slopes.items()))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with open(args.out, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]) + ["baseline_ref"])

@@ -16,15 +16,20 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def table() -> str:
     """The listing, one row per backend of each registry: state, summary and capabilities."""
+    from mrfswarm.config import MrfConfig, SmoothingConfig
+
     lines = []
-    registries: tuple[tuple[str, Registry[Any]], ...] = (
-        ("QP backends (--qp)", solvers.qp.BACKENDS), ("NLP backends (--nlp)", solvers.nlp.BACKENDS),
-        ("MRF methods (--mrf)", solvers.mrf.METHODS))
-    for title, registry in registries:
+    registries: tuple[tuple[str, Registry[Any], str], ...] = (
+        ("QP backends (--qp)", solvers.qp.BACKENDS, SmoothingConfig.backend),
+        ("NLP backends (--nlp)", solvers.nlp.BACKENDS, SmoothingConfig.nlp),
+        ("MRF methods (--mrf)", solvers.mrf.METHODS, MrfConfig.method))
+    for title, registry, default in registries:
         lines.append(title)
         width = max(len(b.name) for b in registry)
         for b in registry:
             state = "installed" if b.is_available() else f"missing: {b.install_hint}"
+            if b.name == default:
+                state += ", the default"
             lines.append(f"  {b.name:<{width}}  {state:<40}  {b.summary}")
             lines.append(f"  {'':<{width}}  {'':<40}  [{', '.join(b.capabilities.flags()) or 'none'}]")
         lines.append("")

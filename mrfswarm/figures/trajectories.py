@@ -300,7 +300,7 @@ def make_fig6_seams(out: Path, quick: bool = False) -> list[Path]:
             ax.set_ylim(8, 32)
             n = nums[v]
             plots.panel_title(ax, "abc"[j], f"{titles[v]}\n{n['makespan_s']:.1f} s, stops per robot "
-                              f"{max(n['stops_per_robot'])}, snap {n['snap_integral']:.0f}, "
+                              f"{np.mean(n['stops_per_robot']):.1f}, snap {n['snap_integral']:.0f}, "
                               f"min separation {n['min_separation_m']:.2f} m")
             ts = time_series("corridor", 50.0, v)
             sp = ts.speeds()

@@ -57,6 +57,9 @@ def test_solvers_command_lists_every_registered_backend(capsys):
     for b in list(solvers.qp.BACKENDS) + list(solvers.nlp.BACKENDS) + list(solvers.mrf.METHODS):
         assert b.name in out
         assert f"[{', '.join(b.capabilities.flags()) or 'none'}]" in out  # what the record says it can do
+    # the config's defaults are marked, one per registry
+    defaults = [line.split()[0] for line in out.splitlines() if "the default" in line]
+    assert defaults == ["piqp", "ipopt", "icm"]
 
 
 def test_the_two_roots_of_the_errors():
