@@ -183,6 +183,15 @@ def test_fly_py_refuses_a_flight_that_does_not_fit(per_step_dir, monkeypatch):
     assert calls == []
 
 
+def test_fly_py_refuses_a_flight_that_does_not_fit_without_crazyswarm2_too(per_step_dir, monkeypatch):
+    """The pieces are counted before crazyflie_py is imported: on a machine without the ROS workspace the refusal
+    names the pieces, not the missing package (the docs say fly.py refuses such a plan before any link)."""
+    monkeypatch.setitem(sys.modules, "crazyflie_py", None)  # import crazyflie_py raises ImportError
+    fly = load_script(per_step_dir / "crazyswarm2" / "fly.py", "fly_per_step_no_ros")
+    with pytest.raises(SystemExit, match="33 pieces.*31 raw pieces.*--compressed"):
+        fly.main([])
+
+
 def test_fly_py_without_crazyswarm2_is_one_line_saying_what_provides_it(run_dir, monkeypatch, capsys):
     fly = load_script(run_dir / "crazyswarm2" / "fly.py", "fly_missing")
     monkeypatch.setitem(sys.modules, "crazyflie_py", None)  # import crazyflie_py raises ImportError

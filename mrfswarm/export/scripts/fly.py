@@ -5,7 +5,7 @@
    ``initial_position`` (on the ground below the planned start). Place each Crazyflie there.
 2. ``ros2 launch crazyflie launch.py crazyflies_yaml_file:=$PWD/crazyflies.yaml``
 3. ``python3 fly.py``: loads every enabled robot's trajectory and refuses, before any radio
-   link, one that does not fit (raw pieces: at most 31 fit a Crazyflie's memory; for longer
+   link (and before importing Crazyswarm2's package), one that does not fit (raw pieces: at most 31 fit a Crazyflie's memory; for longer
    plans use ``../crazyflie/cflib_upload.py --compressed``); connects, refuses a server whose
    robots are not this file's; uploads,
    takes off to the plan's altitude (a 3-D plan's: its highest start), goes to each start
@@ -57,21 +57,26 @@ def crazyflie_py():
 
 
 def load(names: list[str]) -> dict:
-    """Each robot's Crazyswarm2 ``Trajectory``, loaded from its CSV; refuses one that does not fit the memory."""
-    Trajectory = crazyflie_py().uav_trajectory.Trajectory
+    """Each robot's Crazyswarm2 ``Trajectory``, loaded from its CSV; refuses one that does not fit the memory.
 
-    out = {}
+    The CSVs' pieces (a header, then a row each) are counted before ``crazyflie_py`` is imported: a plan that
+    does not fit is refused on a machine without the Crazyswarm2 workspace too."""
+    paths = {}
     for name in names:
         path = TRAJECTORIES / f"robot_{robot_index(name)}.csv"
         if not path.is_file():
             raise SystemExit(f"fly.py: no trajectory {path} for {name}")
-        traj = Trajectory()
-        traj.loadcsv(path)
-        if traj.n_pieces() > MAX_RAW_PIECES:
-            raise SystemExit(f"fly.py: {name}'s trajectory has {traj.n_pieces()} pieces; a Crazyflie holds "
-                             f"{MAX_RAW_PIECES} raw pieces: fly it compressed with ../crazyflie/cflib_upload.py "
-                             f"--compressed --fly")
-        out[name] = traj
+        pieces = sum(1 for line in path.read_text().splitlines()[1:] if line.strip())
+        if pieces > MAX_RAW_PIECES:
+            raise SystemExit(f"fly.py: {name}'s trajectory has {pieces} pieces; a Crazyflie holds {MAX_RAW_PIECES} "
+                             "raw pieces: fly it compressed with ../crazyflie/cflib_upload.py --compressed --fly")
+        paths[name] = path
+    Trajectory = crazyflie_py().uav_trajectory.Trajectory
+
+    out = {}
+    for name, path in paths.items():
+        out[name] = traj = Trajectory()
+        traj.loadcsv(path)  # a row a piece, as counted above
     return out
 
 
