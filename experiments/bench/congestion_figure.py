@@ -2,7 +2,7 @@
 
 Writes ``docs/figures/congestion_big200.png``: the swarm at steps 60, 120 and 180 of its
 discrete plan, with ``goal_potential.congestion = 0`` (the static geodesic field) above and
-the default below. Discrete stage only (a few seconds per plan).
+the default below. Discrete stage only (about half a minute per plan).
 
     python experiments/bench/congestion_figure.py
 """
