@@ -57,11 +57,12 @@ class PairwiseMRF:
         if unary.ndim != 2 or unary.shape[0] < 1 or unary.shape[1] < 1:
             raise InvalidProblem(f"unary must be (N, L) with N, L >= 1, got shape {unary.shape}")
         N, L = unary.shape
-        edges = np.asarray(self.edges, dtype=np.intp).reshape(-1, 2)
-        pairwise = np.ascontiguousarray(self.pairwise, dtype=float).reshape(-1, L, L) if len(edges) else np.zeros((0, L, L))
-        conflicts = np.asarray(self.conflicts, dtype=np.intp).reshape(-1, 2)
-        cmask = np.asarray(self.conflict_mask, dtype=bool).reshape(-1, L, L) if len(conflicts) else np.zeros((0, L, L), bool)
-        initial = np.asarray(self.initial, dtype=np.intp).reshape(-1)
+        # shapes checked, not reshaped: (3, 2) edges given as (2, 3) were read as other edges
+        edges = _rows("edges", self.edges, (2,), np.intp)
+        pairwise = _rows("pairwise", self.pairwise, (L, L), float) if len(edges) else np.zeros((0, L, L))
+        conflicts = _rows("conflicts", self.conflicts, (2,), np.intp)
+        cmask = _rows("conflict_mask", self.conflict_mask, (L, L), bool) if len(conflicts) else np.zeros((0, L, L), bool)
+        initial = _rows("initial", self.initial, (), np.intp)
         if np.isnan(unary).any() or np.isneginf(unary).any():
             raise InvalidProblem("unary costs must not be NaN or -inf")
         finite = np.isfinite(unary)
@@ -154,3 +155,18 @@ def repair(mrf: PairwiseMRF, labels: np.ndarray) -> tuple[np.ndarray, int]:
             return x, int(np.count_nonzero(reverted & (x != np.asarray(labels))))
         bad = np.zeros(mrf.n_nodes, dtype=bool)
         bad[mrf.conflicts[viol].ravel()] = True
+
+
+def _rows(name: str, value: object, tail: tuple[int, ...], dtype: type) -> np.ndarray:
+    """``value`` as an (m, *tail) array of ``dtype`` (empty: m = 0), or InvalidProblem naming its shape; integer
+    arrays must hold whole numbers (0.7 as a label was read as 0)."""
+    a = np.asarray(value)
+    if a.size == 0:
+        return np.zeros((0, *tail), dtype=dtype)
+    if a.ndim != 1 + len(tail) or a.shape[1:] != tail:
+        want = ", ".join(["m", *map(str, tail)])
+        raise InvalidProblem(f"{name} must have shape ({want}), got {a.shape}")
+    if dtype is np.intp and a.dtype.kind not in "iu":
+        if a.dtype.kind not in "fb" or not np.all(np.isfinite(a)) or np.any(a != np.round(a)):
+            raise InvalidProblem(f"{name} must hold whole numbers")
+    return np.ascontiguousarray(a, dtype=dtype)

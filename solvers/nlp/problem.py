@@ -81,6 +81,9 @@ class NLPProblem:
             if np.any(lo > hi):
                 i = int(np.argmax(lo > hi))
                 raise InvalidProblem(f"{name}lower[{i}] = {lo[i]} > upper[{i}] = {hi[i]}")
+            if np.any(lo == np.inf) or np.any(hi == -np.inf):  # no x meets such a bound
+                i = int(np.argmax((lo == np.inf) | (hi == -np.inf)))
+                raise InvalidProblem(f"{name}lower[{i}] = {lo[i]}, upper[{i}] = {hi[i]}: no x meets it")
         slack = START_SLACK * np.maximum(1.0, np.abs(x0))
         outside = (x0 < lower - slack) | (x0 > upper + slack)
         if np.any(outside):

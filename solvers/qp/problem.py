@@ -63,6 +63,10 @@ def _is_symmetric(P: sp.csc_matrix, rtol: float = 1e-9) -> bool:
     return perm is not None and bool(np.all(np.abs(nz.data[perm[0]] - nz.data[perm[1]]) <= rtol * scale))
 
 
+#: Relative size below which a negative diagonal entry of P counts as rounding (see QPProblem).
+DIAGONAL_TOL = 1e-12
+
+
 @dataclass(frozen=True, eq=False)
 class QPProblem:
     """A validated quadratic program in standard form.
@@ -76,7 +80,10 @@ class QPProblem:
     A
         (m, n) constraint matrix, converted to CSC; m may be 0.
     l, u
-        (m,) lower and upper bounds; ``-inf``/``inf`` allowed, ``l <= u``.
+        (m,) lower and upper bounds; ``-inf``/``inf`` allowed, ``l <= u``, ``l < inf``, ``u > -inf``.
+
+    Positive semidefiniteness is the caller's to ensure: only its necessary condition, a diagonal without
+    negative entries, is checked (the whole check would cost more than most solves).
     """
 
     P: sp.csc_matrix
@@ -109,9 +116,18 @@ class QPProblem:
         if np.any(l > u):
             i = int(np.argmax(l > u))
             raise InvalidProblem(f"l[{i}] = {l[i]} > u[{i}] = {u[i]}")
+        if np.any(l == np.inf) or np.any(u == -np.inf):  # no x meets such a row (OSQP "solved" one to x ~ 1e29)
+            i = int(np.argmax((l == np.inf) | (u == -np.inf)))
+            raise InvalidProblem(f"row {i}: l = {l[i]}, u = {u[i]}: no x meets it (l < inf and u > -inf needed)")
         P, A = _sorted(P), _sorted(A)
         if not _is_symmetric(P):
             raise InvalidProblem("P must be symmetric (store the whole matrix, not a triangle)")
+        diagonal = P.diagonal()
+        if diagonal.size and diagonal.min() < -DIAGONAL_TOL * max(1.0, float(np.abs(diagonal).max())):
+            # a necessary condition of PSD, checked for free (the whole check would cost more than a solve): with
+            # P = -I most backends returned "optimal" at the maximizer of an unbounded problem
+            i = int(np.argmin(diagonal))
+            raise InvalidProblem(f"P[{i}, {i}] = {diagonal[i]:g} < 0: P must be positive semidefinite")
         object.__setattr__(self, "P", P)
         object.__setattr__(self, "q", q)
         object.__setattr__(self, "A", A)

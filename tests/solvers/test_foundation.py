@@ -25,6 +25,29 @@ def test_qp_problem_validation():
         qp.QPProblem(P=sp.csc_matrix(np.array([[1.0, 1.0], [0.0, 1.0]])), q=q, A=A, l=np.zeros(1), u=np.ones(1))
     with pytest.raises(InvalidProblem, match="finite"):
         qp.QPProblem(P=P, q=np.array([np.nan, 0.0]), A=A, l=np.zeros(1), u=np.ones(1))
+    # a row no x meets: OSQP answered "optimal" at x ~ 1e29, CasADi with a page of its internals
+    for l, u in (([np.inf], [np.inf]), ([-np.inf], [-np.inf])):
+        with pytest.raises(InvalidProblem, match="row 0.*no x meets it"):
+            qp.QPProblem(P=P, q=q, A=A, l=np.array(l), u=np.array(u))
+    # P = -I: most backends returned "optimal" at the maximizer of an unbounded problem
+    with pytest.raises(InvalidProblem, match="P\\[0, 0\\] = -1 < 0: P must be positive semidefinite"):
+        qp.QPProblem(P=-sp.eye(2), q=q, A=A, l=np.ones(1), u=np.ones(1))
+    qp.QPProblem(P=sp.csc_matrix(np.diag([1.0, -1e-16])), q=q, A=A, l=np.ones(1), u=np.ones(1))  # rounding
+
+
+def test_nlp_problem_refuses_bounds_no_x_meets():
+    from solvers.nlp import NLPProblem
+
+    def f(x):
+        return float(x @ x)
+
+    def g(x):
+        return 2 * x
+
+    with pytest.raises(InvalidProblem, match="A x: lower\\[0\\] = inf, upper\\[0\\] = inf: no x meets it"):
+        NLPProblem(f, g, np.zeros(2), A=np.ones((1, 2)), lb=np.inf, ub=np.inf)
+    with pytest.raises(InvalidProblem, match="lower\\[1\\] = -inf, upper\\[1\\] = -inf"):
+        NLPProblem(f, g, np.zeros(2), lower=-np.inf, upper=np.array([1.0, -np.inf]))
 
 
 def test_mrf_problem_rejects_infeasible_initial():
@@ -33,6 +56,20 @@ def test_mrf_problem_rejects_infeasible_initial():
             unary=np.zeros((2, 2)), edges=np.zeros((0, 2)), pairwise=np.zeros((0, 2, 2)),
             conflicts=[[0, 1]], conflict_mask=[[[True, False], [False, False]]], initial=[0, 0],
         )
+
+
+def test_mrf_problem_checks_its_shapes():
+    """Arrays of the wrong shape were reshaped into other problems: 3 edges given as (2, 3) were read as other
+    edges, one table for 2 edges as two; a label 0.7 was read as 0."""
+    base = dict(unary=np.zeros((3, 2)), edges=[[0, 1], [1, 2]], pairwise=np.zeros((2, 2, 2)),
+                conflicts=np.zeros((0, 2)), conflict_mask=np.zeros((0, 2, 2), bool), initial=[0, 0, 0])
+    mrf.PairwiseMRF(**base)
+    for key, value, message in (("edges", [[0, 1, 2], [1, 2, 0]], r"edges must have shape \(m, 2\), got \(2, 3\)"),
+                                ("pairwise", np.zeros((1, 4, 2)), r"pairwise must have shape \(m, 2, 2\), got \(1, 4, 2\)"),
+                                ("pairwise", np.zeros((2, 3, 3)), r"pairwise must have shape \(m, 2, 2\)"),
+                                ("initial", [0.7, 0, 0], "initial must hold whole numbers")):
+        with pytest.raises(InvalidProblem, match=message):
+            mrf.PairwiseMRF(**{**base, key: value})
 
 
 def test_repair_returns_feasible_labelling():
