@@ -90,8 +90,8 @@ def check_output_dir(out: Path, overwrite: bool = False, marker: str = RUN_MARKE
         raise ExportError(f"output folder {str(out)!r} holds files that are not an mrfswarm {what}'s ({listed}: no "
                           f"{marker}); choose another --out")
     if not overwrite:
-        raise ExportError(f"output folder {str(out)!r} already holds a {what} ({listed}); give --overwrite to replace "
-                          f"it, or another --out")
+        raise ExportError(f"output folder {str(out)!r} already holds a {what} ({listed}); give --overwrite "
+                          f"(overwrite=True) to replace it, or another --out")
 
 
 def set_aside(out: Path) -> Path | None:

@@ -1,4 +1,4 @@
-"""``plan``: a scenario config in, discrete paths (and later trajectories) and metrics out."""
+"""``plan``: a scenario config in; discrete paths, smooth certified trajectories, the flight and metrics out."""
 
 from __future__ import annotations
 
@@ -370,12 +370,13 @@ def qp_options(cfg: Config) -> solvers.qp.Options:
 
 def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None = None, nlp: str | None = None,
          seed: int | None = None, progress: bool | None = None, workers: int | None = None) -> Result:
-    """Plan a scenario: the discrete stage, waypoint pruning, metrics.
+    """Plan a scenario: the discrete stage, waypoint pruning, metrics, the continuous stage (``smoothing.enabled``)
+    and the flight simulation (``simulation.enabled``).
 
     Parameters
     ----------
     config
-        A :class:`Config` or a path to a TOML config.
+        A :class:`Config` or a path to a TOML config (None: the default config).
     mrf, qp, nlp
         Shorthands for the config keys ``mrf.method`` (the MRF method, a name of
         ``solvers.mrf.METHODS``), ``smoothing.backend`` (the QP backend, a name of
@@ -410,6 +411,8 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         raise ConfigError(f"seed = {seed!r}: must be an integer >= 0")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, numbers.Integral) or workers < 1):
         raise ConfigError(f"workers = {workers!r}: must be a whole number >= 1")
+    # a NumPy integer as a Python one: in the config it reached result.json, which json could not write
+    seed, workers = (None if v is None else int(v) for v in (seed, workers))
     cfg = with_seed(resolve_config(config, mrf=mrf, qp=qp, nlp=nlp), seed)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()

@@ -114,6 +114,25 @@ def test_plan_refuses_a_negative_seed():
         mrfswarm.plan(FREE5, seed=-1)
 
 
+def test_a_numpy_integer_seed_is_a_seed(tmp_path):
+    """plan() takes any integer as the seed; a NumPy one went into the config as such, and result.json could not be
+    written ("Object of type int64 is not JSON serializable"); with a sampled start the scenario refused it under
+    a key the user never set."""
+    import json
+
+    import numpy as np
+
+    import mrfswarm
+    from mrfswarm.outputs import write_outputs
+
+    quick = ["smoothing.enabled=false", "simulation.enabled=false"]
+    r = mrfswarm.plan(mrfswarm.load_config(FREE5, overrides=quick), seed=np.int64(3), workers=np.int64(1))
+    assert json.loads(json.dumps(r.summary()))["config"]["mrf"]["options"]["seed"] == 3
+    write_outputs(r, tmp_path / "out")
+    plain = mrfswarm.plan(mrfswarm.load_config(FREE5, overrides=quick), seed=3)
+    np.testing.assert_array_equal(r.discrete.paths, plain.discrete.paths)
+
+
 @pytest.mark.parametrize("workers", [0, -1, 1.5, "2", True])
 def test_plan_refuses_bad_workers_before_any_work(workers):
     import mrfswarm
