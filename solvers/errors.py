@@ -20,6 +20,10 @@ class InvalidProblem(SolversError, ValueError):
     """A problem handed to a solver that is malformed (shapes, NaN, bounds) or beyond the backend."""
 
 
+class InvalidOptions(SolversError, ValueError):
+    """Solver options of the wrong type or out of range (``Options(max_iter=0)``)."""
+
+
 class SolverError(SolversError, RuntimeError):
     """A backend failed; ``status`` carries the backend's own status text."""
 

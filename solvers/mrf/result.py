@@ -6,6 +6,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from solvers.errors import InvalidOptions
+from solvers.options import check_fields
+
 
 @dataclass(frozen=True)
 class Options:
@@ -62,26 +65,27 @@ class Options:
     polish: bool = False
 
     def __post_init__(self) -> None:
+        check_fields(self)
         if self.max_iter < 1:
-            raise ValueError(f"max_iter must be >= 1, got {self.max_iter}")
+            raise InvalidOptions(f"max_iter must be >= 1, got {self.max_iter}")
         if not self.tol >= 0:
-            raise ValueError(f"tol must be >= 0, got {self.tol}")
+            raise InvalidOptions(f"tol must be >= 0, got {self.tol}")
         if self.seed < 0:
-            raise ValueError(f"seed must be >= 0, got {self.seed}")
+            raise InvalidOptions(f"seed must be >= 0, got {self.seed}")
         if self.time_limit is not None and not self.time_limit > 0:
-            raise ValueError(f"time_limit must be positive, got {self.time_limit}")
+            raise InvalidOptions(f"time_limit must be positive, got {self.time_limit}")
         if self.temperature is not None and not (0 < self.temperature < float("inf")):
-            raise ValueError(f"temperature must be positive and finite, got {self.temperature}")
+            raise InvalidOptions(f"temperature must be positive and finite, got {self.temperature}")
         if self.schedule not in ("geometric", "log"):
-            raise ValueError(f"schedule must be 'geometric' or 'log', got {self.schedule!r}")
+            raise InvalidOptions(f"schedule must be 'geometric' or 'log', got {self.schedule!r}")
         if not 0 < self.cooling < 1:
-            raise ValueError(f"cooling must be in (0, 1), got {self.cooling}")
+            raise InvalidOptions(f"cooling must be in (0, 1), got {self.cooling}")
         if not 0 <= self.damping < 1:
-            raise ValueError(f"damping must be in [0, 1), got {self.damping}")
+            raise InvalidOptions(f"damping must be in [0, 1), got {self.damping}")
         if self.conflict_penalty is not None and not (0 <= self.conflict_penalty < float("inf")):
-            raise ValueError(f"conflict_penalty must be finite and >= 0, got {self.conflict_penalty}")
+            raise InvalidOptions(f"conflict_penalty must be finite and >= 0, got {self.conflict_penalty}")
         if self.max_flip < 1:
-            raise ValueError(f"max_flip must be >= 1, got {self.max_flip}")
+            raise InvalidOptions(f"max_flip must be >= 1, got {self.max_flip}")
 
 
 @dataclass(frozen=True)

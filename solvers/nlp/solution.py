@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from solvers.errors import InvalidOptions
+from solvers.options import check_fields
 from solvers.status import Status
 
 __all__ = ["Options", "Outcome", "Solution", "Status"]
@@ -37,12 +39,13 @@ class Options:
     verbose: bool = False
 
     def __post_init__(self) -> None:
+        check_fields(self)
         if not self.tol > 0:
-            raise ValueError(f"tol must be positive, got {self.tol}")
+            raise InvalidOptions(f"tol must be positive, got {self.tol}")
         if self.max_iter < 1:
-            raise ValueError(f"max_iter must be >= 1, got {self.max_iter}")
+            raise InvalidOptions(f"max_iter must be >= 1, got {self.max_iter}")
         if self.time_limit is not None and not self.time_limit > 0:
-            raise ValueError(f"time_limit must be positive, got {self.time_limit}")
+            raise InvalidOptions(f"time_limit must be positive, got {self.time_limit}")
 
 
 @dataclass(frozen=True)

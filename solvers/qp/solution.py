@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from solvers.errors import InvalidOptions
+from solvers.options import check_fields
 from solvers.status import Status
 
 __all__ = ["Options", "Solution", "Status"]
@@ -48,12 +50,13 @@ class Options:
     scaling: bool = True
 
     def __post_init__(self) -> None:
+        check_fields(self)
         if not (self.eps_abs > 0 and self.eps_rel >= 0):
-            raise ValueError(f"tolerances must be positive, got eps_abs={self.eps_abs}, eps_rel={self.eps_rel}")
+            raise InvalidOptions(f"tolerances must be positive, got eps_abs={self.eps_abs}, eps_rel={self.eps_rel}")
         if self.max_iter < 1:
-            raise ValueError(f"max_iter must be >= 1, got {self.max_iter}")
+            raise InvalidOptions(f"max_iter must be >= 1, got {self.max_iter}")
         if self.time_limit is not None and not self.time_limit > 0:
-            raise ValueError(f"time_limit must be positive, got {self.time_limit}")
+            raise InvalidOptions(f"time_limit must be positive, got {self.time_limit}")
 
 
 @dataclass(frozen=True)

@@ -99,12 +99,28 @@ def test_solvers_command_lists_every_registered_backend(capsys):
     assert defaults == ["piqp", "ipopt", "icm"]
 
 
+def test_bad_options_are_invalid_options_naming_the_field():
+    """Options of the wrong type failed with Python's own TypeError ("'<' not supported between instances of 'str'
+    and 'int'"), out of range with a bare ValueError: both are InvalidOptions now (a ValueError still)."""
+    from solvers import InvalidOptions, nlp
+
+    for make, message in ((lambda: qp.Options(max_iter="10"), r"Options.max_iter = '10': must be int"),
+                          (lambda: mrf.Options(seed="x"), r"Options.seed = 'x': must be int"),
+                          (lambda: nlp.Options(time_limit="1"), r"Options.time_limit = '1': must be float or None"),
+                          (lambda: qp.Options(eps_abs=-1.0), "tolerances must be positive"),
+                          (lambda: mrf.Options(cooling=2.0), r"cooling must be in \(0, 1\)")):
+        with pytest.raises(InvalidOptions, match=message) as e:
+            make()
+        assert isinstance(e.value, (solvers.SolversError, ValueError))
+    assert qp.Options(max_iter=np.int64(5), eps_abs=np.float64(1e-6), time_limit=None).max_iter == 5
+
+
 def test_the_two_roots_of_the_errors():
     """The numerical layer's root is its own; the domain's derives from it; the CLI catches both."""
     from mrfswarm.errors import ConfigError, MrfswarmError, PlanError
 
     assert solvers.SolversError.__name__ == "SolversError" and not issubclass(solvers.SolversError, MrfswarmError)
-    for cls in (SolverNotFound, InvalidProblem, solvers.SolverError, solvers.InfeasibleError):
+    for cls in (SolverNotFound, InvalidProblem, solvers.InvalidOptions, solvers.SolverError, solvers.InfeasibleError):
         assert issubclass(cls, solvers.SolversError) and not issubclass(cls, MrfswarmError)
     for cls in (MrfswarmError, ConfigError, PlanError):
         assert issubclass(cls, solvers.SolversError)
