@@ -57,6 +57,19 @@ def casadi_nlp(problem: NLPProblem) -> CasadiNLP:
     def _inside(x) -> np.ndarray:
         return np.clip(np.asarray(x, dtype=float).reshape(-1), problem.lower, problem.upper)
 
+    failed: list[Exception] = []  # a callable raised: CasADi printed its traceback (and its own lines) per raise
+
+    def _quiet(call, x, shape):
+        """``call(x)``, or NaN of ``shape`` once a call raised: the exception is the dispatch's to raise after the
+        solve (it recorded it), and CasADi sees a point without a value instead of a Python error to print."""
+        if failed:
+            return np.full(shape, np.nan)
+        try:
+            return np.asarray(call(x), dtype=float).reshape(shape)
+        except Exception as e:
+            failed.append(e)
+            return np.full(shape, np.nan)
+
     class _Gradient(ca.Callback):
         def __init__(self, name: str) -> None:
             ca.Callback.__init__(self)
@@ -75,7 +88,7 @@ def casadi_nlp(problem: NLPProblem) -> CasadiNLP:
             return ca.Sparsity.dense(1, n)
 
         def eval(self, arg):
-            return [problem.grad(_inside(arg[0])).reshape(1, n)]
+            return [_quiet(problem.grad, _inside(arg[0]), (1, n))]
 
     class _Objective(ca.Callback):
         def __init__(self, name: str) -> None:
@@ -95,7 +108,7 @@ def casadi_nlp(problem: NLPProblem) -> CasadiNLP:
             return ca.Sparsity.dense(1, 1)
 
         def eval(self, arg):
-            return [problem.fun(_inside(arg[0]))]
+            return [_quiet(problem.fun, _inside(arg[0]), (1, 1))]
 
         def has_jacobian(self) -> bool:
             return True

@@ -188,8 +188,9 @@ class Boom(Exception):
 
 
 @pytest.mark.parametrize("name", NAMES, ids=str)
-def test_an_error_of_the_callable_reaches_the_caller_as_itself(name):
-    """Also through CasADi, which turns it into its own RuntimeError."""
+def test_an_error_of_the_callable_reaches_the_caller_as_itself(name, capfd):
+    """Also through CasADi, which turns it into its own RuntimeError; and quietly: through Ipopt and sqpmethod the
+    caller got the right exception after a Python traceback and CasADi's lines on stderr."""
     installed(name)
     p = refs.rosenbrock().problem
 
@@ -200,6 +201,8 @@ def test_an_error_of_the_callable_reaches_the_caller_as_itself(name):
 
     with pytest.raises(Boom, match="cannot evaluate"):
         nlp.minimize(p.with_functions(fun, p.grad), name)
+    printed = capfd.readouterr()
+    assert "Traceback" not in printed.err + printed.out and "Boom" not in printed.err + printed.out
 
 
 @pytest.mark.parametrize("name", NAMES, ids=str)
