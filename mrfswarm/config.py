@@ -18,6 +18,8 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
+import numpy as np
+
 from mrfswarm.errors import ConfigError, DeprecatedKeyWarning
 from mrfswarm.file_input import read_text
 from mrfswarm.maps import LOADERS
@@ -539,7 +541,7 @@ def from_dict(data: dict, base_dir: Path | str = ".") -> Config:
         Unknown key, wrong type or out-of-range value; the message names the key.
     """
     types = _section_types()
-    data = _current_names(data)
+    data = _current_names(_plain(data))
     for key in data:
         if key not in types:
             raise ConfigError(f"unknown config section {key!r}; allowed: {', '.join(types)}")
@@ -547,6 +549,20 @@ def from_dict(data: dict, base_dir: Path | str = ".") -> Config:
     cfg = Config(**sections, base_dir=Path(base_dir))
     _validate(cfg)
     return cfg
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with NumPy arrays and scalars as the lists and numbers TOML gives (a start of positions built
+    with NumPy was refused in a message of six lines, ``interaction.k = np.int64(2)`` as not an integer)."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_plain(v) for v in value)
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 def parse_override(item: str) -> tuple[list[str], Any]:
@@ -633,6 +649,8 @@ def load_config(path: str | Path | None = None, overrides: list[str] | None = No
             raise ConfigError(f"{p}: invalid TOML: {e}") from e
         base = p.resolve().parent
     data = _current_names(data)  # before the overrides, which set current names
+    if isinstance(overrides, str):  # each character was read as an override ("--set 'i': expected KEY=VALUE")
+        raise ConfigError(f"overrides = {overrides!r:.60}: a list of 'KEY=VALUE' strings, not one string")
     if overrides:
         data = apply_overrides(data, overrides)
     return from_dict(data, base)

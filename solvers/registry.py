@@ -80,12 +80,12 @@ class Backend(Generic[C]):
 class Registry(Generic[C]):
     """A preference-ordered, read-only mapping of name -> :class:`Backend`."""
 
-    def __init__(self, kind: str, backends: list[Backend[C]]) -> None:
-        self.kind = kind
+    def __init__(self, kind: str, backends: list[Backend[C]], noun: str = "backend") -> None:
+        self.kind, self.noun = kind, noun  # noun: what the kind calls its entries ("MRF method")
         self._backends: dict[str, Backend[C]] = {}
         for b in backends:
             if b.name in self._backends:
-                raise ValueError(f"duplicate {kind} backend {b.name!r}")
+                raise ValueError(f"duplicate {kind} {noun} {b.name!r}")
             self._backends[b.name] = b
 
     def __iter__(self) -> Iterator[Backend[C]]:
@@ -123,9 +123,9 @@ class Registry(Generic[C]):
             return b
         installed = ", ".join(self.available()) or "none"
         if b is None:
-            raise SolverNotFound(f"unknown {self.kind} backend {name!r}; installed: {installed}")
+            raise SolverNotFound(f"unknown {self.kind} {self.noun} {name!r}; installed: {installed}")
         missing = [m for m in b.requires if importlib.util.find_spec(m) is None]
         raise SolverNotFound(
-            f"{self.kind} backend {name!r} is not installed (missing module "
+            f"{self.kind} {self.noun} {name!r} is not installed (missing module "
             f"{', '.join(missing)}): {b.install_hint}; installed: {installed}"
         )

@@ -257,3 +257,23 @@ def test_a_config_that_is_neither_a_path_nor_a_config_is_a_config_error(config):
         load_config(config)
     with pytest.raises(ConfigError, match="a config is a path to a TOML file"):
         mrfswarm.plan(config)
+
+
+def test_numpy_values_in_a_config_dict_are_plain_values():
+    """A researcher builds starts with NumPy: an array of positions was refused in a six-line message, and
+    ``np.int64(2)`` as k as "not an integer"."""
+    import numpy as np
+
+    from mrfswarm.config import from_dict
+
+    positions = np.array([[2.0, 2.0], [2.0, 4.0], [4.0, 2.0], [4.0, 4.0]])
+    cfg = from_dict({"scenario": {"map": {"kind": "free", "size": [20, 20]}, "goal": np.array([15, 10]),
+                                  "start": {"positions": positions}},
+                     "interaction": {"k": np.int64(2)}, "smoothing": {"v_max": np.float64(1.5)}})
+    assert cfg.interaction.k == 2 and type(cfg.interaction.k) is int and cfg.smoothing.v_max == 1.5
+    assert [list(p) for p in cfg.scenario.start["positions"]] == positions.tolist()
+
+
+def test_overrides_given_as_one_string_are_refused():
+    with pytest.raises(ConfigError, match=r"^overrides = 'interaction.k=2': a list of 'KEY=VALUE' strings"):
+        load_config(None, overrides="interaction.k=2")  # type: ignore[arg-type]

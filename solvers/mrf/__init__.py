@@ -30,6 +30,7 @@ METHODS: Registry[MRFCapabilities] = Registry(
         lazy_flipper.BACKEND,
         exact.BACKEND,
     ],
+    noun="method",
 )
 
 DEFAULT_METHOD = "icm"

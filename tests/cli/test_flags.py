@@ -18,7 +18,7 @@ BAD = {
     "run --seed text": (["run", FREE5, "--seed", "x", "--out", "OUT"], "argument --seed: must be an integer >= 0"),
     "run --out a file": (["run", FREE5, "--out", "FILE"], "argument --out: .* is a file, not a folder"),
     "run --out under a file": (["run", FREE5, "--out", "FILE/sub"], "argument --out: .* lies under the file"),
-    "run --mrf unknown": (["run", FREE5, "--mrf", "nope", "--out", "OUT"], "unknown MRF backend 'nope'"),
+    "run --mrf unknown": (["run", FREE5, "--mrf", "nope", "--out", "OUT"], "unknown MRF method 'nope'"),
     "run --qp unknown": (["run", FREE5, "--qp", "nope", "--out", "OUT"], "unknown QP backend 'nope'"),
     "run --qp unknown, smoothing off": (["run", FREE5, "--qp", "nope", "--set", "smoothing.enabled=false", "--out", "OUT"],
                                         "unknown QP backend 'nope'"),

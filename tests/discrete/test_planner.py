@@ -117,5 +117,5 @@ def test_mrf_step_uses_the_registry():
     free = np.ones((8, 8), bool)
     problem = DiscreteProblem(free=free, static=np.zeros((8, 8)), start=np.array([[1, 1], [4, 4]]), goal=None,
                               morse=Morse(), k=1)
-    with pytest.raises(SolverNotFound, match="unknown MRF backend 'nope'"):
+    with pytest.raises(SolverNotFound, match="unknown MRF method 'nope'"):
         mrf_step(problem, problem.start, "nope")
