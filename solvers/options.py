@@ -23,10 +23,14 @@ _ACCEPTS: dict[type, typing.Callable[[object], bool]] = {
 }
 
 
+_HINTS: dict[type, dict[str, typing.Any]] = {}  # each options class's declared field types, resolved once
+
+
 def check_fields(options: object) -> None:
     """Raise :class:`InvalidOptions` naming the first field of the dataclass ``options`` whose value is not of its
     declared type (``int``, ``float``, ``bool``, ``str``, or one of them or None)."""
-    hints = typing.get_type_hints(type(options))
+    cls = type(options)
+    hints = _HINTS.get(cls) or _HINTS.setdefault(cls, typing.get_type_hints(cls))
     for field in dataclasses.fields(options):  # type: ignore[arg-type]
         hint, value = hints[field.name], getattr(options, field.name)
         kinds = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
