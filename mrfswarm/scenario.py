@@ -165,13 +165,15 @@ def goal_cell(goal: tuple[float, ...], grid: OccupancyGrid) -> np.ndarray:
 
     Raises
     ------
+    ConfigError
+        The wrong number of coordinates (as for a start position: the value's shape).
     ScenarioError
-        Naming the goal: the wrong number of coordinates, off the map, in an obstacle.
+        Naming the goal: off the map, in an obstacle.
     """
     g = np.asarray(goal, dtype=float)
     if g.shape != (grid.ndim,):
-        raise ScenarioError(f"scenario.goal = {[float(v) for v in g]!r}: {g.size} coordinates on a {grid.ndim}-D map, "
-                            f"give {AXES[grid.ndim]}")
+        raise ConfigError(f"scenario.goal = {[float(v) for v in g]!r}: {g.size} coordinates on a {grid.ndim}-D map, "
+                          f"give {AXES[grid.ndim]}")
     gc = grid.world_to_cell(g)
     if not grid.in_bounds(gc):
         raise ScenarioError(f"scenario.goal {format_point(g)} is off the map ({map_box(grid)})")

@@ -7,7 +7,7 @@ import pytest
 
 from mrfswarm.config import from_dict, load_config
 from mrfswarm.discrete.start import start_cells
-from mrfswarm.errors import ScenarioError
+from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import load_map
 from mrfswarm.pipeline import plan
@@ -77,7 +77,8 @@ def test_build_scenario_reads_the_downwash_and_the_goal_in_3d():
             "goal": [6, 4, 2], "downwash": 2.0}
     with pytest.raises(ScenarioError, match=r"scenario\.downwash = 2 needs 2"):
         build_scenario(from_dict({"scenario": base, "interaction": {"k": 1}}))
-    with pytest.raises(ScenarioError, match=r"scenario\.goal = \[6\.0, 4\.0\]: 2 coordinates on a 3-D map"):
+    # the wrong number of coordinates is a ConfigError, for the goal as for a start position
+    with pytest.raises(ConfigError, match=r"scenario\.goal = \[6\.0, 4\.0\]: 2 coordinates on a 3-D map"):
         build_scenario(from_dict({"scenario": {**base, "start": {"positions": [[1, 1, 0], [1, 1, 2]]},
                                                "goal": [6, 4]}, "interaction": {"k": 1}}))
 

@@ -186,15 +186,18 @@ def test_goal_cell_in_3d():
     assert goal_cell((8.2, 6.9, 3.6), room()).tolist() == [8, 7, 4]
 
 
-@pytest.mark.parametrize("goal, grid, match", [
-    ((8.0, 6.0), "3d", r"^scenario\.goal = \[8\.0, 6\.0\]: 2 coordinates on a 3-D map, give \[x, y, z\]$"),
-    ((1.0, 2.0, 3.0), "2d", r"^scenario\.goal = \[1\.0, 2\.0, 3\.0\]: 3 coordinates on a 2-D map, give \[x, y\]$"),
-    ((5.0, 4.0, 1.0), "3d", r"^scenario\.goal \(5, 4, 1\) is inside an obstacle \(cell \(5, 4, 1\)\)$"),
-    ((5.0, 4.0, 5.0), "3d", r"^scenario\.goal \(5, 4, 5\) is off the map \(x in .*, z in \[-0\.5, 4\.5\)\)$"),
-    ((-1.0, 2.0), "2d", r"^scenario\.goal \(-1, 2\) is off the map \(x in \[-0\.5, .*\)\)$"),
+@pytest.mark.parametrize("goal, grid, error, match", [
+    # the wrong number of coordinates: a ConfigError, as for a start position
+    ((8.0, 6.0), "3d", ConfigError, r"^scenario\.goal = \[8\.0, 6\.0\]: 2 coordinates on a 3-D map, give \[x, y, z\]$"),
+    ((1.0, 2.0, 3.0), "2d", ConfigError,
+     r"^scenario\.goal = \[1\.0, 2\.0, 3\.0\]: 3 coordinates on a 2-D map, give \[x, y\]$"),
+    ((5.0, 4.0, 1.0), "3d", ScenarioError, r"^scenario\.goal \(5, 4, 1\) is inside an obstacle \(cell \(5, 4, 1\)\)$"),
+    ((5.0, 4.0, 5.0), "3d", ScenarioError,
+     r"^scenario\.goal \(5, 4, 5\) is off the map \(x in .*, z in \[-0\.5, 4\.5\)\)$"),
+    ((-1.0, 2.0), "2d", ScenarioError, r"^scenario\.goal \(-1, 2\) is off the map \(x in \[-0\.5, .*\)\)$"),
 ])
-def test_bad_goals_name_the_value(goal, grid, match):
+def test_bad_goals_name_the_value(goal, grid, error, match):
     g = room() if grid == "3d" else load_map({"kind": "free", "size": [5, 5]}, ".")
-    with pytest.raises(ScenarioError, match=match) as e:
+    with pytest.raises(error, match=match) as e:
         goal_cell(goal, g)
     one_line(e)
