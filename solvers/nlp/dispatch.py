@@ -21,6 +21,7 @@ from solvers.nlp.capabilities import NLPCapabilities
 from solvers.nlp.evaluation import Evaluations
 from solvers.nlp.problem import NLPProblem
 from solvers.nlp.solution import Options, Outcome, Solution
+from solvers.nlp.verdict import ACCEPTABLE, first_order_residual, rows_feasible
 from solvers.registry import Backend, Registry
 from solvers.status import Status
 
@@ -52,13 +53,38 @@ def _accepts(record: Backend[NLPCapabilities], problem: NLPProblem) -> None:
                              f"(installed backends that take them: {able})")
 
 
+def _verdict(problem: NLPProblem, x: np.ndarray, objective: float, status: Status) -> Status:
+    """The backend's status as every backend's would be (:mod:`solvers.nlp.verdict`): never optimal where ``f``
+    is not finite (sqpmethod can end on a failed line search's point); ``INFEASIBLE`` exactly when no ``x``
+    meets the bounds and rows; a failure (``ERROR``) at a first-order point ``OPTIMAL_INACCURATE``."""
+    if status.ok and not np.isfinite(objective):
+        return Status.ERROR
+    if status in (Status.INFEASIBLE, Status.ERROR, Status.MAX_ITER) and problem.has_linear_rows:
+        if not rows_feasible(problem):
+            return Status.INFEASIBLE
+        if status is Status.INFEASIBLE:  # a local verdict (Ipopt's restoration failed): the rows admit points
+            status = Status.ERROR
+    if status is Status.ERROR and np.isfinite(objective):
+        try:
+            g = np.asarray(problem.grad(x), dtype=float).reshape(-1)
+        except Exception:  # the user's gradient: no verdict without it
+            return status
+        if g.size == problem.n and first_order_residual(problem, x, g) <= ACCEPTABLE:
+            return Status.OPTIMAL_INACCURATE
+    return status
+
+
 def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Options | None = None) -> Solution:
     """Minimize ``problem`` with ``backend``, from ``problem.x0``.
 
     A run that stops short (``MAX_ITER``, ``TIME_LIMIT``, a failed line search) is not an
     exception: the solution says so in ``status`` and holds the last iterate, which a
-    caller with an iteration budget uses. The point returned is inside the bounds. A point where ``f`` is not finite is never
-    reported optimal (``ERROR``), whatever the backend said.
+    caller with an iteration budget uses. The point returned is inside the bounds. The status is the same
+    verdict for every backend (:mod:`solvers.nlp.verdict`): a point where ``f`` is not finite is never reported
+    optimal (``ERROR``), whatever the backend said; ``INFEASIBLE`` means that no ``x`` meets the bounds and
+    rows (checked by a linear program after any run that did not end optimal); a failure at a point that
+    meets the first-order conditions to :data:`~solvers.nlp.verdict.ACCEPTABLE` is ``OPTIMAL_INACCURATE``.
+    The backend's own word is ``raw_status``.
 
     Raises
     ------
@@ -89,9 +115,7 @@ def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Optio
     total = time.perf_counter() - t0
     x = np.clip(out.x, problem.lower, problem.upper)  # Ipopt relaxes the bounds by 1e-8
     objective = ev.value_at(x)
-    status = out.status
-    if status.ok and not np.isfinite(objective):  # sqpmethod can end on a failed line search's point
-        status = Status.ERROR
+    status = _verdict(problem, x, objective, out.status)
     sol = Solution(x=x, status=status, objective=objective, iterations=out.iterations,
                    evaluations=ev.fun_calls, gradient_evaluations=ev.grad_calls, setup_time_s=out.setup_time_s,
                    solve_time_s=total - out.setup_time_s, backend=record.name, raw_status=out.raw_status)
