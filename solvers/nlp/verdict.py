@@ -63,11 +63,12 @@ def first_order_residual(problem: NLPProblem, x: np.ndarray, g: np.ndarray, tol:
     eye = np.eye(problem.n)
     ax = problem.rows @ x if problem.m else np.zeros(0)
     lb, ub = np.asarray(problem.lb), np.asarray(problem.ub)
-    if beyond(problem.lower - x, problem.lower) or beyond(x - problem.upper, problem.upper) \
+    lower, upper = np.asarray(problem.lower), np.asarray(problem.upper)
+    if beyond(lower - x, lower) or beyond(x - upper, upper) \
             or beyond(lb - ax, lb) or beyond(ax - ub, ub):
         return float("inf")
     # outward normals: an upper side's row, a lower side's row negated (an equality row has both)
-    normals = [eye[near(x, problem.upper)], -eye[near(x, problem.lower)]]
+    normals = [eye[near(x, upper)], -eye[near(x, lower)]]
     if problem.m:
         normals += [problem.rows[near(ax, ub)], -problem.rows[near(ax, lb)]]
     N = np.vstack(normals).T  # (n, k)
