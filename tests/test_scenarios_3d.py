@@ -61,6 +61,17 @@ def test_columns3d_has_a_low_ceiling_over_the_columns():
 
 
 @pytest.mark.parametrize("name", SCENARIOS_3D)
+def test_3d_scenarios_stand_on_the_ground_a_crazyflie_takes_off_from(name):
+    """The floor at z = 0: with the default origin it was at -0.5 m, and the Crazyswarm2 export warned that
+    robots of every shipped 3-D example fly below the ground its crazyflies.yaml takes off from."""
+    cfg = load_config(EXPERIMENTS / f"{name}.toml")
+    grid = load_map(cfg.scenario.map, cfg.base_dir)
+    assert grid.origin[2] - grid.resolution / 2 == 0.0
+    lowest = min(b["center"][2] - b["size"][2] / 2 for b in cfg.scenario.map["boxes"])
+    assert lowest >= 0.0  # no box below the floor: its boxes moved with the origin
+
+
+@pytest.mark.parametrize("name", SCENARIOS_3D)
 def test_3d_scenarios_build(name):
     cfg = load_config(EXPERIMENTS / f"{name}.toml")
     scn = build_scenario(cfg)
@@ -95,11 +106,12 @@ def test_a_3d_config_flows_through_plan_to_the_discrete_stage():
     paths = r.discrete.paths
     assert paths.shape[1:] == (40, 3) and np.array_equal(paths[0], r.scenario.start)
     world = r.discrete_paths_world()
-    assert world.shape == paths.shape and np.allclose(world[..., 2], paths[..., 2])  # 1 m voxels from z = 0
+    # 1 m voxels, layer k centred at z = k + 0.5 (the floor at z = 0)
+    assert world.shape == paths.shape and np.allclose(world[..., 2], paths[..., 2] + 0.5)
     assert r.scenario.grid.is_free(paths).all()
     for step in paths:  # the downwash the scenario carries reached the planner: one scaled cell apart
         assert scaled_gaps(step, 2.0).min() >= 1.0 - 1e-9
-    assert r.summary()["goal"] == [27.0, 7.0, 4.0]
+    assert r.summary()["goal"] == [27.0, 7.0, 4.5]
 
 
 def _target_run(refined: bool):
