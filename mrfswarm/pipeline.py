@@ -17,6 +17,7 @@ import numpy as np
 import solvers.nlp
 import solvers.qp
 from mrfswarm.config import Config, check_nlp, load_config
+from mrfswarm.discrete.motion import cell_values
 from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, plan_discrete
 from mrfswarm.discrete.pruning import prune_paths
 from mrfswarm.discrete.robot_outcomes import RobotOutcome, robot_outcomes
@@ -424,14 +425,17 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
 
     with tqdm(total=cfg.mrf.max_steps, desc="MRF steps", unit="step", disable=not show, leave=False) as bar:
         t0 = time.perf_counter()
-        plan_d = plan_discrete(scn.discrete_problem(), method=cfg.mrf.method, max_steps=cfg.mrf.max_steps,
+        problem = scn.discrete_problem()
+        plan_d = plan_discrete(problem, method=cfg.mrf.method, max_steps=cfg.mrf.max_steps,
                                tol=cfg.mrf.tol, patience=cfg.mrf.patience, options=options,
                                on_step=lambda t, out: bar.update(t - bar.n), progress=cfg.mrf.progress,
                                arrival=cfg.mrf.arrival)
         timings["discrete"] = time.perf_counter() - t0
+    # the arrival rule also ends a plan whose other robots are cut off from the goal: those did not reach it
+    cut_off = problem.goal_path is not None and not np.isfinite(cell_values(problem.goal_path, plan_d.paths[-1])).all()
     metrics = discrete_metrics(plan_d.paths, scn.grid.occupied, scn.grid.resolution, scn.goal,
                                scn.goal_radius, downwash=cfg.scenario.downwash,
-                               arrived=plan_d.stop_reason == "arrived")
+                               arrived=plan_d.stop_reason == "arrived" and not cut_off)
     result = Result(config=cfg, scenario=scn, discrete=plan_d, metrics=metrics, pruned=[], timings_s=timings)
     try:
         if plan_d.n_steps == 0 and metrics.reached_goal is False:

@@ -67,6 +67,23 @@ def test_a_big_swarm_that_arrived_reached_the_goal():
     assert s["reached_goal"] is True
 
 
+def test_robots_cut_off_from_the_goal_did_not_reach_it():
+    """Three robots sealed in a room without a door, one in the goal's room (the euclidean field): the
+    arrival rule ends the plan when the one that can arrives, and result.json said reached_goal true with
+    1 of 4 robots there and the centroid 12 m off a 3 m goal radius."""
+    from mrfswarm.config import from_dict
+    from mrfswarm.pipeline import plan
+
+    rows = ["......#.............."] * 4
+    cfg = from_dict({"scenario": {"map": {"kind": "ascii", "rows": rows}, "robot_radius": 0.2, "goal": [19, 2],
+                                  "start": {"positions": [[1, 1], [2, 1], [3, 1], [8, 1]]}},
+                     "goal_potential": {"distance": "euclidean"}, "smoothing": {"enabled": False}})
+    r = plan(cfg, progress=False)
+    s = r.summary()
+    assert r.discrete.stop_reason == "arrived" and s["robots_at_goal"] == 1
+    assert s["reached_goal"] is False
+
+
 # ---------------------------------------------------------------- voxels and downwash
 
 
