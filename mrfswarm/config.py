@@ -546,9 +546,24 @@ def from_dict(data: dict, base_dir: Path | str = ".") -> Config:
         if key not in types:
             raise ConfigError(f"unknown config section {key!r}; allowed: {', '.join(types)}")
     sections = {name: _build_section(name, cls, data.get(name, {})) for name, cls in types.items()}
+    n = _start_size(sections["scenario"].start)
+    if "k" not in data.get("interaction", {}) and n is not None and 2 <= n <= sections["interaction"].k:
+        # the default k = 3 needs 4 robots: a swarm of 2 or 3 with k unset gets N - 1, every other robot
+        sections["interaction"] = dataclasses.replace(sections["interaction"], k=n - 1)
     cfg = Config(**sections, base_dir=Path(base_dir))
     _validate(cfg)
     return cfg
+
+
+def _start_size(start: Any) -> int | None:
+    """The number of robots a ``scenario.start`` table gives (None if it does not say, or says it wrongly: the
+    scenario's own checks name that)."""
+    if not isinstance(start, dict):
+        return None
+    if "positions" in start:
+        return len(start["positions"]) if isinstance(start["positions"], list) else None
+    n = start.get("n_robots")
+    return n if isinstance(n, int) and not isinstance(n, bool) else None
 
 
 def _plain(value: Any) -> Any:

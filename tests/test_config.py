@@ -16,6 +16,7 @@ from mrfswarm.continuous import receding_horizon
 from mrfswarm.continuous.receding_horizon import QP_OPTIONS
 from mrfswarm.errors import ConfigError, DeprecatedKeyWarning, UnusedSettingWarning
 from mrfswarm.pipeline import mrf_options, plan, qp_options, resolve_config
+from mrfswarm.scenario import build_scenario
 from mrfswarm.sweep import run_sweep
 from solvers import mrf
 from support.repository import EXPERIMENTS
@@ -277,3 +278,25 @@ def test_numpy_values_in_a_config_dict_are_plain_values():
 def test_overrides_given_as_one_string_are_refused():
     with pytest.raises(ConfigError, match=r"^overrides = 'interaction.k=2': a list of 'KEY=VALUE' strings"):
         load_config(None, overrides="interaction.k=2")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(("start", "k"), [
+    ({"positions": [[1, 1], [2, 1]]}, 1),
+    ({"center": [5, 5], "n_robots": 3, "seed": 0}, 2),
+    ({"center": [5, 5], "n_robots": 4, "seed": 0}, 3),
+    ({"center": [5, 5], "n_robots": 40, "seed": 0}, 3),
+])
+def test_the_default_k_fits_a_small_swarm(start, k):
+    """The default k = 3 needs 4 robots: a swarm of 2 was refused with 'interaction.k = 3: must satisfy
+    1 <= k < N = 2', a key its user never set (new-user tour)."""
+    cfg = from_dict({"scenario": {"map": {"kind": "free", "size": [10, 10]}, "start": start, "goal": [8, 8]}})
+    assert cfg.interaction.k == k
+    build_scenario(cfg)
+
+
+def test_a_k_the_user_set_is_kept_and_checked():
+    cfg = from_dict({"scenario": {"map": {"kind": "free", "size": [10, 10]}, "start": {"positions": [[1, 1], [2, 1]]},
+                                  "goal": [8, 8]}, "interaction": {"k": 3}})
+    assert cfg.interaction.k == 3
+    with pytest.raises(ConfigError, match=r"interaction.k = 3: must satisfy 1 <= k < N = 2"):
+        build_scenario(cfg)
