@@ -34,6 +34,7 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -52,6 +53,14 @@ from mrfswarm.trajectory.waypoints import check_waypoints, read_waypoints_csv
 
 DEFAULT_SPEED = 1.0
 RETIMERS = ("toppra",)
+#: Piece durations (s) the solvers take: shorter pieces are not flown (a Crazyflie evaluates its trajectory at
+#: 100-500 Hz), and beyond either end the powers of the durations overflow or the solution loses the waypoints.
+MIN_PIECE_S, MAX_PIECE_S = 1e-3, 1e5
+#: How far (m) the solved trajectory may pass from a waypoint (PIQP's default tolerance gives 1e-9 m; durations
+#: 1e-4 : 1 left it 4 mm off, 1e-6 : 1 with the closed form 1 m off).
+WAYPOINT_TOL = 1e-5
+#: Pieces a Crazyflie's 4096-byte trajectory memory holds in the raw format (132 bytes a piece).
+CRAZYFLIE_PIECES = 31
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -94,6 +103,34 @@ def _durations(text: str) -> list[float]:
             raise ConfigError(f"--durations: value {i + 1} ({tok.strip()}) must be a positive finite number of seconds")
         out.append(d)
     return out
+
+
+def _check_piece_durations(T: np.ndarray, source: str) -> None:
+    """Every piece between :data:`MIN_PIECE_S` and :data:`MAX_PIECE_S` (``source`` names what gave them)."""
+    for bad, bound, side in ((T < MIN_PIECE_S, MIN_PIECE_S, "shorter"), (T > MAX_PIECE_S, MAX_PIECE_S, "longer")):
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ConfigError(f"{source} gives piece {i + 1} a duration of {T[i]:.3g} s, {side} than {bound:g} s "
+                              "(pieces are solved and flown between 1 ms and 1e5 s)")
+
+
+def _check_passes_waypoints(traj, W: np.ndarray, T: np.ndarray) -> None:
+    """The solved trajectory passes every waypoint within :data:`WAYPOINT_TOL` (very uneven durations lose them:
+    the solution is written only if it is the trajectory asked for)."""
+    c = np.asarray(traj.coefficients, dtype=float)  # (M, D + 1, dim), local time
+    durations = np.asarray(traj.durations, dtype=float)
+    with np.errstate(all="ignore"):
+        ends = np.einsum("mkd,mk->md", c, durations[:, None] ** np.arange(c.shape[1]))
+    # waypoint j against the pieces that meet there: the start of piece j and the end of piece j - 1
+    miss = np.zeros(len(W))
+    miss[:-1] = np.linalg.norm(c[:, 0, :] - W[:-1], axis=1)
+    miss[1:] = np.maximum(miss[1:], np.linalg.norm(ends - W[1:], axis=1))
+    miss[~np.isfinite(miss)] = np.inf
+    if not np.all(miss <= WAYPOINT_TOL):
+        i = int(np.argmax(miss))
+        raise ConfigError(f"the solved trajectory misses waypoint {i + 1} by {miss[i]:.3g} m: the durations are too "
+                          f"uneven for the solver (shortest {T.min():.3g} s, longest {T.max():.3g} s); give more even "
+                          "--durations")
 
 
 def _positive(flag: str, value: float | None, unit: str) -> None:
@@ -149,6 +186,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--out: directory {str(out.parent)!r} does not exist")
     if out.is_dir():
         raise ConfigError(f"--out: {str(out)!r} is a directory")
+    if out.exists() and Path(args.waypoints).exists() and out.samefile(args.waypoints):
+        raise ConfigError(f"--out: {str(out)!r} is the waypoints file; give another --out (it would be replaced)")
     if out.exists() and not args.overwrite:
         raise ConfigError(f"--out: {str(out)!r} exists; give --overwrite to replace it, or another --out")
 
@@ -163,6 +202,8 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"--durations has {len(T)} value{'s' * (len(T) != 1)}; {M + 1} waypoints need {M}")
     else:
         T = constant_speed_durations(W, speed)
+    _check_piece_durations(T, "--durations" if args.durations is not None else
+                           f"--speed {speed:g}" if args.speed is not None else f"the default speed {speed:g} m/s")
 
     notes = []
     weight = None
@@ -175,6 +216,7 @@ def run(args: argparse.Namespace) -> int:
     res = solve_min_snap(W, T, degree=degree, derivative=q, backend=args.qp)
     elapsed = time.perf_counter() - t0
     traj = res.trajectory
+    _check_passes_waypoints(traj, W, T)
     if args.retime == "toppra":
         if not getattr(args, "verbose", False):
             # toppra logs its failures as warnings; the failure itself becomes our one-line error
@@ -194,6 +236,9 @@ def run(args: argparse.Namespace) -> int:
         notes.append(f"time weight {weight:.4g}")
     altitude = ScenarioConfig.altitude if args.altitude is None else args.altitude
     write_uav_csv(traj, out, altitude=altitude)
+    if traj.pieces > CRAZYFLIE_PIECES:
+        print(f"mrfswarm: warning: {traj.pieces} pieces: a Crazyflie's trajectory memory holds {CRAZYFLIE_PIECES} "
+              "(4096 bytes, raw format); give fewer waypoints to fly it on one", file=sys.stderr)
     print(f"{traj.pieces} pieces, {traj.duration:.3f} s, backend {res.backend}, "
           f"solved in {elapsed * 1e3:.2f} ms{''.join('; ' + n for n in notes)} -> {out}")
     return 0

@@ -28,7 +28,7 @@ def read_waypoints_csv(path: str | os.PathLike) -> np.ndarray:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte-order mark, as spreadsheets save UTF-8 CSV, is skipped
     except OSError as e:
         raise ScenarioError(f"cannot read waypoints file {path}: {e.strerror or e}") from e
     except UnicodeDecodeError:

@@ -64,6 +64,8 @@ def test_default_speed_is_one(tmp_path):
     np.testing.assert_allclose(read_uav_csv(out).durations, [2.0])
 
 
+WALK = "x,y\n0,0\n1,0\n2,1\n2,2\n1,3\n"
+
 BAD = {
     "one waypoint": ("x,y\n0,0\n", [], "at least two waypoints"),
     "no waypoints": ("x,y\n", [], "at least two waypoints"),
@@ -111,6 +113,14 @@ BAD = {
     "retime with degree above 2q-1": ("x,y\n0,0\n1,1\n", ["--retime", "toppra", "--v-max", "1", "--a-max", "1",
                                                              "--derivative", "3"], "--retime toppra refits with degree 2q - 1 = 5"),
     "refine with repeated waypoint": ("x,y\n0,0\n1,1\n1,1\n", ["--refine-time"], "waypoints 1 and 2 are the same"),
+    # the new-user tour's: the closed form wrote a trajectory 1 m off waypoint 2 (exit 0), PIQP 4 mm off at 1e-4 : 1;
+    # a speed of 1e308 printed NumPy's overflow warnings, then an error that did not name --speed
+    "a microsecond piece": (WALK, ["--durations", "1e-6,1,1,1"], "--durations gives piece 1 a duration of 1e-06 s"),
+    "speed too high": (WALK, ["--speed", "1e308"], "--speed 1e+308 gives piece 1 a duration of 1e-308 s"),
+    "speed too low": (WALK, ["--speed", "1e-300"], "longer than 100000 s"),
+    "speed of a million": (WALK, ["--speed", "1e6"], "shorter than 0.001 s"),
+    "durations that lose a waypoint": (WALK, ["--durations", "0.001,1000,0.001,1000"],
+                                       "the solved trajectory misses waypoint 3 by"),
 }
 
 
@@ -365,3 +375,28 @@ def test_an_existing_out_is_refused_and_kept_unless_overwrite(tmp_path, capsys):
     assert out.read_text() == "an earlier trajectory\n"
     assert main(["smooth", str(wp), "--out", str(out), "--overwrite"]) == 0
     assert read_uav_csv(out, dim=2).pieces == 2
+
+
+def test_the_waypoints_file_is_never_the_output(tmp_path, capsys):
+    """``--out`` the waypoints file with ``--overwrite`` replaced the waypoints by the trajectory (new-user tour)."""
+    wp = write(tmp_path, WALK)
+    assert main(["smooth", str(wp), "--out", str(wp), "--overwrite"]) == 2
+    assert "is the waypoints file" in capsys.readouterr().err
+    assert wp.read_text() == WALK
+
+
+def test_a_byte_order_mark_is_read_as_spreadsheets_write_it(tmp_path, capsys):
+    wp = tmp_path / "excel.csv"
+    wp.write_bytes("\ufeffx,y\r\n0,0\r\n1,1\r\n".encode())
+    out = tmp_path / "o.csv"
+    assert main(["smooth", str(wp), "--out", str(out)]) == 0
+    assert read_uav_csv(out).pieces == 1
+
+
+def test_more_pieces_than_a_crazyflie_holds_are_written_with_a_warning(tmp_path, capsys):
+    """toppra's refit has 10 pieces per waypoint gap: 40 for 5 waypoints, written without a word before."""
+    wp = write(tmp_path, WALK)
+    out = smooth(tmp_path, wp, "--retime", "toppra", "--v-max", "1", "--a-max", "1")
+    assert out.pieces == 40
+    err = capsys.readouterr().err
+    assert "mrfswarm: warning: 40 pieces: a Crazyflie's trajectory memory holds 31" in err
