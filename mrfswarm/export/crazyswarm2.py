@@ -91,15 +91,44 @@ def below_ground(lowest: np.ndarray, radius: float) -> np.ndarray:
     return np.flatnonzero(np.asarray(lowest, dtype=float) < radius)
 
 
+def blocked_columns(occupied: np.ndarray, origin: np.ndarray, resolution: float, xy: np.ndarray, top: np.ndarray,
+                    radius: float) -> np.ndarray:
+    """The robots whose vertical column, from the ground (z = 0) up to ``top`` (N,) at ``xy`` (N, 2), holds an
+    occupied voxel within ``radius`` of it: a 3-D map (``occupied`` (W, H, D), voxel (i, j, k) centred at
+    ``origin + resolution * (i, j, k)``). The scripts take off straight up to the highest start and land
+    straight down: through a shelf over a robot's ground spot, were it not named."""
+    occupied = np.asarray(occupied, dtype=bool)
+    origin = np.asarray(origin, dtype=float)
+    half = resolution / 2
+    out = []
+    for (x, y), z in zip(np.asarray(xy, dtype=float), np.asarray(top, dtype=float)):
+        lo = np.floor((np.array([x, y]) - radius - origin[:2]) / resolution + 0.5).astype(int)
+        hi = np.floor((np.array([x, y]) + radius - origin[:2]) / resolution + 0.5).astype(int)
+        k = np.arange(occupied.shape[2])
+        zc = origin[2] + resolution * k
+        layers = k[(zc + half > 0.0) & (zc - half < z + radius)]
+        hit = False
+        for i in range(max(lo[0], 0), min(hi[0], occupied.shape[0] - 1) + 1):
+            for j in range(max(lo[1], 0), min(hi[1], occupied.shape[1] - 1) + 1):
+                c = origin[:2] + resolution * np.array([i, j])
+                gap = np.maximum(np.abs(np.array([x, y]) - c) - half, 0.0)
+                if np.hypot(*gap) < radius and occupied[i, j, layers].any():
+                    hit = True
+        out.append(hit)
+    return np.flatnonzero(out)
+
+
 def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0,
-                      lowest: np.ndarray | None = None) -> list[Path]:
+                      lowest: np.ndarray | None = None, columns: tuple[np.ndarray, np.ndarray] | None = None
+                      ) -> list[Path]:
     """``out/crazyswarm2/crazyflies.yaml``, ``out/crazyswarm2/fly.py`` and ``out/crazyflie/cflib_upload.py``.
 
     Robots whose ground spots come nearer than ``2 radius`` (:func:`shared_ground`) are named in a warning
     and in the file's comments: their take-off is not the scripts' to fly. So are, in a 3-D plan (``lowest``:
     each robot's lowest z), the robots that fly nearer than ``radius`` to the ground the export takes off
     from, z = 0 (:func:`below_ground`): a 3-D map's floor is at ``origin[2] - resolution / 2``, by default
-    below 0, and flown as planned they would go into the floor of the room."""
+    below 0, and flown as planned they would go into the floor of the room. ``columns``: the robots whose
+    take-off and whose landing columns are blocked (:func:`blocked_columns`), named in a warning too."""
     from mrfswarm.atomic import atomic_write
 
     header = "# Crazyswarm2 robots of this mrfswarm run: cf<k> flies trajectories/robot_<k-1>.csv (see fly.py)\n"
@@ -118,6 +147,14 @@ def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0,
         texts.append(f"{len(low)} robot{'s' * (len(low) != 1)} fly nearer than the robot radius ({radius:g} m) to "
                      f"the ground at z = 0 that crazyflies.yaml takes off from ({names}{more}): put the map's floor "
                      f"at z = 0 (origin[2] = resolution / 2) and plan again before flying it")
+    for robots, what in zip(columns or (), ("take off straight up through", "land straight down through")):
+        if len(robots):
+            names = ", ".join(robot_name(int(i)) for i in robots[:6]) + (f" and {len(robots) - 6} more"
+                                                                         if len(robots) > 6 else "")
+            texts.append(f"{names} would {what} an obstacle over {'its' if len(robots) == 1 else 'their'} ground "
+                         f"spot{'s' * (len(robots) != 1)} (fly.py and cflib_upload.py fly "
+                         f"every robot up to the highest start and land them straight down): fly them to their "
+                         f"starts and from their ends by hand, or plan starts and goal with a free sky above")
     for text in texts:
         log.warning("crazyswarm2: %s", text)
         header += f"# WARNING: {text}\n"

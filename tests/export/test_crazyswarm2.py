@@ -96,6 +96,40 @@ def test_robots_that_fly_into_the_ground_of_the_export_are_named_in_a_warning_an
     assert not caplog.text and "WARNING" not in (tmp_path / "b" / "crazyswarm2" / "crazyflies.yaml").read_text()
 
 
+def test_robots_whose_takeoff_or_landing_column_holds_an_obstacle_are_named():
+    """A shelf (voxels x, y in [0, 1.5) m, z in [1.5, 2) m, 0.5 m voxels, the floor at z = 0) over one robot's
+    ground spot: the scripts fly every robot straight up to the highest start (2.25 m), and it would climb
+    through the shelf (new-user tour: written without a word). A robot 0.25 m beside the shelf's edge, farther
+    than its radius 0.2 m, is not named; one 0.15 m beside it is; a column below the shelf is not blocked."""
+    from mrfswarm.export.crazyswarm2 import blocked_columns
+
+    occ = np.zeros((8, 6, 5), dtype=bool)
+    occ[0:3, 0:3, 3] = True
+    origin, res = np.array([0.25, 0.25, 0.25]), 0.5
+    xy = np.array([[0.75, 0.75], [1.75, 0.75], [1.65, 0.75], [2.75, 2.25]])
+    assert blocked_columns(occ, origin, res, xy, np.full(4, 2.25), 0.2).tolist() == [0, 2]
+    assert blocked_columns(occ, origin, res, xy, np.full(4, 1.0), 0.2).tolist() == []  # under the shelf only
+    assert blocked_columns(occ, origin, res, xy, np.full(4, 1.35), 0.2).tolist() == [0, 2]  # radius from its floor
+
+
+def test_a_blocked_takeoff_is_a_warning_of_the_run(tmp_path, caplog):
+    toml = tmp_path / "shelf.toml"
+    toml.write_text("""
+[scenario]
+map = { kind = "boxes", size = [8, 6, 5], resolution = 0.5, origin = [0.25, 0.25, 0.25], boxes = [
+    { center = [0.75, 0.75, 1.75], size = [1.5, 1.5, 0.5] } ] }
+start = { positions = [[0.75, 0.75, 0.75], [1.75, 0.75, 0.75], [0.75, 1.75, 0.25], [2.75, 2.25, 2.25]] }
+goal = [3.75, 2.75, 1.25]
+robot_radius = 0.2
+[simulation]
+enabled = false
+""")
+    with caplog.at_level("WARNING"):
+        assert main(["run", str(toml), "--out", str(tmp_path / "run")]) == 0
+    assert "cf1 would take off straight up through an obstacle over its ground spot" in caplog.text
+    assert "# WARNING: cf1 would take off" in (tmp_path / "run" / "crazyswarm2" / "crazyflies.yaml").read_text()
+
+
 def test_yaml_as_crazyswarm2_launch_reads_it(run_dir):
     c = yaml.safe_load((run_dir / "crazyswarm2" / "crazyflies.yaml").read_text())
     fileversion = c.get("fileversion", 1)
