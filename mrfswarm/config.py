@@ -605,7 +605,9 @@ def apply_overrides(data: dict, overrides: list[str]) -> dict:
     A key of a table the config leaves to its default (``scenario.map``, ``scenario.start``) that
     the default table has sets it in that table: ``--set scenario.map.size=[12,12]`` is a free
     12 x 12 map, ``--set scenario.start.n_robots=6`` six robots around the default centre. A key
-    the default lacks starts a table of its own (``scenario.start.positions``).
+    the default lacks starts a table of its own (``scenario.start.positions``), and so does another
+    ``kind`` than the default's (``--set scenario.map.kind=ascii`` is an ASCII map, whose rows are asked
+    for, not one that also has the free map's ``size``).
     """
     data = _deepcopy(data)
     defaults = Config().to_dict()
@@ -624,7 +626,9 @@ def apply_overrides(data: dict, overrides: list[str]) -> dict:
         for depth, part in enumerate(path[:-1]):
             default = default.get(part) if isinstance(default, dict) else None
             # a dict-valued key of a section (sections themselves get their defaults in from_dict)
-            if part not in node and depth == len(path) - 2 >= 1 and isinstance(default, dict) and path[-1] in default:
+            # (another ``kind`` than the default's starts a table of its own: the default's keys are another kind's)
+            if part not in node and depth == len(path) - 2 >= 1 and isinstance(default, dict) and path[-1] in default \
+                    and not (path[-1] == "kind" and default.get("kind") != value):
                 node[part] = _deepcopy(default)
             nxt = node.setdefault(part, {})
             if not isinstance(nxt, dict):

@@ -91,7 +91,7 @@ def check_output_dir(out: Path, overwrite: bool = False, marker: str = RUN_MARKE
                           f"{marker}); choose another --out")
     if not overwrite:
         raise ExportError(f"output folder {str(out)!r} already holds a {what} ({listed}); give --overwrite "
-                          f"(overwrite=True) to replace it, or another --out")
+                          f"(in Python: overwrite=True) to replace it, or another --out")
 
 
 def set_aside(out: Path) -> Path | None:

@@ -14,7 +14,7 @@ from mrfswarm.cli import main
 from mrfswarm.config import apply_overrides, from_dict, load_config
 from mrfswarm.continuous import receding_horizon
 from mrfswarm.continuous.receding_horizon import QP_OPTIONS
-from mrfswarm.errors import ConfigError, DeprecatedKeyWarning, UnusedSettingWarning
+from mrfswarm.errors import ConfigError, DeprecatedKeyWarning, ScenarioError, UnusedSettingWarning
 from mrfswarm.pipeline import mrf_options, plan, qp_options, resolve_config
 from mrfswarm.scenario import build_scenario
 from mrfswarm.sweep import run_sweep
@@ -238,9 +238,20 @@ def test_the_nlp_key_is_checked_against_the_registry(tmp_path):
     ("scenario.map.size=[12,12]", "map", {"kind": "free", "size": [12, 12]}),
     ("scenario.start.n_robots=6", "start", {"center": [5.0, 5.0], "n_robots": 6, "seed": 0}),
     ("scenario.start.positions=[[1,1],[3,3]]", "start", {"positions": [[1, 1], [3, 3]]}),  # not a default key
+    ("scenario.map.kind=free", "map", {"kind": "free", "size": [20, 20]}),  # the default's own kind
 ])
 def test_a_key_of_a_table_left_to_its_default_sets_it_in_the_default_table(override, table, expected):
     assert getattr(load_config(None, [override]).scenario, table) == expected
+
+
+def test_another_kind_than_the_default_maps_starts_a_table_of_its_own():
+    """``--set scenario.map.kind=ascii`` was refused as 'unknown key scenario.map.size', a key of the default
+    free map the user never wrote (new-user tour); the ASCII map's own required key is asked for instead."""
+    assert apply_overrides({}, ["scenario.map.kind=ascii"]) == {"scenario": {"map": {"kind": "ascii"}}}
+    with pytest.raises(ConfigError, match=r"^scenario\.map\.rows is missing"):
+        build_scenario(load_config(None, ["scenario.map.kind=ascii"]))
+    rows = load_config(None, ["scenario.map.kind=ascii", 'scenario.map.rows=["....", "...."]']).scenario.map
+    assert rows == {"kind": "ascii", "rows": ["....", "...."]}
 
 
 def test_a_key_of_a_table_the_config_gives_sets_it_in_that_table(tmp_path):
@@ -300,3 +311,9 @@ def test_a_k_the_user_set_is_kept_and_checked():
     assert cfg.interaction.k == 3
     with pytest.raises(ConfigError, match=r"interaction.k = 3: must satisfy 1 <= k < N = 2"):
         build_scenario(cfg)
+
+
+def test_one_free_cell_is_one_cell(tmp_path):
+    with pytest.raises(ScenarioError, match=r"the map has only 1 free cell$"):
+        build_scenario(from_dict({"scenario": {"map": {"kind": "ascii", "rows": ["#.#"]},
+                                               "start": {"center": [1, 0], "n_robots": 2}, "goal": [1, 0]}}))

@@ -198,7 +198,7 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None, downwa
         raise ScenarioError(f"scenario.start.center {format_point(c)} is off the map ({map_box(grid)})")
     n_free = int(grid.free.sum())
     if n > n_free:
-        raise ScenarioError(f"scenario.start.n_robots = {n}: the map has only {n_free} free cells")
+        raise ScenarioError(f"scenario.start.n_robots = {n}: the map has only {n_free} free cell{'s' * (n_free != 1)}")
     rng = np.random.default_rng(seed)
     scale = downwash_scale(d, downwash)
     cells = np.empty((0, d), dtype=np.intp)
