@@ -438,7 +438,7 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
                                arrived=plan_d.stop_reason == "arrived" and not cut_off)
     result = Result(config=cfg, scenario=scn, discrete=plan_d, metrics=metrics, pruned=[], timings_s=timings)
     try:
-        if plan_d.n_steps == 0 and metrics.reached_goal is False:
+        if plan_d.n_steps == 0 and plan_d.stop_reason != "arrived" and metrics.reached_goal is False:
             raise ScenarioError(
                 f"the swarm cannot move: no robot has a free move that lowers the swarm energy from the start "
                 f"(goal {metrics.final_goal_distance:.1f} m away)")
