@@ -25,6 +25,7 @@ from mrfswarm.file_input import read_text
 from mrfswarm.maps import LOADERS
 from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE
 from mrfswarm.trajectory.uav_csv import DEGREE as EXPORT_DEGREE
+from solvers.mrf import METHODS as MRF_METHODS
 from solvers.mrf import Options as MRFOptions
 from solvers.nlp import BACKENDS as NLP_BACKENDS
 from solvers.qp import Options as QPOptions
@@ -217,6 +218,12 @@ class MrfConfig:
     (at most 8 apart) where safe: the same ends and step count, no move longer, a wait still a
     wait (two diagonal moves that zigzag become two straight ones; :mod:`mrfswarm.discrete.straighten`);
     false keeps the MRF's cells, as the paper's scenario configs do.
+    ``escalation`` (default ``"trws"``): a step that the plan's method leaves without progress
+    short of the goal (no robot moved, or the energy fell by less than ``tol``) is solved again
+    by this method over the same step MRF, and its solution taken if it moves robots to a lower
+    energy: ICM, which moves one robot at a time, leaves two robots that each wait for the other's
+    cell (a one-voxel window under downwash) where a joint solution steps one aside. ``"none"``:
+    the plan ends there, as the paper's (its scenario configs).
     ``progress`` says what resets the patience: ``"static"`` (default), a new minimum of
     the swarm energy or of the robots' static field sum; ``"energy"``, of the swarm
     energy only (the paper's scenario configs), which jumps whenever the k-NN graph's
@@ -237,6 +244,7 @@ class MrfConfig:
     merge_waits: bool = True
     drop_loops: bool = True
     straighten: bool = True
+    escalation: str = "trws"
     progress: str = "static"
     options: dict[str, Any] = field(default_factory=dict)
 
@@ -495,6 +503,8 @@ def _validate(cfg: Config) -> None:
     need(m.trim_slack >= 0, "mrf.trim_slack", m.trim_slack, "must be >= 0")
     need(m.progress in PROGRESS_RULES, "mrf.progress", m.progress, f"must be one of {', '.join(PROGRESS_RULES)}")
     need(m.contested in CONTESTED_RULES, "mrf.contested", m.contested, f"must be one of {', '.join(CONTESTED_RULES)}")
+    escalations = ("none", *MRF_METHODS.names())
+    need(m.escalation in escalations, "mrf.escalation", m.escalation, f"must be one of {', '.join(escalations)}")
     sm = cfg.smoothing
     need(sm.degree >= 3, "smoothing.degree", sm.degree, "must be >= 3 (jerk is bounded on control points)")
     # every run writes its flight as uav_trajectories CSV and Crazyflie pieces, which hold degree 7: a plan of a

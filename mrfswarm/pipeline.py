@@ -227,6 +227,7 @@ class Result:
             "merged_waits": self.discrete.merged_waits,
             "dropped_loops": self.discrete.dropped_loops,
             "straightened": self.discrete.straightened,
+            "escalated": self.discrete.escalated,
             "congested_fields": self.discrete.congested_fields,
             "contested": self.discrete.contested,
             "timings_s": {k: float(v) for k, v in self.timings_s.items()},

@@ -110,6 +110,7 @@ class Scenario:
             merge_waits=c.mrf.merge_waits,
             drop_loops=c.mrf.drop_loops,
             straighten=c.mrf.straighten,
+            escalation=None if c.mrf.escalation == "none" else c.mrf.escalation,
             flight=flight_model(c.smoothing, self.grid.resolution, c.scenario.robot_radius) if c.smoothing.enabled
             else None,
         )

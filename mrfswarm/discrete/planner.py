@@ -121,6 +121,10 @@ class DiscreteProblem:
         its steps shortened where safe, no move longer (:mod:`mrfswarm.discrete.straighten`).
     flight
         The flight-time model a merge must not lengthen (None: every safe merge is made).
+    escalation
+        The MRF method a step is solved again by when the plan's method leaves it without progress
+        short of the goal (its solution taken if it moves robots to a lower energy); None: the plan
+        ends there (the paper's).
     """
 
     free: np.ndarray
@@ -145,6 +149,7 @@ class DiscreteProblem:
     drop_loops: bool = False
     straighten: bool = False
     flight: FlightTime | None = None
+    escalation: str | None = None
 
 
 @dataclass(frozen=True)
@@ -195,6 +200,8 @@ class DiscretePlan:
         Windows shortened by :func:`~mrfswarm.discrete.straighten.straighten` (0 when off).
     congested_fields
         Goal fields recomputed around stalled robots (:mod:`mrfswarm.discrete.congestion`).
+    escalated
+        Steps solved by ``problem.escalation`` after the plan's method left them without progress.
     contested
         The contested rule the plan was made with (the one ``"auto"`` picked).
     """
@@ -210,6 +217,7 @@ class DiscretePlan:
     straightened: int = 0
     congested_fields: int = 0
     contested: str = ""
+    escalated: int = 0
 
     @property
     def n_steps(self) -> int:
@@ -410,6 +418,11 @@ def _arrived(problem: DiscreteProblem, cells: np.ndarray) -> bool:
     return bool(reachable.any() and np.all(d[reachable] <= problem.goal_region_radius))
 
 
+def _no_progress(out: StepOutcome, tol: float) -> bool:
+    """The step ends the plan: it moves nobody or lowers the energy by less than ``tol`` (relative)."""
+    return out.moved == 0 or out.energy_before - out.energy_after < tol * max(1.0, abs(out.energy_before))
+
+
 def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int = 300, tol: float = 1e-6,
                   patience: int = 20, options: mrf_solvers.Options | None = None,
                   on_step: Callable[[int, StepOutcome], None] | None = None,
@@ -510,7 +523,7 @@ def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float
     apart = separation_cells(problem)
     gt: dict[str, float] = {}
     weights = graph_weights(pos, problem.k, gt)
-    base, congested = problem, 0
+    base, congested, escalated = problem, 0, 0
     if arrival and _arrived(problem, pos):  # there already: no step (one moved a robot for nothing)
         energy.append(swarm_energy(problem, pos, weights))
         converged, reason, max_steps = True, "arrived", 0
@@ -521,7 +534,13 @@ def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float
             new = cong.fields(pos[stalled]) if stalled.any() else None
             problem = base if new is None else replace(base, static=new[0], goal_distance=new[1])
             congested += new is not None
-        out = mrf_step(problem, pos, method, options, weights, gt, trim_mask(problem, paths))
+        trim = trim_mask(problem, paths)
+        out = mrf_step(problem, pos, method, options, weights, gt, trim)
+        escalate = problem.escalation
+        if escalate is not None and escalate != method and _no_progress(out, tol) and _short_of_goal(problem, pos):
+            joint = mrf_step(problem, pos, escalate, options, weights, gt, trim)
+            if joint.moved and joint.energy_after < out.energy_after:
+                out, escalated = joint, escalated + 1
         if t == 1:
             energy.append(out.energy_before)
             watch.best = out.energy_before
@@ -589,4 +608,5 @@ def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float
         straightened=straightened,
         congested_fields=congested,
         contested=problem.contested,
+        escalated=escalated,
     )
