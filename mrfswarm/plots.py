@@ -221,7 +221,8 @@ def draw_paths(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], goal:
         ax.plot(starts[:, 0], starts[:, 1], "o", ms=ms, color="tab:green", mec=mec, mew=0.6, label="start", zorder=5)
         ax.plot(ends[:, 0], ends[:, 1], "o", ms=ms, color="tab:blue", mec=mec, mew=0.6, label="end", zorder=5)
     if goal is not None:
-        ax.plot(goal[0], goal[1], "*", ms=16, color="gold", mec="k", label="goal", zorder=6)
+        # hollow, on top: a robot that ends on the goal cell shows through (a filled star hid its end marker)
+        ax.plot(goal[0], goal[1], "*", ms=18, mfc="none", mec="darkgoldenrod", mew=2.0, label="goal", zorder=6)
 
 
 def _draw_swarm(ax, grid: OccupancyGrid, paths_world: Sequence[np.ndarray], lw: float,
@@ -419,7 +420,7 @@ def animate(path: Path, grid: OccupancyGrid, t: np.ndarray, positions: np.ndarra
         v = list(view)
         draw_map(ax, grid, view)
         if goal is not None:
-            ax.plot(goal[v[0]], goal[v[1]], "*", ms=14, color="gold", mec="k")
+            ax.plot(goal[v[0]], goal[v[1]], "*", ms=16, mfc="none", mec="darkgoldenrod", mew=2.0, zorder=6)
         p = positions[..., v]
         dots = ax.scatter(p[0, :, 0], p[0, :, 1], s=size, c=colors,
                           edgecolors="k" if n <= INDIVIDUAL_MAX else "none", zorder=5)
