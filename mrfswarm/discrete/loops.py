@@ -31,6 +31,8 @@ This is a post-process of the paper's method (its robots keep the MRF's paths);
 
 from __future__ import annotations
 
+from bisect import bisect_right
+
 import numpy as np
 
 from mrfswarm.discrete.merge_waits import robot_clear
@@ -48,7 +50,9 @@ def returns(column: np.ndarray) -> list[list[int]]:
     leaves = [T + 1] * (T + 1)  # the first step after s in another cell
     for t in range(T - 1, -1, -1):
         leaves[t] = t + 1 if cells[t + 1] != cells[t] else leaves[t + 1]
-    return [[u for u in reversed(visits[cell]) if u > leaves[s]] for s, cell in enumerate(cells)]
+    # each cell's visits are ascending: the returns after s are those past its first bisection point (a robot that
+    # stands in one cell for long had every step scan all its visits: 2.4 M comparisons for 1000 robots)
+    return [visits[cell][bisect_right(visits[cell], leaves[s]):][::-1] for s, cell in enumerate(cells)]
 
 
 def drop_loops(paths: np.ndarray, downwash: float = 1.0) -> tuple[np.ndarray, int]:

@@ -35,6 +35,21 @@ def test_returns_are_the_later_steps_back_in_a_cell_after_leaving_it():
     assert returns(col) == [[5, 3], [5, 3], [], [5], [], []]
 
 
+def test_returns_on_random_walks_match_their_definition():
+    """Against the definition, scanned step by step: u > s is a return of s when the robot is in s's cell at u
+    and left it at some step between."""
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        col = np.cumsum(rng.integers(-1, 2, size=(int(rng.integers(1, 40)), 2)) * (rng.random((1, 1)) < 0.7), axis=0)
+        col = np.clip(col, -2, 2)  # a small box: many returns, long stays
+        T = len(col) - 1
+        want = []
+        for s in range(T + 1):
+            left = [t for t in range(s + 1, T + 1) if (col[t] != col[s]).any()]
+            want.append([u for u in range(T, s, -1) if left and u > left[0] and (col[u] == col[s]).all()])
+        assert returns(col) == want
+
+
 def test_a_lone_robots_round_trip_becomes_a_wait():
     # A -> B -> C -> B -> A -> D: the whole round from A is dropped
     col = np.array([[0, 0], [1, 0], [2, 0], [1, 0], [0, 0], [0, 1]])
