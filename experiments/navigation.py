@@ -31,7 +31,7 @@ stage), and the robots' stop reasons.
 Writes ``OUT/navigation.csv`` (one row per run), ``OUT/navigation.md`` (the tables) and
 ``OUT/navigation.png``.
 
-    PYTHONPATH=. python experiments/navigation.py --out paper_figs           # 1728 runs, 10 min on 2 shared cores
+    PYTHONPATH=. python experiments/navigation.py --out paper_figs           # 1728 runs, 10-40 min on 2 shared cores (as loaded)
     PYTHONPATH=. python experiments/navigation.py --quick --out /tmp/nav     # 8 maps, ICM variants, 240 runs, ~2.5 min
 """
 
@@ -308,7 +308,7 @@ def figure(rows: list[dict], paths: dict, path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, default=ROOT / "paper_figs", help="output folder (default: paper_figs)")
     ap.add_argument("--quick", action="store_true", help="8 maps, the ICM variants only")
     ap.add_argument("--workers", type=int, default=2, help="processes (default 2)")

@@ -210,6 +210,9 @@ def test_fig6_the_papers_seams_stop_and_start_ours_do_not():
     assert at_equal_time["default"] < 1e-3 * at_equal_time["paper"]
     assert all(nums[v]["certified"] and nums[v]["min_separation_m"] >= 0.5 for v in trajectories.VARIANTS)
     assert np.all(trajectories.time_series("free5").stops() == 0)
+    # the bound `mrfswarm run` prints (result.json's), not a second one under the same name
+    q = trajectories.scenario_run("corridor", "default").flight_quality()
+    assert nums["default"]["makespan_over_bound"] == round(q["makespan_over_bound"], 2)
 
 
 # --- Fig. 7: swarm size and corridor distances ---------------------------------------------------

@@ -1,14 +1,16 @@
 """The 200-robot clutter case (flight_quality.py, big200) with and without the congested goal field.
 
-Writes ``docs/figures/congestion_big200.png``: the swarm at steps 60, 120 and 180 of its
+Writes ``--out`` (default ``docs/figures/congestion_big200.png``, the figure the README shows): the swarm at
+steps 60, 120 and 180 of its
 discrete plan, with ``goal_potential.congestion = 0`` (the static geodesic field) above and
 the default below. Discrete stage only (about half a minute per plan).
 
-    python experiments/bench/congestion_figure.py
+    python experiments/bench/congestion_figure.py [--out figure.png]
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -18,6 +20,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "figures" / "congestion_big200.png",
+                    help="the PNG to write (default: the README's figure)")
+    args = ap.parse_args()
     import matplotlib
 
     matplotlib.use("Agg")
@@ -52,7 +58,8 @@ def main() -> None:
     fig.suptitle("200 robots, 128 x 128 cells, 15 % obstacles: the static field sends every robot through the same "
                  "gaps", fontsize=10)
     fig.tight_layout(h_pad=2.0)
-    out = ROOT / "docs" / "figures" / "congestion_big200.png"
+    out = args.out
+    out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=80)
     print(f"wrote {out}")
 

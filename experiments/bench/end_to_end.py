@@ -25,7 +25,8 @@ label sets); the other rules beyond the paper (``mrf.follow``, ``arrival``, ``me
 ``drop_loops``, ``straighten``) are the case's config's: the paper's scenario configs set them
 back, swarm100 keeps the defaults. The variants of the working tree fly the same discrete
 paths. Per run, measured from the trajectories by the same code for every variant: makespan,
-makespan over a lower bound (the longest robot path over v_max), full stops (speed below
+``makespan_over_flown`` (over the longest path a robot flies, at v_max: a bound of that flight,
+not result.json's ``makespan_over_bound``, which needs the working tree's free-path search), full stops (speed below
 0.05 m/s and back up inside the flight; max and mean per robot), the integral of squared
 snap summed over robots, the smallest separation and obstacle clearance (sampled at
 200 Hz), the exact maxima of v, a, j; and seconds: the discrete stage, the continuous
@@ -98,7 +99,7 @@ def measure(trajectories, grid, v_max: float) -> dict:
     clr = obstacle_clearance(grid.occupied, (pos.reshape(-1, 2) - np.asarray(grid.origin)) / grid.resolution)
     return {
         "makespan_s": round(float(T), 2),
-        "makespan_over_bound": round(float(T / (lengths.max() / v_max)), 2),
+        "makespan_over_flown": round(float(T / (lengths.max() / v_max)), 2),
         "stops_max": max(stops),
         "stops_mean": round(float(np.mean(stops)), 1),
         "snap_integral": round(float(sum(integral_squared_derivative(tr, 4) for tr in trajectories)), 1),
@@ -156,7 +157,7 @@ def main() -> None:
         return
     variants = args.variants.split(",")
     rows = []
-    cols = ["makespan_s", "makespan_over_bound", "stops_max", "snap_integral", "min_separation_m", "min_clearance_m",
+    cols = ["makespan_s", "makespan_over_flown", "stops_max", "snap_integral", "min_separation_m", "min_clearance_m",
             "discrete_s", "continuous_s"]
     width = max(len(c) for c in cols)
     print(f"{'case':<11} {'variant':<14} " + " ".join(f"{c:>{width}}" for c in cols))

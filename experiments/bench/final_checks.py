@@ -161,10 +161,13 @@ def main() -> None:
                 print(f"{n:>5} {part:>8} {row['old_s']:>8.3f} {row['new_s']:>8.3f} {row['speedup']:>8.1f}x "
                       f"{row['old_peak_mb']:>8.1f} {row['new_peak_mb']:>8.1f}  {row['same']}", flush=True)
     slopes = []
+    if len(sizes) < 2:
+        print("exponent of time in N: needs two sizes or more (--sizes)")
     for part in PARTS:
         s = {k: exponent(sizes, [results[n][k][f"{part}_s"] for n in sizes]) for k in ("old", "new")}
         slopes.append({"part": part, "old_exponent": s["old"], "new_exponent": s["new"], "sizes": args.sizes})
-        print(f"exponent of time in N, {part:>8}: old {s['old']:.2f}, new {s['new']:.2f}")
+        if len(sizes) >= 2:
+            print(f"exponent of time in N, {part:>8}: old {s['old']:.2f}, new {s['new']:.2f}")
     write_csv(args.out, rows, float_format=".4g")
     exps = args.out.with_name(args.out.stem + "_exponents.csv")
     write_csv(exps, slopes, float_format=".3g")

@@ -157,7 +157,7 @@ def max_err(traj, ref):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[5, 10, 100, 1000])
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--budget", type=float, default=1.0, help="seconds of repeats per measurement")
@@ -226,7 +226,7 @@ def print_table(rows):
               f"{fmt(r.get('cold_formulate_ms')):>10} {fmt(r.get('cold_setup_ms')):>8} {fmt(r.get('cold_solve_ms')):>8} "
               f"{fmt(r.get('cold_total_ms')):>8} | {fmt(r.get('warm_formulate_ms')):>10} {fmt(r.get('warm_setup_ms')):>8} "
               f"{fmt(r.get('warm_solve_ms')):>8} {fmt(r.get('warm_total_ms')):>8} | {fmt(r.get('iterations'), '.0f'):>5} "
-              f"{fmt(r.get('max_err'), '.1e'):>8} {fmt(r.get('x_rotorpy'), '.0f'):>9}{note}")
+              f"{fmt(r.get('max_err'), '.1e'):>8} {fmt(r.get('x_rotorpy'), '.3g'):>9}{note}")
     print("(times in ms; compile = one-time CasADi compilation of the shape)\n")
 
 

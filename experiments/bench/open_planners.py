@@ -132,7 +132,7 @@ def row(case: str, planner: str, paths: np.ndarray, discrete_s: float, cfg, scn,
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--lmrp", type=Path, required=True, help="libMultiRobotPlanning's build folder (its binaries)")
     ap.add_argument("--cases", default=DEFAULT_CASES)
     ap.add_argument("--planners", default="ecbs_ta", help="open planners, of ecbs_ta, cbs_ta (default ecbs_ta)")

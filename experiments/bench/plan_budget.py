@@ -97,7 +97,7 @@ def row(case: str, variant: str, overrides: list[str]) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cases", default="clutter40,open50,aisles30,forest")
     ap.add_argument("--variants", default="default,refined")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")

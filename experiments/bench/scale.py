@@ -122,7 +122,8 @@ def figure(rows: list[dict], slopes: dict[str, float], path: Path, stages: tuple
         for kind, mark, ls in (("new", "o", "-"), ("baseline", "s", ":")):
             pts = [(r["N"], r[f"{s}_s"]) for r in rows if r["code"] == kind and r[f"{s}_s"] > 0]
             if pts:
-                label = f"{s} (slope {slopes[s]:.2f})" if kind == "new" else None
+                slope = f" (slope {slopes[s]:.2f})" if np.isfinite(slopes[s]) else ""  # one size: no slope
+                label = f"{s}{slope}" if kind == "new" else None
                 ax.plot(*zip(*pts), ls, marker=mark, color=color, label=label, ms=5)
     ns = sorted({r["N"] for r in rows})
     ref = [r for r in rows if r["code"] == "new"]

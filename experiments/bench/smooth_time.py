@@ -119,7 +119,8 @@ def cli_times(W: np.ndarray, v_max: float, a_max: float, reps: int) -> dict:
             for _ in range(reps):
                 t0 = time.perf_counter()
                 r = subprocess.run([sys.executable, "-m", "mrfswarm.cli", "smooth", str(wp), "--out",
-                                    str(pathlib.Path(d) / "t.csv"), *extra], capture_output=True, text=True, env=env)
+                                    str(pathlib.Path(d) / "t.csv"), "--overwrite", *extra], capture_output=True, text=True,
+                                   env=env)
                 times.append(time.perf_counter() - t0)
                 if r.returncode != 0:
                     raise RuntimeError(f"mrfswarm smooth {' '.join(extra)} failed: {r.stderr.strip()}")
@@ -128,7 +129,7 @@ def cli_times(W: np.ndarray, v_max: float, a_max: float, reps: int) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[10, 30, 100, 300], help="numbers of waypoints")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--v-max", type=float, default=2.0)
@@ -196,7 +197,7 @@ def print_table(rows):
     for r in rows:
         note = f"  {r['note']}" if r.get("note") else ""
         print(f"{r['waypoints']:>9} {r['method']:<27} {fmt(r.get('time_s'), '.4f'):>8}s "
-              f"{fmt(r.get('iterations'), 'd'):>5} {fmt(r.get('x_vs_fd'), '.0f'):>7} | "
+              f"{fmt(r.get('iterations'), 'd'):>5} {fmt(r.get('x_vs_fd'), '.3g'):>7} | "
               f"{fmt(r.get('cost'), '.5g'):>10} {fmt(r.get('total_s'), '.1f'):>7}s | "
               f"{fmt(r.get('scaled_s'), '.1f'):>15}s {fmt(r.get('toppra_s'), '.1f'):>7}s "
               f"{fmt(r.get('toppra_ms'), '.0f'):>9}ms{note}")

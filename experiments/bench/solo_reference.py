@@ -21,7 +21,8 @@ knots are held in their boxes. It tells what a time-optimal planner could fly th
 other robot around; the swarm's refined flight over it is the planner's own share of the gap.
 
 With ``--flight`` the swarm's makespans (default and refined, flight simulation off) are planned
-too. Prints one row per case; ``--out`` writes the CSV.
+too. Prints the table and writes it as CSV to ``--out`` (default ``results/solo_reference.csv``, the
+committed one).
 
     python experiments/bench/solo_reference.py --cases arena8,doorway --flight
 """

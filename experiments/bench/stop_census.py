@@ -86,7 +86,7 @@ def census(case: str, variant: str, overrides: list[str]) -> tuple[collections.C
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cases", default="big200")
     ap.add_argument("--variant", default="default", choices=sorted(VARIANTS))
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")

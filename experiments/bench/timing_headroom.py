@@ -106,7 +106,7 @@ def measure(case: str) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cases", default=DEFAULT_CASES)
     ap.add_argument("--out", type=Path, default=RESULTS / "timing_headroom.csv")
     args = ap.parse_args()

@@ -308,7 +308,7 @@ def make_fig7(out: Path, quick: bool = False) -> list[Path]:
             m = np.array([sw.mean_size(k_a, k_r) for k_a in kas])
             ax.errorbar(kas, m[:, 0], yerr=m[:, 1], fmt="-o", ms=4, color=c, capsize=2, label=f"$k_r$ = {k_r:g}")
             ax.plot(kas, [sw.d_min(k_a, k_r) for k_a in kas], "--", color=c, lw=0.9, alpha=0.8)
-        ax.set_xlabel("$k_a$")
+        ax.set_xlabel("$k_a$ [cells] (= m at the paper's 1 m cells)")
         ax.set_ylabel("swarm size: average inter-robot distance [m]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8.5, title=f"$a_I$ = {sw.a:g}, $b_I$ = {sw.b:g}", title_fontsize=8.5)
