@@ -111,8 +111,9 @@ class Scenario:
             drop_loops=c.mrf.drop_loops,
             straighten=c.mrf.straighten,
             escalation=None if c.mrf.escalation == "none" else c.mrf.escalation,
-            flight=flight_model(c.smoothing, self.grid.resolution, c.scenario.robot_radius) if c.smoothing.enabled
-            else None,
+            # with the continuous stage off too: a discrete-only run (scoping a big swarm, a sweep) plans what the
+            # full run flies (without the model its merges and the "auto" rule were judged by cells instead)
+            flight=flight_model(c.smoothing, self.grid.resolution, c.scenario.robot_radius),
         )
 
     def congestion_field(self) -> CongestionField | None:

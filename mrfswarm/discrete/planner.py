@@ -487,7 +487,12 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         key = (_short_count(problem, plan.paths[-1]), _short_way(problem, plan.paths[-1]),
                flight_time(problem, plan.paths))
         log.info("discrete stage, contested = %r: %d steps, %d robots short of the goal (%.1f cells of way left), "
-                 "%.2f s by the flight model", rule, plan.n_steps, *key)
+                 "%s", rule, plan.n_steps, key[0], key[1],
+                 f"{key[2]:.2f} s by the flight model" if problem.flight is not None
+                 else f"{key[2]:.1f} cells of longest moves (no flight model: smoothing.speed is set)")
+        if plan.stop_reason == "max_steps" and cap < max_steps:
+            log.info("discrete stage, contested = %r: cut at %d steps, %g x the first rule's (not mrf.max_steps = %d)",
+                     rule, cap, AUTO_STEP_CAP, max_steps)
         if best is None or key < best_key:
             best, best_key = plan, key
         if rule == AUTO_RULES[0] and key[0] == 0:  # arrived: a plan of many more steps would fly later

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -25,11 +27,13 @@ def doorway():
     rows = ["".join("@" if x == 15 and not 9 <= y <= 11 else "." for x in range(30)) for y in range(20)]
     scn = {"map": {"kind": "ascii", "rows": rows}, "goal": [25, 10],
            "start": {"center": [6, 10], "n_robots": 5, "sigma": 1.0, "seed": 0}}
-    cfg = from_dict({"scenario": scn, "interaction": {"k": 3}, "smoothing": {"enabled": False},
+    # the plan it was seen on: its waits merged without a flight model (a cruise speed set for the discrete stage
+    # only; the windows below fly the default profiles)
+    cfg = from_dict({"scenario": scn, "interaction": {"k": 3}, "smoothing": {"enabled": False, "speed": 1.25},
                      "simulation": {"enabled": False}})
     result = mrfswarm.plan(cfg, progress=False)
-    return RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
-                           workers=1)
+    return RecedingHorizon(result.discrete.paths, result.scenario.grid, dataclasses.replace(cfg.smoothing, speed=None),
+                           cfg.scenario.robot_radius, workers=1)
 
 
 def test_the_fast_attempt_flies_its_steps_and_brakes_as_the_bold_one(doorway, monkeypatch):
@@ -68,11 +72,14 @@ def _arena() -> RecedingHorizon:
     starts = [[0.5, y] for y in (0.75, 1.5, 2.25, 3.0)] + [[1.0, y] for y in (0.75, 1.5, 2.25, 3.0)]
     scn = {"map": {"kind": "ascii", "rows": rows, "resolution": 0.25}, "start": {"positions": starts},
            "goal": [5.25, 1.75], "robot_radius": 0.1, "goal_radius": 0.75}
-    cfg = from_dict({"scenario": scn, "interaction": {"k": 3}, "smoothing": {"enabled": False, "v_max": 1.0},
-                     "simulation": {"enabled": False}, "mrf": {"straighten": False}})  # the plan it was seen on
+    # the plan it was seen on: unstraightened, merged without a flight model (a cruise speed set for the
+    # discrete stage only; the windows below fly the default profiles)
+    cfg = from_dict({"scenario": scn, "interaction": {"k": 3},
+                     "smoothing": {"enabled": False, "v_max": 1.0, "speed": 1.0},
+                     "simulation": {"enabled": False}, "mrf": {"straighten": False}})
     result = mrfswarm.plan(cfg, progress=False)
-    return RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
-                           workers=1)
+    return RecedingHorizon(result.discrete.paths, result.scenario.grid, dataclasses.replace(cfg.smoothing, speed=None),
+                           cfg.scenario.robot_radius, workers=1)
 
 
 def test_the_last_window_brakes_a_little_longer_before_it_falls_back(monkeypatch):

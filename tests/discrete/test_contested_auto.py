@@ -111,14 +111,30 @@ def test_with_robots_short_either_way_the_plan_that_brings_them_nearer_is_kept()
 
 
 def test_without_a_flight_model_the_longest_moves_decide():
-    """With smoothing off (no time grid), each step counts its longest move in cells."""
-    cfg = from_dict(apply_overrides(clutter_map(), ["simulation.enabled=false", "smoothing.enabled=false"]))
+    """With a cruise speed set (no time grid's model), each step counts its longest move in cells."""
+    cfg = from_dict(apply_overrides(clutter_map(), ["simulation.enabled=false", "smoothing.enabled=false",
+                                                    "smoothing.speed=1.0"]))
     problem = build_scenario(cfg).discrete_problem()
     assert problem.flight is None
     paths = np.array([[[0, 0], [5, 5]], [[1, 1], [5, 6]], [[1, 1], [5, 7]], [[1, 1], [5, 7]]])
     assert flight_time(problem, paths) == pytest.approx(math.sqrt(2) + 1 + 0)
     auto = plan(problem, cfg)
     assert auto.contested == "shared"
+
+
+def test_a_discrete_only_run_plans_what_the_full_run_flies():
+    """``smoothing.enabled = false`` (scoping a big swarm, a sweep) planned another discrete plan: without the
+    time grid's flight model its waits were merged and its contested rule picked by cells (a 1000-robot crossing:
+    237 merges against 200; new-user tour). The model is the smoothing config's either way now."""
+    rows = ["".join("@" if x == 15 and not 9 <= y <= 11 else "." for x in range(30)) for y in range(20)]
+    data = {"scenario": {"map": {"kind": "ascii", "rows": rows}, "goal": [25, 10],
+                         "start": {"center": [6, 10], "n_robots": 5, "sigma": 1.0, "seed": 0}},
+            "interaction": {"k": 3}, "simulation": {"enabled": False}}
+    full = mrfswarm.plan(from_dict(data), progress=False)
+    alone = mrfswarm.plan(from_dict({**data, "smoothing": {"enabled": False}}), progress=False)
+    assert build_scenario(from_dict({**data, "smoothing": {"enabled": False}})).discrete_problem().flight is not None
+    np.testing.assert_array_equal(alone.discrete.paths, full.discrete.paths)
+    assert alone.discrete.merged_waits == full.discrete.merged_waits
 
 
 def test_the_run_records_the_rule_it_planned_with():

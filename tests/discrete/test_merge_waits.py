@@ -99,7 +99,8 @@ def test_planned_paths_keep_their_cells_and_the_invariant(case):
     rows = ["".join("@" if occ[x, y] else "." for x in range(occ.shape[0])) for y in range(occ.shape[1])]
     data = {"scenario": {"map": {"kind": "ascii", "rows": rows},
                          "start": {"center": [4, 10], "n_robots": 12, "sigma": 1.5, "seed": 1}, "goal": [26, 10]},
-            "interaction": {"k": 5}, "smoothing": {"enabled": False}, "simulation": {"enabled": False},
+            # a cruise speed: no flight model, every safe merge is made (the model's choice is tested below)
+            "interaction": {"k": 5}, "smoothing": {"enabled": False, "speed": 1.0}, "simulation": {"enabled": False},
             # the paper's Gamma, untrimmed: with the defaults (2, trimmed) the clutter plan has no wait to merge
             "obstacle_potential": {"gamma": 5.0}}
     plans = {m: plan(from_dict({**data, "mrf": {"merge_waits": m, "trim_backward": False}}, Path(".")), progress=False)
