@@ -14,6 +14,7 @@ written to a temporary name and renamed (:func:`atomic_write`).
 from __future__ import annotations
 
 import json
+import logging
 import os
 import shutil
 import tempfile
@@ -26,6 +27,8 @@ from mrfswarm import plots
 from mrfswarm.atomic import atomic_write, umask
 from mrfswarm.errors import ExportError
 from mrfswarm.pipeline import Result
+
+log = logging.getLogger(__name__)
 
 RUN_MARKER = "result.json"
 """The file that makes a folder a run's folder (written last)."""
@@ -119,6 +122,7 @@ def write_outputs(result: Result, out: Path, animate: bool = False, overwrite: b
     check_output_dir(out, overwrite)
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.partial-"))
+    log.info("writing the outputs to %s%s", out, " (with the animation)" if animate else "")
     try:
         os.chmod(stage, 0o777 & ~umask())  # as a folder made by mkdir would be
         written = write_discrete_outputs(result, stage)

@@ -429,7 +429,8 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         problem = scn.discrete_problem()
         plan_d = plan_discrete(problem, method=cfg.mrf.method, max_steps=cfg.mrf.max_steps,
                                tol=cfg.mrf.tol, patience=cfg.mrf.patience, options=options,
-                               on_step=lambda t, out: bar.update(t - bar.n), progress=cfg.mrf.progress,
+                               on_step=lambda t, out: _discrete_progress(bar, t, cfg.mrf.max_steps),
+                               progress=cfg.mrf.progress,
                                arrival=cfg.mrf.arrival)
         timings["discrete"] = time.perf_counter() - t0
     # the arrival rule also ends a plan whose other robots are cut off from the goal: those did not reach it
@@ -455,6 +456,13 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     return result
 
 
+def _discrete_progress(bar, t: int, max_steps: int) -> None:
+    """The progress bar, and with ``-v`` a line every 50 MRF steps (a long run without a terminal has no bar)."""
+    bar.update(t - bar.n)
+    if t % 50 == 0:
+        log.info("discrete stage: MRF step %d (at most %d)", t, max_steps)
+
+
 def _paper_pruning(result: Result) -> None:
     """Without a receding horizon's pruning, the paper's: per planning horizon."""
     if not result.pruned:
@@ -471,8 +479,22 @@ def _continuous(result: Result, show: bool, workers: int | None = None) -> None:
     cfg = result.config
     rh = RecedingHorizon(result.discrete.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
                          cfg.smoothing.backend, qp_options(cfg), workers=workers, downwash=cfg.scenario.downwash)
-    with tqdm(total=len(rh.windows()), desc="smoothing", unit="window", disable=not show, leave=False) as bar:
-        plan = rh.run(on_window=lambda w: bar.update(1))
+    windows = len(rh.windows())
+    log.info("continuous stage: %d robots, %d steps in %d windows", result.scenario.n_robots,
+             result.discrete.n_steps, windows)
+    done = [0]
+    t0 = time.perf_counter()
+
+    def on_window(w) -> None:
+        done[0] += 1
+        bar.update(1)
+        # -v on a long run without a terminal (no progress bar): a line at every tenth of the windows
+        if done[0] * 10 // windows > (done[0] - 1) * 10 // windows:
+            log.info("smoothing: window %d of %d (steps %d..%d) after %.1f s", done[0], windows, w.a, w.b,
+                     time.perf_counter() - t0)
+
+    with tqdm(total=windows, desc="smoothing", unit="window", disable=not show, leave=False) as bar:
+        plan = rh.run(on_window=on_window)
     result.continuous = plan
     result.timings_s.update(plan.timings)
 
@@ -483,6 +505,8 @@ def _simulate(result: Result, show: bool, workers: int | None = None) -> None:
     cfg = result.config
     t0 = time.perf_counter()
     c = result.smoothed()
+    log.info("simulation: %d robots, %.1f s of flight at %g Hz (simulation.backend = %r)", len(c.trajectories),
+             c.makespan_s, cfg.simulation.rate_hz, cfg.simulation.backend)
     result.flight = fly_swarm(c.trajectories, cfg.scenario.altitude, result.scenario.grid,
                               cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=c.j_max,
                               workers=workers, speed=c.v_max, progress=show,

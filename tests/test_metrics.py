@@ -124,3 +124,25 @@ def test_path_clearance_and_lengths_in_3d():
     # robots 5 apart in x and y: the z scaling does not matter here
     assert m.min_separation == pytest.approx(min_separation(paths, 2.0) * 0.5)
     assert m.reached_goal is not None
+
+
+def test_a_run_logs_its_stages_for_a_user_without_a_terminal(caplog):
+    """-v on a long run without a progress bar printed four lines in 3 minutes (big-swarm tour): each stage
+    says it starts, the smoothing every tenth of its windows, the outputs where they go."""
+    from mrfswarm.config import load_config
+    from mrfswarm.outputs import write_outputs
+    from mrfswarm.pipeline import plan
+    from support.repository import EXPERIMENTS
+
+    with caplog.at_level("INFO"):
+        r = plan(load_config(EXPERIMENTS / "free10.toml", ["simulation.enabled=false"]), progress=False)
+    text = caplog.text
+    assert "continuous stage: 10 robots, 7 steps in 2 windows" in text
+    assert "smoothing: window 1 of 2" in text and "smoothing: window 2 of 2" in text
+    caplog.clear()
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as d, caplog.at_level("INFO"):
+        write_outputs(r, Path(d) / "run")
+    assert "writing the outputs to" in caplog.text
