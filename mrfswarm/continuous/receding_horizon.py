@@ -1390,8 +1390,14 @@ class RecedingHorizon:
         # minutes trying) and speed: fly one piece per step and report it
         merge = bool(cfg.max_pieces) and len(windows) <= cfg.max_pieces
         if cfg.max_pieces and not merge:
-            log.warning("%d windows of %d steps cannot fit smoothing.max_pieces = %d pieces: one piece per step",
-                        len(windows), T, cfg.max_pieces)
+            # the fewest steps a window must fly for max_pieces windows to cover the flight
+            need = math.ceil(math.ceil(T / cfg.max_pieces) / cfg.execution)
+            log.warning("%d windows of %d steps cannot fit smoothing.max_pieces = %d pieces (a window flies one "
+                        "piece at least): one piece per step, %d per robot. Fitting needs fewer windows, "
+                        "smoothing.horizon >= %d at execution %g (not always enough: a window whose merged pieces "
+                        "have no solution keeps more; and slow to plan with many robots), or a shorter flight; "
+                        "smoothing.max_pieces = 0 leaves the limit off", len(windows), T, cfg.max_pieces, T, need,
+                        cfg.execution)
 
         def commit(a: int, c: int, b: int, sol: _Solution) -> tuple | None:
             Y[a:c + 1] = sol.Y[:, :c - a + 1].transpose(1, 0, 2, 3)

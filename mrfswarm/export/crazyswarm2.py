@@ -135,9 +135,11 @@ def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0,
     texts = []
     pairs = shared_ground(starts, 2 * radius) if radius > 0 else []
     if pairs:
-        names = ", ".join(f"{robot_name(i)} and {robot_name(k)}" for i, k in pairs)
-        texts.append(f"robots start above the same ground spot ({names}): crazyflies.yaml places them there; put "
-                     f"one elsewhere and fly it to its start by hand (fly.py and cflib_upload.py take off straight up)")
+        names = ", ".join(f"{robot_name(i)} and {robot_name(k)}" for i, k in pairs[:6])
+        more = f" and {len(pairs) - 6} more pairs" if len(pairs) > 6 else ""
+        texts.append(f"robots start above the same ground spot ({names}{more}): crazyflies.yaml places them there; "
+                     f"put one elsewhere and fly it to its start by hand (fly.py and cflib_upload.py take off "
+                     f"straight up), or give scenario.start positions one per ground spot")
     z_min = None if lowest is None else np.asarray(lowest, dtype=float)
     low = below_ground(z_min, radius) if z_min is not None else np.array([], dtype=int)
     if z_min is not None and len(low):

@@ -313,3 +313,6 @@ def test_a_flight_that_does_not_fit_is_reported(caplog):
     s = r.summary()["piece_limit"]
     assert s == {"max_pieces": 5, "fits": False, "robots_over": [0, 1, 2, 3, 4], "steps_per_piece_max": 1}
     assert "cannot fit smoothing.max_pieces = 5" in caplog.text and "does not fit" in caplog.text
+    # what fewer windows would take: 33 steps in 5 windows fly 7 steps each, a horizon of 14 at execution 0.5
+    assert "one piece per step, 33 per robot. Fitting needs fewer windows, smoothing.horizon >= 14 at execution 0.5" \
+        in caplog.text

@@ -55,6 +55,12 @@ def test_robots_started_one_above_the_other_are_named_in_a_warning_and_the_yaml(
     assert "cf1 and cf2, cf3 and cf4" in caplog.text and "# WARNING: robots start above the same ground spot" in text
     assert len(yaml.safe_load(text)["robots"]) == 4  # still the file Crazyswarm2 reads
     caplog.clear()
+    # thirty stacked pairs (a sampled 3-D start of 100 robots): six named, the rest counted, not a 650-character line
+    tower = np.array([[x, 0.0, z] for x in range(30) for z in (1.0, 3.0)])
+    with caplog.at_level("WARNING"):
+        write_crazyswarm2(tower, tmp_path / "t", radius=0.25)
+    assert "cf11 and cf12 and 24 more pairs)" in caplog.text and "cf13" not in caplog.text
+    caplog.clear()
     apart = stacked + np.array([[0.0, 0, 0], [0.5, 0, 0], [0, 0, 0], [0.5, 0, 0]])
     assert shared_ground(apart, 0.5) == []
     with caplog.at_level("WARNING"):
