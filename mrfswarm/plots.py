@@ -301,7 +301,14 @@ def plot_energy(path: Path, energies: dict[str, np.ndarray], title: str = "Swarm
     for name, e in energies.items():
         ax.plot(np.arange(len(e)), e, "-o", ms=3, label=name)
     ax.set_xlabel("MRF step")
-    ax.set_ylabel("swarm energy")
+    values = np.concatenate([np.asarray(e, dtype=float).ravel() for e in energies.values()] or [np.zeros(0)])
+    values = values[np.isfinite(values)]
+    # the goal potential is exponential in the distance: a big swarm's energy falls by orders of magnitude, and on
+    # a linear axis its second half was a flat line at 0 (big-swarm tour)
+    log_axis = values.size > 0 and values.min() > 0 and values.max() > 100 * values.min()
+    if log_axis:
+        ax.set_yscale("log")
+    ax.set_ylabel("swarm energy" + (" (log scale)" if log_axis else ""))
     ax.set_title(title)
     ax.grid(alpha=0.3)
     if len(energies) > 1:
