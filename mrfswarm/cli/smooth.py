@@ -57,8 +57,10 @@ RETIMERS = ("toppra",)
 #: 100-500 Hz), and beyond either end the powers of the durations overflow or the solution loses the waypoints.
 MIN_PIECE_S, MAX_PIECE_S = 1e-3, 1e5
 #: How far (m) the solved trajectory may pass from a waypoint (PIQP's default tolerance gives 1e-9 m; durations
-#: 1e-4 : 1 left it 4 mm off, 1e-6 : 1 with the closed form 1 m off).
+#: 1e-4 : 1 left it 4 mm off, 1e-6 : 1 with the closed form 1 m off); at least WAYPOINT_REL of the waypoints'
+#: largest coordinate, whose float rounding grows with it (waypoints 200 km from the origin).
 WAYPOINT_TOL = 1e-5
+WAYPOINT_REL = 1e-9
 #: Pieces a Crazyflie's 4096-byte trajectory memory holds in the raw format (132 bytes a piece).
 CRAZYFLIE_PIECES = 31
 
@@ -126,7 +128,7 @@ def _check_passes_waypoints(traj, W: np.ndarray, T: np.ndarray) -> None:
     miss[:-1] = np.linalg.norm(c[:, 0, :] - W[:-1], axis=1)
     miss[1:] = np.maximum(miss[1:], np.linalg.norm(ends - W[1:], axis=1))
     miss[~np.isfinite(miss)] = np.inf
-    if not np.all(miss <= WAYPOINT_TOL):
+    if not np.all(miss <= max(WAYPOINT_TOL, WAYPOINT_REL * float(np.abs(W).max()))):
         i = int(np.argmax(miss))
         raise ConfigError(f"the solved trajectory misses waypoint {i + 1} by {miss[i]:.3g} m: the durations are too "
                           f"uneven for the solver (shortest {T.min():.3g} s, longest {T.max():.3g} s); give more even "
