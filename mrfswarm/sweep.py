@@ -44,6 +44,9 @@ log = logging.getLogger(__name__)
 
 # summary keys that hold a list or a table when they are not None: never a column as such
 _STRUCTURED = {"goal", "simulation", "limits", "achieved"}
+# summary keys holding a table (or None) whose scalars are columns <key>_<name>: the limits asked and reached, the
+# certificate, the sampled check, the Crazyflie memory; None (the check off, no smoothing) leaves them empty
+_PREFIXED = ("limits", "achieved", "certificate", "sampled_check", "piece_limit", "crazyflie")
 
 
 def is_timing_column(name: str) -> bool:
@@ -288,8 +291,12 @@ def _row(base: dict, out: dict) -> dict:
     row = dict(base)
     s = out["summary"] or {}
     for k, v in s.items():
-        if k not in _STRUCTURED and (v is None or isinstance(v, (bool, numbers.Number, str))):
+        if k not in _STRUCTURED and k not in _PREFIXED and (v is None or isinstance(v, (bool, numbers.Number, str))):
             row[k] = v
+    for k in _PREFIXED:
+        for name, v in (s.get(k) or {}).items():
+            if v is None or isinstance(v, (bool, numbers.Number, str)):
+                row[f"{k}_{name}"] = v
     for k, v in (s.get("flight_quality") or {}).items():  # makespan over its lower bound, stops, speed
         if v is None or isinstance(v, (bool, numbers.Number, str)):
             row[k] = v

@@ -370,6 +370,28 @@ def test_a_smoothed_sweep_tabulates_the_flight_against_its_lower_bound(tmp_path)
     assert {"makespan_over_bound", "stops_per_robot", "lower_bound_s"} <= set(header)
 
 
+def test_a_sweep_tabulates_the_certificate_the_sampled_check_and_the_limits_reached(tmp_path):
+    """The tables of result.json (certificate, sampled check, limits asked and reached) are columns <table>_<key>;
+    the sampled check's are empty where the check is off (its table was a column left empty in every row)."""
+    res = run_sweep(EXPERIMENTS / "corridor.toml", {"smoothing.check_rate_hz": [0, 500]}, tmp_path, workers=1,
+                    overrides=["simulation.enabled=false"])
+    header = read_csv(res.csv_path)[0]
+    assert "sampled_check" not in header and "certificate" not in header
+    off, on = res.rows
+    points = sorted((tmp_path / "points").iterdir())
+    summary = [json.loads((d / "result.json").read_text()) for d in points]
+    assert summary[0]["sampled_check"] is None and off.get("sampled_check_min_separation_m") is None
+    assert on["sampled_check_rate_hz"] == 500
+    assert on["sampled_check_min_separation_m"] == summary[1]["sampled_check"]["min_separation_m"] > 0
+    for row, s in zip(res.rows, summary):
+        assert row["certificate_ok"] is True and row["certificate_ok"] == s["certificate"]["ok"]
+        assert row["achieved_j_max"] == s["achieved"]["j_max"] <= row["limits_j_max"] == s["limits"]["j_max"]
+        assert row["piece_limit_fits"] == s["piece_limit"]["fits"]
+    table = read_csv(res.csv_path)
+    column = table[0].index("sampled_check_min_separation_m")
+    assert table[1][column] == "" and float(table[2][column]) == on["sampled_check_min_separation_m"]
+
+
 def test_point_folders_name_list_values_readably():
     """A list value gave ``goal=-4-3`` (read as negative numbers); its items are joined by ``x``."""
     from mrfswarm.sweep import _slug
