@@ -223,22 +223,28 @@ def write_scene(result: Result, out: Path) -> Path:
 def write_crazyflie_outputs(result: Result, out: Path) -> list[Path]:
     """crazyswarm2/ (crazyflies.yaml, fly.py), crazyflie/ (cflib_upload.py and, when the flight fits the
     compressed format, compressed.json: the rounded pieces whose decoding ``result.json`` certifies)."""
-    from mrfswarm.export.crazyswarm2 import blocked_columns, lowest_points, starts_of, write_crazyswarm2
+    from mrfswarm.export.crazyswarm2 import blocked_columns, lowest_points, maneuvers, starts_of, write_crazyswarm2
 
     c = result.smoothed()
     starts = starts_of(c.trajectories)
+    ends = np.array([tr.evaluate(tr.duration) for tr in c.trajectories])
     radius = result.config.scenario.robot_radius
+    sm = result.config.smoothing
     lowest = columns = None
+    if starts.shape[-1] == 3:
+        start_z, end_z = starts[:, 2], ends[:, 2]
+    else:  # a 2-D plan flies at its altitude
+        start_z = end_z = np.full(len(starts), result.config.scenario.altitude)
+    maneuver = maneuvers(start_z, end_z, sm.v_max, sm.a_max, sm.j_max)
     if c.trajectories and c.trajectories[0].dim == 3:
         lowest = lowest_points(c.trajectories)
         grid = result.scenario.grid
-        ends = np.array([tr.evaluate(tr.duration) for tr in c.trajectories])
         origin = np.asarray(grid.origin, dtype=float)
         # the scripts take off to the highest start and land from each end
         columns = (blocked_columns(grid.occupied, origin, grid.resolution, starts[:, :2],
                                    np.full(len(starts), starts[:, 2].max()), radius),
                    blocked_columns(grid.occupied, origin, grid.resolution, ends[:, :2], ends[:, 2], radius))
-    written = write_crazyswarm2(starts, out, radius, lowest, columns)
+    written = write_crazyswarm2(starts, out, radius, lowest, columns, ends, maneuver)
     _, comp = result._crazyflie_export()
     if comp is not None:
         written.append(write_json(out / "crazyflie" / "compressed.json", compressed_json(comp)))

@@ -14,6 +14,7 @@ start, at the altitude in a 2-D plan and at the start's own height in a 3-D one)
 from __future__ import annotations
 
 import logging
+import math
 import shutil
 from collections.abc import Sequence
 from functools import partial
@@ -28,6 +29,13 @@ URI = "radio://0/80/2M/E7E7E7E7{id:02X}"
 URI_WIDE = "radio://0/80/2M/E7E7E7{id:04X}"
 ROBOT_TYPE = "cf21"
 SCRIPTS = Path(__file__).parent / "scripts"
+#: The firmware's take-off, go-to and landing fly this polynomial of t / T over [0, 1] from rest to rest (speed,
+#: acceleration and jerk zero at both ends: crazyflie-firmware's planner.c, ``piecewise_plan_7th_order_no_jerk``).
+REST_TO_REST = np.polynomial.Polynomial([0, 0, 0, 0, 35, -84, 70, -20])
+#: The scripts' take-off, go-to and landing last at least this long (their one duration before the limits set it).
+MANEUVER_MIN_S = 3.0
+#: The height the scripts land to (the firmware's land command stops there and the motors go off).
+LAND_HEIGHT_M = 0.04
 
 
 def robot_name(i: int) -> str:
@@ -75,6 +83,37 @@ def shared_ground(starts: np.ndarray, distance: float) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(i, k)]
 
 
+def _peak(k: int) -> float:
+    """The largest |k-th derivative| of :data:`REST_TO_REST` over [0, 1] (k = 1: 35/16)."""
+    d = REST_TO_REST.deriv(k)
+    roots = np.asarray(d.deriv().roots(), dtype=complex)
+    at = [0.0, 1.0] + [float(r.real) for r in roots if abs(r.imag) < 1e-9 and 0.0 <= float(r.real) <= 1.0]
+    return max(abs(float(d(t))) for t in at)
+
+
+def maneuver_duration(distance: float, v_max: float, a_max: float, j_max: float,
+                      least: float = MANEUVER_MIN_S) -> float:
+    """Seconds the firmware's maneuver (:data:`REST_TO_REST`) needs over ``distance`` metres to stay within the
+    limits, at least ``least``: over d in T seconds its peak speed is 35/16 d / T, its peak acceleration 7.51 d / T^2
+    and its peak jerk 52.5 d / T^3."""
+    d = abs(float(distance))
+    return max(float(least), _peak(1) * d / v_max, math.sqrt(_peak(2) * d / a_max), (_peak(3) * d / j_max) ** (1 / 3))
+
+
+def maneuvers(start_z: np.ndarray, end_z: np.ndarray, v_max: float, a_max: float, j_max: float) -> dict:
+    """The durations the scripts fly their maneuvers in, within the plan's limits (:func:`maneuver_duration`):
+    ``takeoff_s`` from the ground (z = 0) up to the highest start, ``goto_s`` from there to each start (straight
+    down to it: the robots take off below their starts), ``land_s`` from each end down to ``land_height_m``. A 2-D
+    plan's starts and ends are at its altitude. (At the old 3 s each, a take-off to 4.5 m peaked at 3.3 m/s.)"""
+    start_z, end_z = np.asarray(start_z, dtype=float), np.asarray(end_z, dtype=float)
+    top = float(start_z.max())
+    return {"takeoff_s": maneuver_duration(top, v_max, a_max, j_max),
+            "goto_s": maneuver_duration(float(np.max(top - start_z)), v_max, a_max, j_max),
+            "land_s": maneuver_duration(float(np.max(end_z - LAND_HEIGHT_M)), v_max, a_max, j_max),
+            "land_height_m": LAND_HEIGHT_M,
+            "limits": {"v_max": float(v_max), "a_max": float(a_max), "j_max": float(j_max)}}
+
+
 def lowest_points(trajectories: Sequence, per_piece: int = 64) -> np.ndarray:
     """(N,) the lowest z each 3-D trajectory reaches (sampled, ``per_piece`` times per piece and at its knots)."""
     out = []
@@ -119,12 +158,15 @@ def blocked_columns(occupied: np.ndarray, origin: np.ndarray, resolution: float,
 
 
 def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0,
-                      lowest: np.ndarray | None = None, columns: tuple[np.ndarray, np.ndarray] | None = None
-                      ) -> list[Path]:
-    """``out/crazyswarm2/crazyflies.yaml``, ``out/crazyswarm2/fly.py`` and ``out/crazyflie/cflib_upload.py``.
+                      lowest: np.ndarray | None = None, columns: tuple[np.ndarray, np.ndarray] | None = None,
+                      ends: np.ndarray | None = None, maneuver: dict | None = None) -> list[Path]:
+    """``out/crazyswarm2/crazyflies.yaml``, ``out/crazyswarm2/fly.py``, ``out/crazyflie/cflib_upload.py`` and, given
+    ``maneuver`` (:func:`maneuvers`), ``out/crazyswarm2/maneuvers.yaml``, the scripts' take-off, go-to and landing
+    durations (without it the scripts fly each in :data:`MANEUVER_MIN_S`).
 
     Robots whose ground spots come nearer than ``2 radius`` (:func:`shared_ground`) are named in a warning
-    and in the file's comments: their take-off is not the scripts' to fly. So are, in a 3-D plan (``lowest``:
+    and in the file's comments: their take-off is not the scripts' to fly; robots that end so (``ends``, a 3-D
+    plan's robots one above the other at the goal), their landing, straight down onto one another. So are, in a 3-D plan (``lowest``:
     each robot's lowest z), the robots that fly nearer than ``radius`` to the ground the export takes off
     from, z = 0 (:func:`below_ground`): a 3-D map's floor is at ``origin[2] - resolution / 2``, by default
     below 0, and flown as planned they would go into the floor of the room. ``columns``: the robots whose
@@ -140,6 +182,13 @@ def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0,
         texts.append(f"robots start above the same ground spot ({names}{more}): crazyflies.yaml places them there; "
                      f"put one elsewhere and fly it to its start by hand (fly.py and cflib_upload.py take off "
                      f"straight up), or give scenario.start positions one per ground spot")
+    landing = shared_ground(ends, 2 * radius) if radius > 0 and ends is not None else []
+    if landing:
+        names = ", ".join(f"{robot_name(i)} and {robot_name(k)}" for i, k in landing[:6])
+        more = f" and {len(landing) - 6} more pairs" if len(landing) > 6 else ""
+        texts.append(f"robots end above the same ground spot ({names}{more}): fly.py and cflib_upload.py land every "
+                     f"robot straight down at once, one onto the other; land them one at a time, after flying one "
+                     f"aside, or give the goal room for the swarm on one level")
     z_min = None if lowest is None else np.asarray(lowest, dtype=float)
     low = below_ground(z_min, radius) if z_min is not None else np.array([], dtype=int)
     if z_min is not None and len(low):
@@ -162,6 +211,11 @@ def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0,
         header += f"# WARNING: {text}\n"
     written = [atomic_write(out / "crazyswarm2" / "crazyflies.yaml", lambda p: p.write_text(
         header + yaml.safe_dump(crazyflies_config(starts), sort_keys=False)))]
+    if maneuver is not None:
+        note = ("# the take-off, go-to and landing of fly.py and cflib_upload.py: the firmware flies each as a 7th-order\n"
+                "# polynomial from rest to rest; these durations keep its peaks within the plan's limits\n")
+        written.append(atomic_write(out / "crazyswarm2" / "maneuvers.yaml", lambda p: p.write_text(
+            note + yaml.safe_dump(maneuver, sort_keys=False))))
     for folder, script in (("crazyswarm2", "fly.py"), ("crazyflie", "cflib_upload.py")):
         source = SCRIPTS / script
         written.append(atomic_write(out / folder / script, partial(shutil.copyfile, source)))

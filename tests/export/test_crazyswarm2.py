@@ -68,6 +68,67 @@ def test_robots_started_one_above_the_other_are_named_in_a_warning_and_the_yaml(
     assert not caplog.text and "WARNING" not in (tmp_path / "b" / "crazyswarm2" / "crazyflies.yaml").read_text()
 
 
+def test_robots_that_end_one_above_the_other_are_named_in_a_warning_and_the_yaml(tmp_path, caplog):
+    """The scripts land every robot straight down at once: two that end above the same ground spot land one onto
+    the other (a 3-D goal with robots stacked in it); only the starts were checked."""
+    from mrfswarm.export.crazyswarm2 import write_crazyswarm2
+
+    starts = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [2.0, 0.0, 1.0]])
+    ends = np.array([[12.0, 4.0, 4.5], [9.0, 4.0, 1.0], [12.0, 4.0, 0.5]])
+    with caplog.at_level("WARNING"):
+        write_crazyswarm2(starts, tmp_path / "a", radius=0.25, ends=ends)
+    text = (tmp_path / "a" / "crazyswarm2" / "crazyflies.yaml").read_text()
+    assert "robots end above the same ground spot (cf1 and cf3)" in caplog.text
+    assert "# WARNING: robots end above the same ground spot" in text and "start above" not in text
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        write_crazyswarm2(starts, tmp_path / "b", radius=0.25, ends=ends + [[0.5, 0, 0], [0, 0, 0], [0, 0, 0]])
+    assert not caplog.text
+
+
+@pytest.mark.parametrize("distance, v_max, a_max, j_max", [(4.5, 2.0, 4.0, 4.0), (0.9, 1.0, 2.0, 4.0),
+                                                           (40.0, 0.5, 0.5, 0.5), (5.0, 10.0, 0.2, 100.0),
+                                                           (5.0, 10.0, 10.0, 0.05)])
+def test_the_maneuvers_keep_the_firmwares_polynomial_within_the_plans_limits(distance, v_max, a_max, j_max):
+    """Take-off, go-to and landing fly the firmware's 7th-order rest-to-rest polynomial: over its duration it stays
+    within the limits, each of which binds where the duration is longer than the 3 s floor. At the scripts' former 3 s,
+    a take-off to 4.5 m peaked at 3.3 m/s against a v_max of 2."""
+    from mrfswarm.export.crazyswarm2 import MANEUVER_MIN_S, REST_TO_REST, maneuver_duration
+
+    T = maneuver_duration(distance, v_max, a_max, j_max)
+    tau = np.linspace(0.0, 1.0, 200001)
+    peaks = [np.abs(REST_TO_REST.deriv(k)(tau)).max() * distance / T**k for k in (1, 2, 3)]
+    ratios = np.array(peaks) / [v_max, a_max, j_max]
+    assert ratios.max() <= 1 + 1e-9
+    assert T == MANEUVER_MIN_S or ratios.max() > 1 - 1e-6  # longer than the floor only as long as a limit asks
+    assert maneuver_duration(4.5, 2.0, 4.0, 4.0) > 4.9  # 35/16 x 4.5 / 2
+    assert np.abs(REST_TO_REST.deriv(1)(tau)).max() * 4.5 / MANEUVER_MIN_S > 3.2
+
+
+def test_the_scripts_fly_the_maneuvers_of_the_run(run_dir, tmp_path, monkeypatch):
+    """maneuvers.yaml: the corridor's take-off to 1 m and landing within its limits take the 3 s floor; fly.py and
+    cflib_upload.py fly what the file says (a taller plan's longer durations)."""
+    m = yaml.safe_load((run_dir / "crazyswarm2" / "maneuvers.yaml").read_text())
+    assert m["takeoff_s"] == m["goto_s"] == m["land_s"] == 3.0 and m["land_height_m"] == 0.04
+    assert m["limits"] == {"v_max": 2.0, "a_max": 4.0, "j_max": 4.0}
+    plan = tmp_path / "plan"
+    shutil.copytree(run_dir, plan)
+    tall = {**m, "takeoff_s": 4.92, "goto_s": 3.5, "land_s": 5.1, "land_height_m": 0.05}
+    (plan / "crazyswarm2" / "maneuvers.yaml").write_text(yaml.safe_dump(tall))
+    calls = []
+    monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, ["cf1", "cf2", "cf3", "cf4", "cf5"])})
+    load_script(plan / "crazyswarm2" / "fly.py", "fly_tall").main([])
+    assert next(c for c in calls if c[0] == "takeoff")[2] == 4.92
+    assert {c[4] for c in calls if c[0] == "goTo"} == {3.5}
+    assert next(c for c in calls if c[0] == "land")[1:] == (0.05, 5.1)
+    seq = [c[0] for c in calls]
+    assert calls[seq.index("takeoff") + 1] == ("sleep", 4.92 + 1.0)
+    cflib_upload = load_script(plan / "crazyflie" / "cflib_upload.py", "cflib_upload_tall")
+    assert cflib_upload.maneuvers(plan) == tall
+    (plan / "crazyswarm2" / "maneuvers.yaml").unlink()  # a folder written before the file: 3 s each
+    assert cflib_upload.maneuvers(plan)["takeoff_s"] == 3.0
+
+
 def test_robots_that_fly_into_the_ground_of_the_export_are_named_in_a_warning_and_the_yaml(tmp_path, caplog):
     """A 3-D plan whose map keeps its floor below z = 0 (the default origin): its robots' lowest points are found
     on the curves, between knots too, and those nearer than the radius to z = 0 named, lowest first."""

@@ -30,16 +30,22 @@ import yaml
 HERE = Path(__file__).resolve().parent
 PLAN = HERE.parent
 TRAJECTORY_ID = 1
-TAKEOFF_S = 3.0
-GOTO_S = 3.0
-LAND_S = 3.0
 SETTLE_S = 1.0
+#: take-off, go-to and landing without crazyswarm2/maneuvers.yaml (a folder written before it)
+DEFAULT_MANEUVERS = {"takeoff_s": 3.0, "goto_s": 3.0, "land_s": 3.0, "land_height_m": 0.04}
 
 
 def uris(plan: Path = PLAN) -> dict[int, str]:
     """Robot index -> radio URI, from Crazyswarm2's ``crazyflies.yaml``."""
     robots = yaml.safe_load((plan / "crazyswarm2" / "crazyflies.yaml").read_text())["robots"]
     return {int(name[2:]) - 1: entry["uri"] for name, entry in robots.items() if entry.get("enabled", True)}
+
+
+def maneuvers(plan: Path = PLAN) -> dict:
+    """The take-off, go-to and landing durations (s) and the landing height (m) fly.py flies too:
+    ``crazyswarm2/maneuvers.yaml`` (within the plan's limits)."""
+    path = plan / "crazyswarm2" / "maneuvers.yaml"
+    return {**DEFAULT_MANEUVERS, **(yaml.safe_load(path.read_text()) if path.is_file() else {})}
 
 
 def pieces(robots: list[int], compressed: bool, plan: Path = PLAN) -> tuple[dict[int, list[Any]], np.ndarray]:
@@ -189,17 +195,18 @@ def main(argv: list[str] | None = None) -> int:
         if not args.fly:
             return 0
         swarm.reset_estimators()
+        m = maneuvers()
         altitude = takeoff_altitude(elements, args.compressed)
-        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.takeoff(altitude, TAKEOFF_S))
-        time.sleep(TAKEOFF_S + SETTLE_S)
+        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.takeoff(altitude, m["takeoff_s"]))
+        time.sleep(m["takeoff_s"] + SETTLE_S)
         swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.go_to(
-            *start_of(elements[by_uri[scf.cf.link_uri]], args.compressed), 0.0, GOTO_S))
-        time.sleep(GOTO_S + SETTLE_S)
+            *start_of(elements[by_uri[scf.cf.link_uri]], args.compressed), 0.0, m["goto_s"]))
+        time.sleep(m["goto_s"] + SETTLE_S)
         swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.start_trajectory(
             TRAJECTORY_ID, 1.0, relative_position=False))
         time.sleep(max(duration_of(e, args.compressed) for e in elements.values()) + SETTLE_S)
-        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.land(0.04, LAND_S))
-        time.sleep(LAND_S + SETTLE_S)
+        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.land(m["land_height_m"], m["land_s"]))
+        time.sleep(m["land_s"] + SETTLE_S)
         swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.stop())
     finally:
         swarm.close_links()

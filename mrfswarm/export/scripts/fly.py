@@ -10,7 +10,9 @@
    robots are not this file's; uploads,
    takes off to the plan's altitude (a 3-D plan's: its highest start), goes to each start
    (a 3-D plan's own height), starts all trajectories at once
-   (absolute positions: the plan's world frame is the motion-capture frame), lands.
+   (absolute positions: the plan's world frame is the motion-capture frame), lands. Take-off,
+   go-to and landing last what ``maneuvers.yaml`` beside this file says (within the plan's limits;
+   3 s each without it).
 """
 
 from __future__ import annotations
@@ -24,11 +26,16 @@ import yaml
 HERE = Path(__file__).resolve().parent
 TRAJECTORIES = HERE.parent / "trajectories"
 MAX_RAW_PIECES = 31  # 4096-byte trajectory memory / 132 bytes a raw piece
-TAKEOFF_S = 3.0
-GOTO_S = 3.0
-LAND_S = 3.0
 SETTLE_S = 1.0
 TRAJECTORY_ID = 0
+#: take-off, go-to and landing without maneuvers.yaml (a folder written before it)
+DEFAULT_MANEUVERS = {"takeoff_s": 3.0, "goto_s": 3.0, "land_s": 3.0, "land_height_m": 0.04}
+
+
+def maneuvers() -> dict:
+    """The take-off, go-to and landing durations (s) and the landing height (m): ``maneuvers.yaml`` beside this file."""
+    path = HERE / "maneuvers.yaml"
+    return {**DEFAULT_MANEUVERS, **(yaml.safe_load(path.read_text()) if path.is_file() else {})}
 
 
 def robot_index(name: str) -> int:
@@ -96,23 +103,24 @@ def main(argv: list[str] | None = None) -> None:
     if sorted(by_name) != sorted(trajectories):  # takeoff and land command every robot the server knows
         raise SystemExit(f"fly.py: the Crazyswarm2 server flies {sorted(by_name)}, this plan {sorted(trajectories)}: "
                          "launch it with this folder's crazyflies.yaml")
+    m = maneuvers()
     altitude = max(start_of(t)[2] for t in trajectories.values())
     duration = max(t.duration for t in trajectories.values())
 
     for name, traj in trajectories.items():
         by_name[name].uploadTrajectory(TRAJECTORY_ID, 0, traj)
 
-    allcfs.takeoff(targetHeight=altitude, duration=TAKEOFF_S)
-    time_helper.sleep(TAKEOFF_S + SETTLE_S)
+    allcfs.takeoff(targetHeight=altitude, duration=m["takeoff_s"])
+    time_helper.sleep(m["takeoff_s"] + SETTLE_S)
     for name, traj in trajectories.items():
-        by_name[name].goTo(start_of(traj), 0.0, GOTO_S)
-    time_helper.sleep(GOTO_S + SETTLE_S)
+        by_name[name].goTo(start_of(traj), 0.0, m["goto_s"])
+    time_helper.sleep(m["goto_s"] + SETTLE_S)
 
     allcfs.startTrajectory(TRAJECTORY_ID, timescale=1.0, relative=False)  # all at once: the plan is synchronous
     time_helper.sleep(duration + SETTLE_S)
 
-    allcfs.land(targetHeight=0.04, duration=LAND_S)
-    time_helper.sleep(LAND_S + SETTLE_S)
+    allcfs.land(targetHeight=m["land_height_m"], duration=m["land_s"])
+    time_helper.sleep(m["land_s"] + SETTLE_S)
 
 
 if __name__ == "__main__":
