@@ -46,6 +46,33 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def flown_warnings(flown: dict | None, radius: float) -> list[str]:
+    """What a run's simulated flight (``result.json``'s ``simulation``) warns of: a flight that came closer than the
+    plan (the plan is certified; the simulated tracking is not part of the proof, docs/guarantees.md), and a tracking
+    bound past the robot radius, which guarantees no flown clearance or separation at all (negative guarantees)."""
+    if flown is None:
+        return []
+    out = []
+    safety = 2 * radius
+    bound = flown["tracking_error_bound_m"]
+    if flown["min_separation_m"] < safety or flown["entered_obstacle"]:
+        what = (f"two robots {flown['min_separation_m']:.3f} m apart (safety distance {safety:g} m)"
+                if flown["min_separation_m"] < safety else "")
+        if flown["entered_obstacle"]:
+            what += (" and " if what else "") + "a robot inside an obstacle"
+        guarantee = "" if bound is None else (f" (bound {bound * 100:.1f} cm, flown separation guaranteed "
+                                              f"{flown['guaranteed_separation_m']:.3f} m)")
+        out.append(f"the simulated flight came closer than the plan: {what}; tracking error "
+                   f"{flown['max_tracking_error_m'] * 100:.1f} cm{guarantee}: see result.json's simulation")
+    if bound is not None and (flown.get("guaranteed_clearance_m") or 0.0) < 0:
+        out.append(f"the tracking bound of this flight ({bound * 100:.1f} cm) exceeds the robot radius ({radius:g} m): "
+                   f"the simulation guarantees no flown clearance ({flown['guaranteed_clearance_m']:.3f} m) or "
+                   f"separation ({flown['guaranteed_separation_m']:.3f} m), only what it measured (error "
+                   f"{flown['max_tracking_error_m'] * 100:.1f} cm); a lower smoothing.j_max or v_max lowers the bound "
+                   "(docs/guarantees.md)")
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     from mrfswarm.errors import PlanError
     from mrfswarm.outputs import check_output_dir, write_outputs
@@ -87,18 +114,8 @@ def run(args: argparse.Namespace) -> int:
     if s["simulation"] is not None:
         line += f", flown: max tracking error {s['simulation']['max_tracking_error_m'] * 100:.1f} cm"
     print(f"{line} -> {out}")
-    flown = s["simulation"]
-    safety = 2 * cfg.scenario.robot_radius
-    if flown is not None and (flown["min_separation_m"] < safety or flown["entered_obstacle"]):
-        # the plan is certified; the simulated tracking error is not part of the proof (docs/guarantees.md)
-        what = (f"two robots {flown['min_separation_m']:.3f} m apart (safety distance {safety:g} m)"
-                if flown["min_separation_m"] < safety else "")
-        if flown["entered_obstacle"]:
-            what += (" and " if what else "") + "a robot inside an obstacle"
-        print(f"mrfswarm: warning: the simulated flight came closer than the plan: {what}; tracking error "
-              f"{flown['max_tracking_error_m'] * 100:.1f} cm (bound {flown['tracking_error_bound_m'] * 100:.1f} cm, "
-              f"flown separation guaranteed {flown['guaranteed_separation_m']:.3f} m): see result.json's simulation",
-              file=sys.stderr)
+    for text in flown_warnings(s["simulation"], cfg.scenario.robot_radius):
+        print(f"mrfswarm: warning: {text}", file=sys.stderr)
     witness = (s.get("window_attempts") or {}).get("witness", 0)
     if witness:  # safe, but slow: a window where every planned duration failed flies from rest to rest
         print(f"mrfswarm: warning: {witness} of {s['windows']} smoothing windows had no solution at their planned "

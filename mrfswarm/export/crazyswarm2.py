@@ -195,7 +195,7 @@ def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0,
         worst = low[np.argsort(z_min[low])]
         names = ", ".join(f"{robot_name(int(i))} down to z = {round(float(z_min[i]), 3) + 0.0:g} m" for i in worst[:3])
         more = f" and {len(low) - 3} more" if len(low) > 3 else ""
-        texts.append(f"{len(low)} robot{'s' * (len(low) != 1)} fly nearer than the robot radius ({radius:g} m) to "
+        texts.append(f"{len(low)} robot{'s' * (len(low) != 1)} {'fly' if len(low) != 1 else 'flies'} nearer than the robot radius ({radius:g} m) to "
                      f"the ground at z = 0 that crazyflies.yaml takes off from ({names}{more}): put the map's floor "
                      f"at z = 0 (origin[2] = resolution / 2) and plan again before flying it")
     for robots, what in zip(columns or (), ("take off straight up through", "land straight down through")):

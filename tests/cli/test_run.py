@@ -254,6 +254,23 @@ def test_a_simulated_flight_closer_than_the_plan_is_said(tmp_path, capsys, monke
     assert "a robot inside an obstacle" in capsys.readouterr().err
 
 
+def test_a_tracking_bound_past_the_radius_is_said():
+    """hall20 of a tour (radius 0.1 m, bound 15 cm): result.json held guaranteed clearance -0.052 m and separation
+    -0.104 m, and the run said nothing; the arena's robots (radius 0.1 m, bound 18 cm) the same."""
+    from mrfswarm.cli.run import flown_warnings
+
+    flown = {"min_separation_m": 0.9, "entered_obstacle": False, "max_tracking_error_m": 0.04,
+             "tracking_error_bound_m": 0.152, "guaranteed_clearance_m": 0.1 - 0.152, "guaranteed_separation_m": -0.104}
+    (text,) = flown_warnings(flown, 0.1)
+    assert text.startswith("the tracking bound of this flight (15.2 cm) exceeds the robot radius (0.1 m): the "
+                           "simulation guarantees no flown clearance (-0.052 m) or separation (-0.104 m)")
+    assert flown_warnings({**flown, "tracking_error_bound_m": 0.08, "guaranteed_clearance_m": 0.02,
+                           "guaranteed_separation_m": 0.04}, 0.1) == []
+    assert flown_warnings(None, 0.1) == []
+    # both: closer than the plan, and nothing guaranteed
+    assert len(flown_warnings({**flown, "min_separation_m": 0.15}, 0.1)) == 2
+
+
 def test_logged_warnings_read_as_the_commands_own(tmp_path):
     """Warnings came in three formats ("mrfswarm: warning: ...", "WARNING mrfswarm.maps.inline: ...", "WARNING
     solvers.qp.piqp_: ..."); a logged warning is now written as the command's own, progress keeps its module."""
