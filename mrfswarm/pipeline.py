@@ -261,6 +261,7 @@ class Result:
                 "window_attempts": {name: sum(w.attempt == name for w in c.windows)
                                     for name in sorted({w.attempt for w in c.windows})},
                 "refined_windows": int(sum(w.refined for w in c.windows)),
+                "bisected_windows": int(sum(w.bisected > 0 for w in c.windows)),
                 "sampled_check": None if c.sampled is None else {
                     "rate_hz": sm.check_rate_hz, "min_separation_m": c.sampled.min_separation,
                     "min_clearance_m": _num(c.sampled.min_clearance), "in_obstacle": c.sampled.in_obstacle},

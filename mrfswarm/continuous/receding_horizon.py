@@ -355,6 +355,20 @@ JERK_START = 1.05
 JERK_START_NAME = "jerk-limited start"
 #: Factor by which new steps are slowed per attempt after the nominal ones fail.
 SLOWDOWN = 1.5
+#: Bisections of a refined window between its certified attempt and the last faster one that failed
+#: (:meth:`RecedingHorizon._bisect`). The ladder's rungs lie a few per cent to 1.5 x apart, and a window that fits
+#: between two flew the slower one. Measured, refined (flight_quality.py --variants default,refined --baseline
+#: 8324e2b --baseline-variants default,refined, one run, CSV flight_quality_bisection.csv): clutter40 43.81 -> 43.36 s,
+#: aisles30 32.26 -> 31.91 (but 0.03 -> 0.10 stops per robot), the open field 29.00 -> 28.83, rooms 24.21 -> 24.09,
+#: the trap 24.76 -> 24.62, the corridor, doorway and arena the same, the forest 21.86 -> 21.92 (a window flown sooner
+#: left a state the next could leave only slower); the refined planning over the default's: clutter40 2.47 -> 2.88 x,
+#: aisles30 2.03 -> 2.40, the others within 0.2 x. Two bisections (in-process, one run each): clutter40 43.42 s in
+#: 1.5 times the planning, aisles30 31.84, the arena 5.482 -> 5.476, the others as one. Not in the default: bisecting
+#: its windows twice flew the maps 0.2-2 % sooner (the arena 5.78 -> 5.66 s, clutter40 46.73 -> 47.09 later; CSV
+#: flight_quality_bisection_every_window.csv) but cost the big swarms' planning 50-60 % (200 robots in clutter
+#: 111 -> 163 s for a flight 2 % sooner, the 1000-robot crossing 241 -> 392 s for 0.1 %; CSV
+#: flight_quality_bisection_every_window_big.csv).
+BISECTIONS = 1
 
 
 @dataclass
@@ -382,6 +396,9 @@ class WindowRecord:
         (:func:`~mrfswarm.continuous.regions.arrival_holds`; tried with the creep rows, then without them).
     released
         The arrived robots not held where the holds failed (:meth:`RecedingHorizon._releases`).
+    bisected
+        Steps of :meth:`RecedingHorizon._bisect` kept: the window flies durations between ``attempt``'s and
+        those of a faster attempt that failed.
     piece_steps
         Steps of each polynomial piece the window flies (all ones: one piece per step;
         :mod:`mrfswarm.continuous.merge_pieces`).
@@ -402,6 +419,7 @@ class WindowRecord:
     creep: bool = False
     hold: bool = False
     released: list[int] = field(default_factory=list)
+    bisected: int = 0
     cost: float = 0.0
     solve_s: float = 0.0
     durations: np.ndarray | None = None
@@ -1119,6 +1137,7 @@ class RecedingHorizon:
                              np.concatenate([base[:overlap], np.minimum(base[overlap:] * factor, target)])))
         chosen, merged, flown = None, None, c - a
         for p in _piece_options(flown if pieces is None else pieces, flown):
+            missed: list[np.ndarray] = []  # the attempts without a certified solution at these pieces
             sizes = block_sizes(flown, p)
             merged = merged_knots(sizes, b - a) if p < flown else None
             label = f"{p} pieces, " if p < flown else ""
@@ -1191,7 +1210,9 @@ class RecedingHorizon:
                     log.info("window %d..%d, %s%s durations rejected: %s", a, b, label, what, why)
                 if chosen is not None:
                     break
+                missed.append(np.asarray(durations, dtype=float))
             if chosen is not None:
+                chosen = self._bisect(a, c, b, start, chosen, missed, rec, merged)
                 break
         if chosen is None:
             merged, rec.piece_steps = None, [1] * flown
@@ -1209,6 +1230,37 @@ class RecedingHorizon:
         rec.cost, rec.durations = chosen.cost, chosen.durations
         rec.solve_s = time.perf_counter() - tic
         return chosen, rec
+
+    def _bisect(self, a: int, c: int, b: int, start: np.ndarray, chosen: _Solution, missed: list[np.ndarray],
+                rec: WindowRecord, merged: np.ndarray | None) -> _Solution:
+        """``chosen`` (certified), or, in a refined run, the window at durations between it and the last attempt
+        before it that would have flown sooner (``missed``: the attempts without a certified solution), if
+        certified there.
+
+        The attempts are a ladder of whole profiles, each a few percent to a factor 1.5 slower than the one
+        before; where the window fits between two rungs it flew the slower one. :data:`BISECTIONS` times, the
+        geometric mean of the certified durations and the failed ones is solved (with the creep rows, holds and
+        releases the chosen attempt needed) and kept if certified: each halves the gap in the logarithm.
+        """
+        flown = c - a
+        ok = np.asarray(chosen.durations, dtype=float)
+        faster = [d for d in missed if d[:flown].sum() < ok[:flown].sum() - SAME_LENGTH]
+        if not BISECTIONS or not self.cfg.time_refinement or not faster:
+            return chosen
+        bad, release = faster[-1], None
+        if rec.released:
+            release = np.zeros(self.N, dtype=bool)
+            release[rec.released] = True
+        for _ in range(BISECTIONS):
+            T = np.sqrt(ok * bad)
+            sol = self._solve(a, b, start, T, rec, merged=merged, optimistic=True, creep=c if rec.creep else None,
+                              gradient=True, hold=rec.hold, release=release)[0]
+            if sol is not None and self._certify(sol, a).ok:
+                ok, chosen = T, sol
+                rec.bisected += 1
+            else:
+                bad = T
+        return chosen
 
     def time_allocation(self, sol: _Solution, a: int, start: np.ndarray, rec: WindowRecord,
                         merged: np.ndarray | None = None) -> TimeAllocation:

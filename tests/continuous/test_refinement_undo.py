@@ -15,7 +15,7 @@ import pytest
 from mrfswarm.config import load_config
 from mrfswarm.continuous.receding_horizon import RecedingHorizon
 from mrfswarm.pipeline import plan
-from support.attempts import unfollowed
+from support.attempts import unbisected, unfollowed
 from support.repository import EXPERIMENTS
 
 # the forests of experiments/bench/flight_quality.py: 10 robots, k = 7
@@ -72,6 +72,7 @@ def test_after_a_refined_window_every_attempt_flies_the_first_step_as_planned(mo
     with the time refinement every attempt keeps that step's duration from the window before. On the forest
     two of nine windows fell back to the previous window's durations after a refined one, after 11 and 6
     failed attempts (664a455): now no window of it does."""
+    unbisected(monkeypatch)
     attempts: list[tuple[int, float]] = []
     solve, refine = RecedingHorizon._solve, RecedingHorizon._refine
     refining = []
@@ -106,6 +107,7 @@ def test_after_a_refined_window_every_attempt_flies_the_first_step_as_planned(mo
 def test_a_window_flown_as_its_witness_leaves_nothing_to_undo(monkeypatch):
     """A window whose attempts all fail flies its witness, unrefined: the undo must not take the refined window
     before it for this one (it would commit that window's solution in this one's steps)."""
+    unbisected(monkeypatch)
     solve, plan_window = RecedingHorizon._solve, RecedingHorizon._plan_window
     after_refined: list[bool] = []
 

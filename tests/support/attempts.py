@@ -1,9 +1,10 @@
-"""The window attempts as they were before they followed the window before's first step."""
+"""The window attempts as they were before they followed the window before's first step, or were bisected."""
 
 from __future__ import annotations
 
 import pytest
 
+import mrfswarm.continuous.receding_horizon as rhm
 from mrfswarm.continuous.receding_horizon import RecedingHorizon
 
 
@@ -11,3 +12,10 @@ def unfollowed(monkeypatch: pytest.MonkeyPatch) -> None:
     """Every attempt with the profiles' own first step (``RecedingHorizon._follow`` made the identity): the
     default's inserted attempt is then the fast one itself, which fails where it does."""
     monkeypatch.setattr(RecedingHorizon, "_follow", staticmethod(lambda attempts, previous: attempts))
+
+
+def unbisected(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The ladder's attempts alone, none bisected (``receding_horizon.BISECTIONS`` 0): for the tests of a rung
+    or of what an attempt carries (holds, releases, the first step), written on flights from before the bisection
+    and comparing two flights at the same durations (the bisection's own: tests/continuous/test_bisection.py)."""
+    monkeypatch.setattr(rhm, "BISECTIONS", 0)
