@@ -71,6 +71,7 @@ def test_the_guard_alone_keeps_the_merge_safe(monkeypatch):
     import mrfswarm.discrete.merge_waits as mw
 
     monkeypatch.setattr(mw, "robot_clear", lambda *a: True)
+    monkeypatch.setattr(mw, "_first_blocks_clear", lambda paths, robot, tries, *a: np.ones(len(tries), dtype=bool))
     unguarded, merged = mw.merge_waits(crossing())
     assert merged == 1
     assert discrete_violations(unguarded, np.ones((6, 8), dtype=bool)) != []
@@ -186,3 +187,129 @@ def test_the_local_separation_check_agrees_with_all_pairs(dim, reach):
         assert robot_clear(paths, robot, first, last, scale, own) == want
         answers.append(want)
     assert 50 < sum(answers) < 550
+
+
+def _walks(rng: np.random.Generator, n: int, steps: int, dim: int, reach: int, box: int) -> np.ndarray:
+    """(steps + 1, n, dim) random walks from a box of side ``box``: moves of up to ``reach`` cells per axis, and
+    waits of one to four steps between runs (so merges move robots by several cells), crowded so robots meet."""
+    moving = np.ones((steps, n), dtype=bool)
+    for i in range(n):
+        t = int(rng.integers(0, 4))
+        while t < steps:
+            w = int(rng.integers(1, 5))
+            moving[t:t + w, i] = False
+            t += w + int(rng.integers(1, 6))
+    moves = rng.integers(-reach, reach + 1, size=(steps, n, dim)) * moving[..., None]
+    return np.concatenate([rng.integers(0, box, size=(1, n, dim)), moves]).cumsum(axis=0)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_cell_index_finds_the_robots_in_a_box(dim):
+    """CellIndex.near against every robot: all robots whose x and y lie within the reach (scaled) at the step are
+    found, and none farther than a hair beyond it; after moves of robots, as a rebuilt index would."""
+    from mrfswarm.discrete.merge_waits import CellIndex
+
+    rng = np.random.default_rng(dim)
+    paths = _walks(rng, 50, 20, dim, 2, 12)
+    scale = np.array([0.5, 1.0, 0.25])[:dim]  # not 1 on x or y either: the index divides by it
+    index = CellIndex(paths)
+    for _ in range(100):
+        robot, t0 = int(rng.integers(50)), int(rng.integers(20))
+        new = paths[:, robot].copy()  # the robot's cells re-timed: a wait moved from t0 to the end
+        new[t0:-1] = paths[t0 + 1:, robot]
+        index.move(robot, paths[:, robot], new)
+        paths[:, robot] = new
+        np.testing.assert_array_equal(index.keys % 50, CellIndex(paths).keys % 50)  # each step's robots in order
+        steps = rng.integers(0, 21, size=6)
+        centre = rng.uniform(-2, 14, size=(6, dim)) * scale
+        reach = rng.choice([0.5, 1.0, 2.0, 3.0 + 1e-9], size=6)
+        q, j = index.near(steps, centre, reach, scale)
+        gap = np.abs(paths[steps][..., :2] * scale[:2] - centre[:, None, :2]).max(axis=2)  # (6, N)
+        found = np.zeros_like(gap, dtype=bool)
+        found[q, j] = True
+        assert len(q) == found.sum()  # each robot once
+        assert np.all(found[gap <= reach[:, None]]) and not np.any(found[gap > reach[:, None] + 1e-5])
+
+
+@pytest.mark.parametrize("dim, downwash, reach", [(2, 1.0, 1), (2, 1.0, 2), (3, 2.0, 1), (3, 3.0, 2)])
+def test_the_cell_index_finds_every_robot_that_matters(dim, downwash, reach):
+    """With a CellIndex, robot_clear looks only at the robots whose cells lie near the robot's at each step, and
+    merge_waits tests the first blocks of a robot's tries at once; each must answer as testing every pair does (the
+    first blocks: on their steps), on crowds of robots (downwash-scaled in 3-D) whose walks pass each other."""
+    from mrfswarm.discrete.merge_waits import BLOCK, CellIndex, _first_blocks_clear
+    from mrfswarm.geometry import downwash_scale
+
+    rng = np.random.default_rng(7 * dim + reach)
+    scale = downwash_scale(dim, downwash)
+    answers, firsts = [], []
+    for _ in range(150):
+        T = int(rng.integers(2, 16))
+        paths = _walks(rng, 40, T, dim, reach, 9)
+        index = CellIndex(paths)
+        largest = float(np.abs(np.diff(paths, axis=0)).max())
+        robot = int(rng.integers(40))
+        tries = []
+        for _ in range(4):
+            first, last = sorted(int(v) for v in rng.choice(T + 1, size=2, replace=False))
+            own = paths[:, robot].copy()  # another walk from the same cell, as a merge makes one
+            own[first + 1:] = own[first] + (rng.integers(-reach, reach + 1, size=(T - first, dim))
+                                             * (rng.random((T - first, 1)) < 0.7)).cumsum(axis=0)
+            want = _clear_all_pairs(paths, robot, first, last, scale, own)
+            assert robot_clear(paths, robot, first, last, scale, own, largest, index) == want
+            assert robot_clear(paths, robot, first, last, scale, own, largest) == want
+            answers.append(want)
+            tries.append((own, first, last))
+        got = _first_blocks_clear(paths, robot, tries, scale, largest, index)
+        for ok, (own, first, last) in zip(got, tries):
+            assert ok == _clear_all_pairs(paths, robot, first, min(first + BLOCK, last), scale, own)
+            firsts.append(ok)
+    assert 0.1 < np.mean(answers) < 0.9 and 0.1 < np.mean(firsts) < 0.9
+
+
+@pytest.mark.parametrize("dim, downwash", [(2, 1.0), (3, 2.0)])
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("model", [False, True], ids=["every-safe-merge", "flight-model"])
+def test_merging_with_the_index_is_merging_with_all_pairs(dim, downwash, seed, model, monkeypatch):
+    """merge_waits keeps a CellIndex of the plan as it merges (and each step's largest needs, with a flight model)
+    and tests the first blocks of a robot's tries at once: its paths and count are those the all-pairs check gives,
+    merge for merge."""
+    import mrfswarm.discrete.merge_waits as mw
+    from mrfswarm.continuous.time_grid import FlightModel
+
+    rng = np.random.default_rng(seed)
+    paths = _walks(rng, 30, 24, dim, 1, 7)
+    flight = FlightModel(1.0, 1.85, 2.0, 0.5) if model else None
+    fast, n_fast = mw.merge_waits(paths, downwash, flight)
+
+    def all_pairs(paths, robot, first, last, scale, own, largest_move=None, index=None):
+        return _clear_all_pairs(paths, robot, first, last, scale, own)
+
+    # and no test of the first blocks ahead: a try it refuses wrongly would be refused by both
+    monkeypatch.setattr(mw, "_first_blocks_clear", lambda paths, robot, tries, *a: np.ones(len(tries), dtype=bool))
+    monkeypatch.setattr(mw, "robot_clear", all_pairs)
+    slow, n_slow = mw.merge_waits(paths, downwash, flight)
+    monkeypatch.setattr(mw, "robot_clear", lambda *a: True)
+    assert n_fast == n_slow and 0 < n_slow < mw.merge_waits(paths, downwash, flight)[1]  # merges made and refused
+    np.testing.assert_array_equal(fast, slow)
+
+
+def test_each_steps_largest_without_a_robot_follows_its_changes():
+    """_Steps ranks again only the steps where a robot's values change; the largest over the others must stay the
+    direct maximum (ties included: values on a coarse grid)."""
+    from mrfswarm.discrete.merge_waits import _Steps
+
+    rng = np.random.default_rng(0)
+    needs, lengths = rng.integers(0, 4, size=(2, 30, 6)).astype(float)
+    steps = _Steps(needs.copy(), lengths.copy())
+    for _ in range(200):
+        robot = int(rng.integers(6))
+        new_needs, new_lengths = needs[:, robot].copy(), lengths[:, robot].copy()
+        rows = rng.random(30) < 0.2
+        new_needs[rows], new_lengths[rows] = rng.integers(0, 4, size=(2, int(rows.sum())))
+        needs[:, robot], lengths[:, robot] = new_needs, new_lengths
+        steps.set(robot, new_needs, new_lengths)
+        for r in range(6):
+            others = np.delete(np.arange(6), r)
+            want = needs[:, others].max(axis=1), lengths[:, others].max(axis=1)
+            for got, w in zip(steps.without(r), want):
+                np.testing.assert_array_equal(got, w)
