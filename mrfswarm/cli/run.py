@@ -105,7 +105,8 @@ def run(args: argparse.Namespace) -> int:
     if s["robots_separated"]:
         goal += f", {s['robots_separated']} separated from the swarm"
     line = (f"{s['n_robots']} robots, {s['mrf_steps']} MRF steps ({s['mrf']}, {s['stop_reason']}{goal}), "
-            f"min separation {s['min_separation_discrete']:.2f} m discrete")
+            f"min separation{' (downwash-scaled)' if s['downwash'] != 1 and len(s['goal']) == 3 else ''} "
+            f"{s['min_separation_discrete']:.2f} m discrete")
     if s["min_separation_continuous"] is not None:
         line += f", {s['min_separation_continuous']:.2f} m smooth ({s['qp']}), makespan {s['makespan_s']:.1f} s"
         q = s["flight_quality"]

@@ -232,6 +232,20 @@ def test_a_3d_run_writes_z_projections_and_the_interactive_view(tmp_path, smooth
         assert {p[2] for p in ys} == {0.0}  # initial_position: on the ground below the start
 
 
+def test_a_3d_runs_summary_line_says_its_separation_is_downwash_scaled(tmp_path, capsys):
+    """The line printed "min separation 1.00 m discrete" where result.json's metric is sqrt(dx² + dy² + (dz/c)²):
+    a plain distance would be read; a 2-D run's (downwash without effect there) says nothing more."""
+    assert main(["run", str(_voxel_config(tmp_path, False)), "--out", str(tmp_path / "a")]) == 0
+    assert "min separation (downwash-scaled) " in capsys.readouterr().out
+    flat = tmp_path / "flat.toml"
+    flat.write_text("[scenario]\nmap = { kind = \"free\", size = [10, 6] }\ndownwash = 2.0\n"
+                    "start = { positions = [[2, 2], [2, 4]] }\ngoal = [8, 3]\n[mrf]\nmax_steps = 4\n"
+                    "[smoothing]\nenabled = false\n")
+    assert main(["run", str(flat), "--out", str(tmp_path / "b")]) == 0
+    out = capsys.readouterr().out
+    assert "min separation " in out and "downwash-scaled" not in out
+
+
 def yaml_robots(out: Path) -> list:
     import yaml
 
