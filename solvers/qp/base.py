@@ -20,6 +20,12 @@ from solvers.qp.problem import QPProblem
 from solvers.qp.row_split import RowSplit, split_rows
 from solvers.qp.solution import Options, Solution, Status
 
+#: A point a backend labels optimal (or optimal inaccurate) may miss a row by at most this much, relative to
+#: 1 + |the row's bound|; further, it is not a solution of the problem, whatever the label (a backend that
+#: returned its start as "optimal" had the continuous stage reject every window's certificate, for ten minutes,
+#: instead of failing each solve at once). First-order backends stop within their tolerances, far below it.
+ROW_SLACK = 1e-3
+
 log = logging.getLogger(__name__)
 
 
@@ -99,15 +105,30 @@ class PreparedQP(ABC):
         t0 = time.perf_counter()
         x, status, raw, iters, y = self._guarded(self._solve, warm_start)
         solve_time = time.perf_counter() - t0
+        if not isinstance(status, Status):
+            raise SolverError(f"{self.name}: returned the status {status!r}, not a solvers.qp.Status", backend=self.name,
+                              status=str(raw))
         if status is Status.INFEASIBLE:
             raise InfeasibleError(f"{self.name}: problem infeasible (status {raw!r})", backend=self.name, status=raw)
         if not status.ok or x is None:
             raise SolverError(f"{self.name}: solve failed (status {raw!r})", backend=self.name, status=raw)
         x = np.array(x, dtype=float).reshape(-1)  # a copy: piqp and proxsuite return views of their buffers
+        if x.size != self.problem.n:
+            raise SolverError(f"{self.name}: returned x of {x.size} entries for {self.problem.n} variables (status "
+                              f"{raw!r})", backend=self.name, status=raw)
         if not np.all(np.isfinite(x)):
             raise SolverError(f"{self.name}: returned a non-finite solution (status {raw!r})", backend=self.name, status=raw)
+        if y is not None and np.size(y) != self.problem.A.shape[0]:
+            raise SolverError(f"{self.name}: returned {np.size(y)} multipliers for {self.problem.A.shape[0]} rows "
+                              f"(status {raw!r})", backend=self.name, status=raw)
+        row, miss = self._worst_row(x)
+        if miss > ROW_SLACK:
+            raise SolverError(f"{self.name}: returned a point labelled {status.name} that misses row {row} by "
+                              f"{miss:.3g} (relative to its bound): not a solution (status {raw!r})",
+                              backend=self.name, status=raw)
         if status is Status.OPTIMAL_INACCURATE:
-            log.warning("%s: solution only optimal to reduced accuracy (%s)", self.name, raw)
+            # once per process: a run solves thousands of window QPs (a tour counted 10-13 lines per run)
+            warn_once(log, f"{self.name}: solution only optimal to reduced accuracy ({raw}); said once per run")
         return Solution(
             x=x,
             status=status,
@@ -119,6 +140,20 @@ class PreparedQP(ABC):
             raw_status=raw,
             y=None if y is None else np.array(y, dtype=float),
         )
+
+    def _worst_row(self, x: np.ndarray) -> tuple[int, float]:
+        """The row of the loaded problem that ``x`` misses most, and by how much relative to 1 + |its bound|
+        (0 when every row holds)."""
+        A = self.problem.A
+        if A.shape[0] == 0:
+            return -1, 0.0
+        Ax = A @ x
+        lo, hi = self.problem.l, self.problem.u
+        with np.errstate(invalid="ignore"):
+            miss = np.maximum(np.where(np.isfinite(lo), (lo - Ax) / (1 + np.abs(lo)), 0.0),
+                              np.where(np.isfinite(hi), (Ax - hi) / (1 + np.abs(hi)), 0.0))
+        k = int(np.argmax(miss))
+        return k, max(float(miss[k]), 0.0)
 
     def same_pattern(self, problem: QPProblem) -> bool:
         """True when ``problem`` has the shape and sparsity pattern of the loaded one (so it can be an update)."""
