@@ -74,6 +74,22 @@ def _verdict(problem: NLPProblem, x: np.ndarray, objective: float, status: Statu
     return status
 
 
+def _check_outcome(name: str, out: Outcome, n: int) -> None:
+    """A backend's :class:`Outcome` as dispatch needs it, or a :class:`SolverError` saying what is not: its status a
+    :class:`Status`, x of ``n`` entries (a scalar was broadcast over every variable and reported optimal; a status
+    string ended in an AttributeError). A non-finite x is the verdict's (a failed run's point: never optimal)."""
+    if not isinstance(out, Outcome):
+        raise SolverError(f"{name}: returned {type(out).__name__}, not a solvers.nlp Outcome", backend=name,
+                          status="bad outcome")
+    if not isinstance(out.status, Status):
+        raise SolverError(f"{name}: returned the status {out.status!r}, not a solvers.nlp.Status", backend=name,
+                          status=str(out.raw_status))
+    size = np.size(out.x)
+    if size != n:
+        raise SolverError(f"{name}: returned x of {size} entries for {n} variables (status {out.raw_status!r})",
+                          backend=name, status=str(out.raw_status))
+
+
 def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Options | None = None) -> Solution:
     """Minimize ``problem`` with ``backend``, from ``problem.x0``.
 
@@ -113,7 +129,8 @@ def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Optio
     if ev.raised is not None:  # a backend that swallowed it
         raise ev.raised
     total = time.perf_counter() - t0
-    x = np.clip(out.x, problem.lower, problem.upper)  # Ipopt relaxes the bounds by 1e-8
+    _check_outcome(record.name, out, problem.n)
+    x = np.clip(np.asarray(out.x, dtype=float).reshape(-1), problem.lower, problem.upper)  # Ipopt relaxes by 1e-8
     objective = ev.value_at(x)
     status = _verdict(problem, x, objective, out.status)
     sol = Solution(x=x, status=status, objective=objective, iterations=out.iterations,

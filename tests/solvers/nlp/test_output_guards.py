@@ -1,0 +1,52 @@
+"""An NLP backend's answer is checked before it is trusted: an Outcome whose status is a Status and whose x has one
+entry per variable (a backend returning the scalar 0.5 was reported OPTIMAL at x = (0.5, 0.5) on Rosenbrock; one
+returning the status as a string ended in an AttributeError)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import solvers.nlp
+import solvers.nlp.dispatch as dispatch
+from solvers.errors import SolverError
+from solvers.nlp import NLPProblem
+from solvers.nlp.solution import Outcome
+from solvers.status import Status
+
+
+def rosenbrock() -> NLPProblem:
+    def f(x):
+        return float((1 - x[0]) ** 2 + 100 * (x[1] - x[0] ** 2) ** 2)
+
+    def g(x):
+        return np.array([-2 * (1 - x[0]) - 400 * x[0] * (x[1] - x[0] ** 2), 200 * (x[1] - x[0] ** 2)])
+
+    return NLPProblem(f, g, np.array([-1.2, 1.0]), np.full(2, -5.0), np.full(2, 5.0))
+
+
+def with_entry(monkeypatch, entry) -> str:
+    record = dataclasses.replace(dispatch.BACKENDS.get("lbfgsb"), entry=entry)
+    real = dispatch.BACKENDS.get
+    monkeypatch.setattr(dispatch.BACKENDS, "get", lambda name: record if name == "answers" else real(name))
+    return "answers"
+
+
+@pytest.mark.parametrize("outcome, match", [
+    (Outcome(np.array(0.5), Status.OPTIMAL, "done", 1), "returned x of 1 entries for 2 variables"),
+    (Outcome(np.ones(3), Status.OPTIMAL, "done", 1), "returned x of 3 entries for 2 variables"),
+    (Outcome(np.ones(2), "optimal", "done", 1), "returned the status 'optimal', not a solvers.nlp.Status"),
+    ((np.ones(2), Status.OPTIMAL), "returned tuple, not a solvers.nlp Outcome"),
+])
+def test_what_is_not_an_outcome_is_a_solver_error(monkeypatch, outcome, match):
+    name = with_entry(monkeypatch, lambda problem, options: outcome)
+    with pytest.raises(SolverError, match=match):
+        solvers.nlp.minimize(rosenbrock(), name)
+
+
+def test_a_well_formed_outcome_is_completed(monkeypatch):
+    name = with_entry(monkeypatch, lambda problem, options: Outcome(np.ones(2), Status.OPTIMAL, "done", 7))
+    sol = solvers.nlp.minimize(rosenbrock(), name)
+    assert sol.status is Status.OPTIMAL and np.allclose(sol.x, 1.0) and sol.objective == 0.0 and sol.iterations == 7
