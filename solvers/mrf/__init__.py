@@ -14,6 +14,9 @@ from __future__ import annotations
 import dataclasses
 import time
 
+import numpy as np
+
+from solvers.errors import InvalidProblem, SolverError
 from solvers.mrf import bp, exact, gibbs, icm, lazy_flipper, trws
 from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.problem import PairwiseMRF, repair
@@ -48,10 +51,26 @@ def minimize(mrf: PairwiseMRF, method: str = DEFAULT_METHOD, options: Options | 
     ------
     SolverNotFound
         Unknown method.
+    SolverError
+        The method raised (its error text), or returned something else than an :class:`MRFResult` whose labels are
+        one whole number per node (a tour's methods returning a tuple, n + 1 labels or float labels ended in numpy's
+        errors inside the planner).
     """
     entry = METHODS.get(method).entry
     t0 = time.perf_counter()
-    res = entry(mrf, options or Options())
+    try:
+        res = entry(mrf, options or Options())
+    except (SolverError, InvalidProblem):
+        raise
+    except Exception as e:  # the method's own exception, wrapped with its text, as the QP and NLP backends'
+        raise SolverError(f"{method} failed: {type(e).__name__}: {e}", backend=method, status=type(e).__name__) from e
+    if not isinstance(res, MRFResult):
+        raise SolverError(f"{method}: returned {type(res).__name__}, not a solvers.mrf MRFResult", backend=method,
+                          status="bad result")
+    labels = np.asarray(res.labels)
+    if labels.shape != (mrf.n_nodes,) or not np.issubdtype(labels.dtype, np.integer):
+        raise SolverError(f"{method}: returned labels of shape {labels.shape} and dtype {labels.dtype} for "
+                          f"{mrf.n_nodes} nodes (one whole number each)", backend=method, status="bad labels")
     if not mrf.is_feasible(res.labels):
         labels, n = repair(mrf, res.labels)
         res = dataclasses.replace(res, labels=labels, energy=mrf.energy(labels), repaired=n)
