@@ -326,6 +326,12 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
                           "(--set smoothing.time_refinement=true)" if cfg.smoothing.enabled else
                           f"NLP backend {nlp!r} not used: the continuous stage is off", UnusedSettingWarning,
                           stacklevel=2)
+    elif cfg.smoothing.enabled and cfg.smoothing.refinement != "nlp":
+        default = next(f.default for f in dataclasses.fields(cfg.smoothing) if f.name == "nlp")
+        if cfg.smoothing.nlp != default:  # set, and unused: the refinement is the scaling
+            warnings.warn(f"smoothing.nlp = {cfg.smoothing.nlp!r} not used: smoothing.refinement is "
+                          f"{cfg.smoothing.refinement!r} (set smoothing.refinement = \"nlp\" too, or give "
+                          f"--nlp {cfg.smoothing.nlp})", UnusedSettingWarning, stacklevel=2)
     mrf_solvers.METHODS.get(cfg.mrf.method)  # fail now, not after the map is loaded
     if cfg.smoothing.backend not in solvers.qp.BACKENDS:  # a name no backend has is wrong with the stage off too
         solvers.qp.BACKENDS.get(cfg.smoothing.backend)

@@ -108,8 +108,26 @@ def test_mrf_qp_and_nlp_flags_are_shorthands_for_set(flag, name, sets):
         by_flag = resolve_config(load_config(EXPERIMENTS / "free5.toml"), **{flag.strip("-"): name})
     by_set = resolve_config(load_config(EXPERIMENTS / "free5.toml", sets))
     assert by_flag == by_set and by_flag != load_config(EXPERIMENTS / "free5.toml")
-    if flag == "--nlp":  # the one key alone is not the same: the refinement method stays the scaling
-        assert by_flag != resolve_config(load_config(EXPERIMENTS / "free5.toml", sets[:1]))
+    if flag == "--nlp":  # the one key alone is not the same: the refinement method stays the scaling (and says so)
+        with pytest.warns(UnusedSettingWarning, match="smoothing.nlp = 'slsqp' not used: smoothing.refinement is "
+                                                      "'scaling'"):
+            alone = resolve_config(load_config(EXPERIMENTS / "free5.toml", sets[:1]))
+        assert by_flag != alone
+
+
+def test_the_nlp_key_without_the_nlp_refinement_is_said_unused():
+    """smoothing.nlp set, refinement left the scaling: a tour's refined run used the scaling, result.json said
+    nlp: null, and nothing was printed. The default backend, or the refinement "nlp", says nothing."""
+    import warnings
+
+    sets = ["smoothing.time_refinement=true"]
+    with pytest.warns(UnusedSettingWarning, match=r"give --nlp cobyqa|give --nlp slsqp"):
+        resolve_config(load_config(EXPERIMENTS / "free5.toml", [*sets, "smoothing.nlp=slsqp"]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        resolve_config(load_config(EXPERIMENTS / "free5.toml", sets))
+        resolve_config(load_config(EXPERIMENTS / "free5.toml", [*sets, "smoothing.nlp=slsqp",
+                                                                 "smoothing.refinement=nlp"]))
 
 
 def test_a_sweep_over_the_old_key_tabulates_the_new_name(tmp_path):
