@@ -260,6 +260,8 @@ class Result:
                 "windows": len(c.windows),
                 "window_attempts": {name: sum(w.attempt == name for w in c.windows)
                                     for name in sorted({w.attempt for w in c.windows})},
+                # why the windows flown as their witness had no other solution: each one's last rejected attempt
+                "witness_reasons": sorted({w.failed[-1] for w in c.windows if w.attempt == "witness" and w.failed}),
                 "refined_windows": int(sum(w.refined for w in c.windows)),
                 "bisected_windows": int(sum(w.bisected > 0 for w in c.windows)),
                 "sampled_check": None if c.sampled is None else {

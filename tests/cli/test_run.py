@@ -222,9 +222,14 @@ def test_windows_that_fly_the_rest_to_rest_witness_are_said(tmp_path, capsys):
     err = [line for line in capsys.readouterr().err.splitlines() if "witness" in line]
     res = json.loads((out / "result.json").read_text())
     assert res["window_attempts"].get("witness", 0) > 0 and res["certificate"]["ok"] is True
+    # why, in result.json and the line (a tour's raising QP backend said only this, its error text with -v alone)
+    reasons = res["witness_reasons"]
+    assert reasons and all("piqp: solve failed (status 'Status.PIQP_MAX_ITER_REACHED')" in r for r in reasons)
+    more = f"; {len(reasons) - 1} other reasons" if len(reasons) > 1 else ""
     assert err == [f"mrfswarm: warning: {res['window_attempts']['witness']} of {res['windows']} smoothing windows had "
-                   "no solution at their planned durations and fly the rest-to-rest witness (slower, with stops): see "
-                   "result.json's windows; smoothing.qp_options or the QP backend may be too tight"]
+                   f"no solution at their planned durations and fly the rest-to-rest witness (slower, with stops) "
+                   f"(last rejected: {reasons[0]}{more}): see result.json's witness_reasons; smoothing.qp_options or "
+                   "the QP backend may be too tight"]
 
 
 def test_a_simulated_flight_closer_than_the_plan_is_said(tmp_path, capsys, monkeypatch):
