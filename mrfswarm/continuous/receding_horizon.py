@@ -697,6 +697,7 @@ class RecedingHorizon:
         #: After a window's time refinement kept a point: the window's solution before it and the rows
         #: (``active``, ``limit_rows``, ``_hard``) that went with it (None otherwise); see ``_run``.
         self.unrefined: tuple[_Solution, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._no_multipliers = False  # said once: the QP backend gives none, the refinement has no gradient
         self.regions_s = time.perf_counter() - t0
         self._check_s = 0.0
 
@@ -854,6 +855,12 @@ class RecedingHorizon:
                 if grad is not None:
                     if g is None:  # the backend gives no multipliers: a solution without the gradient
                         grad = None
+                        if not self._no_multipliers:
+                            self._no_multipliers = True
+                            log.warning("QP backend %s gives no multipliers: the time refinement has no gradient "
+                                        "and refines no window (its attempts still keep the first step the window "
+                                        "before planned, so the flight is not the default's either)",
+                                        self.backend)
                     else:
                         grad[robots] = g
             robots = np.flatnonzero(todo)
@@ -1361,6 +1368,8 @@ class RecedingHorizon:
             if value >= before:
                 break
             best = found[key]
+            if np.array_equal(best.durations, sol.durations):
+                continue  # the QP solved again at its own durations (lower by its tolerance): not a refinement
             if best.durations.sum() <= sol.durations.sum() + SAME_LENGTH and self._certify(best, a).ok:
                 rec.refined = True
                 self.unrefined = (sol, (alloc.base[0], alloc.base[1], self._hard.copy()))
