@@ -120,9 +120,9 @@ def run(args: argparse.Namespace) -> int:
     witness = (s.get("window_attempts") or {}).get("witness", 0)
     if witness:  # safe, but slow: a window where every planned duration failed flies from rest to rest
         reasons = s.get("witness_reasons") or []
-        why = f" (last rejected: {reasons[0]}{f'; {len(reasons) - 1} other reasons' if len(reasons) > 1 else ''})" \
+        because = f" (last rejected: {reasons[0]}{f'; {len(reasons) - 1} other reasons' if len(reasons) > 1 else ''})" \
             if reasons else ""
         print(f"mrfswarm: warning: {witness} of {s['windows']} smoothing windows had no solution at their planned "
-              f"durations and fly the rest-to-rest witness (slower, with stops){why}: see result.json's "
+              f"durations and fly the rest-to-rest witness (slower, with stops){because}: see result.json's "
               "witness_reasons; smoothing.qp_options or the QP backend may be too tight", file=sys.stderr)
     return 0
