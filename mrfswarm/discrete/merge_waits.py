@@ -128,6 +128,31 @@ def _largest(a: np.ndarray) -> np.ndarray:
     return out if a.shape[-1] == 2 else np.maximum(out, a[..., 2])
 
 
+def waits_clear(paths: np.ndarray, robot: int, cells: np.ndarray, steps: np.ndarray, scale: np.ndarray,
+                largest_move: float, index: CellIndex) -> np.ndarray:
+    """(Q,) whether robot ``robot`` waiting at ``cells[q]`` (Q, d) through step ``steps[q]`` (to steps[q] + 1) stays
+    MIN_SEPARATION (scaled by ``scale``) from every other robot of ``paths``; ``index`` a :class:`CellIndex` of them.
+
+    :func:`robot_clear` of a robot that waits at one cell c through steps first..last is these
+    tests' conjunction over first..last - 1, made at once for many cells and steps: its filters
+    leave out only pairs that are clear (a gap to c beyond MIN_SEPARATION plus the other's
+    move), and the pairs it keeps are tested here with the same arithmetic (its own move 0).
+    """
+    mine = cells * scale  # (Q, d)
+    reach = np.full(len(steps), MIN_SEPARATION + largest_move * float(scale.max()) + _TOL)
+    q, j = index.near(steps, mine, reach, scale)
+    keep = j != robot
+    q, j = q[keep], j[keep]
+    p0, p1 = paths[steps[q], j] * scale, paths[steps[q] + 1, j] * scale
+    d0 = mine[q] - p0
+    close = _largest(np.abs(d0)) < MIN_SEPARATION + _largest(np.abs(p1 - p0)) + _TOL
+    q, d0 = q[close], d0[close]
+    v = (mine[q] - mine[q]) - (p1[close] - p0[close])
+    ok = np.ones(len(steps), dtype=bool)
+    ok[q[min_distance_during_move(d0, v) < MIN_SEPARATION - _TOL]] = False
+    return ok
+
+
 class CellIndex:
     """Each step's robots sorted by cell, x then y: the robots whose cells lie in a box at a step, found
     without looking at the others (:func:`robot_clear`).

@@ -39,6 +39,7 @@ from __future__ import annotations
 import itertools
 import math
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
@@ -85,6 +86,18 @@ def clear_moves(free: np.ndarray) -> np.ndarray:
     return out
 
 
+def clear_into(clear: np.ndarray) -> np.ndarray:
+    """(M, *shape) whether each unit move (:func:`unit_moves`) into each cell is clear, from :func:`clear_moves`'
+    table (*shape, M) of the moves out of each cell; False where the move would come from off the map."""
+    moves, _ = unit_moves(clear.ndim - 1)
+    shape = clear.shape[:-1]
+    out = np.zeros((len(moves), *shape), dtype=bool)
+    for k, m in enumerate(moves.tolist()):
+        to = tuple(slice(max(0, v), n + min(0, v)) for v, n in zip(m, shape))
+        out[k][to] = clear[..., k][tuple(slice(max(0, -v), n - max(0, v)) for v, n in zip(m, shape))]
+    return out
+
+
 @lru_cache(maxsize=4096)
 def _unobstructed_sorted(offset: tuple[int, ...], caps: tuple[float, ...]) -> float:
     """The length of the shortest way of ``offset`` in steps capped as ``caps`` (a move's length at most its step's,
@@ -92,17 +105,9 @@ def _unobstructed_sorted(offset: tuple[int, ...], caps: tuple[float, ...]) -> fl
     order and the axes' signs and order do not matter, so the way is searched once per sorted |offset| and
     sorted caps."""
     k, d = len(caps), len(offset)
-    clear = np.ones((2 * k + 1,) * d + (3**d,), dtype=bool)
+    into = np.ones((3**d,) + (2 * k + 1,) * d, dtype=bool)
     end = np.full(d, k) + np.asarray(offset)
-    return _Search(np.full(d, k), np.asarray(caps), clear, [(k, end)]).cost(k, end)
-
-
-@lru_cache(maxsize=256)
-def _shifts(box: tuple[int, ...]) -> list[tuple[tuple[slice, ...], tuple[slice, ...]]]:
-    """Per unit move m (:func:`unit_moves`): the slices of the cells x of ``box`` with x + m in it, and of x + m."""
-    moves, _ = unit_moves(len(box))
-    return [(tuple(slice(max(0, -v), n - max(0, v)) for v, n in zip(m.tolist(), box)),
-             tuple(slice(max(0, v), n - max(0, -v)) for v, n in zip(m.tolist(), box))) for m in moves]
+    return _Search(np.full(d, k), np.asarray(caps), into, [(k, end)]).cost(k, end)
 
 
 class _Search:
@@ -110,40 +115,62 @@ class _Search:
     exactly where ``own`` is 0) to the cells ``ends`` (k, b): the way to b in the first k steps. One dynamic
     program over the cells within len(own) moves of ``a`` and within k moves of some end's b (a way to b in k
     steps stays within k moves of both a and b, so the box holds every cell of every way read, and its ties
-    break as they would in a box of one end alone); ``clear`` is :func:`clear_moves`. The windows of every
-    length that start at ``a`` read their ways off the same program."""
+    break as they would in a box of one end alone); ``into`` is :func:`clear_into`. The windows of every
+    length that start at ``a`` read their ways off the same program.
 
-    def __init__(self, a: np.ndarray, own: np.ndarray, clear: np.ndarray,
+    Each step t takes, into each cell, the first unit move (in :func:`unit_moves`' order) of those whose
+    way is shortest (:func:`_cheapest`), all moves at once, and only into the cells within t moves of
+    ``a`` and within k - t of some end's b after k >= t steps: the sources of those cells are within t - 1
+    and k - t + 1, so each cell of a way read gets the value and move it gets in the whole box. With a
+    loop over the moves into the whole box at every step, the search took 65 % of straightening 300
+    robots in 3-D (26 moves and the wait) and 35 % of 1000 in the plane; the searches of those took
+    4.9 and 0.92 s that way, 1.8 and 0.87 s this way.
+    """
+
+    def __init__(self, a: np.ndarray, own: np.ndarray, into: np.ndarray,
                  ends: list[tuple[int, np.ndarray]]) -> None:
         moves, lengths = unit_moves(len(a))
         K = len(own)
-        shape = np.asarray(clear.shape[:-1])
+        shape = np.asarray(into.shape[1:])
         self.lo = np.maximum(a - K, 0)
         hi = np.minimum(a + K, shape - 1)
         # only the ways to ``ends`` (k, cell) are read: their cells are within k of the cell too
         self.lo = np.maximum(self.lo, np.min([b - k for k, b in ends], axis=0))
         hi = np.minimum(hi, np.max([b + k for k, b in ends], axis=0))
         box = tuple(int(v) for v in hi - self.lo + 1)
-        local = clear[tuple(slice(int(x), int(y) + 1) for x, y in zip(self.lo, hi))]
-        shifts = _shifts(box)
-        cost = np.full(box, np.inf)
-        cost[tuple(a - self.lo)] = 0.0
-        self.costs = [cost]
-        self.came = []  # per step: (box) the move index taken into each cell
-        for t in range(K):
-            allowed = (lengths <= own[t] + _TOL) & ((lengths > 0) == (own[t] > 0))
-            new = np.full(box, np.inf)
-            how = np.full(box, -1, dtype=np.int64)
-            for j in np.flatnonzero(allowed).tolist():
-                src, dst = shifts[j]
-                where: tuple = (*src, j)
-                val = np.where(local[where], cost[src] + lengths[j], np.inf)
-                better = val < new[dst] - _TOL
-                new[dst] = np.where(better, val, new[dst])
-                how[dst] = np.where(better, j, how[dst])
-            cost = new
-            self.costs.append(cost)
-            self.came.append(how)
+        # each step's costs in the box padded by a cell of no way on each side: a move's source of a cell is then
+        # one place of the padded box's flat array, the same offset from every cell
+        padded = tuple(n + 2 for n in box)
+        places = np.arange(math.prod(padded)).reshape(padded)
+        offset = moves @ np.array([math.prod(padded[k + 1:]) for k in range(len(box))])
+        into = into[(slice(None), *(slice(int(x), int(y) + 1) for x, y in zip(self.lo, hi)))]  # (M, *box)
+        costs = np.full((K + 1, *padded), np.inf)
+        came = np.full((K, *box), -1, dtype=np.int64)  # per step: the move index taken into each cell
+        start = [int(v) for v in a - self.lo]
+        costs[0][tuple(v + 1 for v in start)] = 0.0
+        flat = costs.reshape(K + 1, -1)
+        tails = [(k, [int(v) for v in b - self.lo]) for k, b in ends]
+        for t in range(1, K + 1):
+            allowed = np.flatnonzero((lengths <= own[t - 1] + _TOL) & ((lengths > 0) == (own[t - 1] > 0)))
+            # after t steps only the cells within t moves of a have a way, and of those only the ones within k - t
+            # moves of an end's b after k steps are on a way read (their sources are within k - t + 1 of it)
+            read = [(k - t, b) for k, b in tails if k >= t]
+            if not read:
+                break
+            lows = [max(0, v - t, min(b[n] - r for r, b in read)) for n, v in enumerate(start)]
+            near = tuple(slice(x, max(x, min(box[n], v + t + 1, max(b[n] + r for r, b in read) + 1)))
+                         for n, (x, v) in enumerate(zip(lows, start)))
+            inside = tuple(slice(x.start + 1, x.stop + 1) for x in near)
+            source = places[inside].reshape(1, -1) - offset[allowed, None]  # (moves, cells)
+            moving: tuple[Any, ...] = (allowed, *near)
+            best, row = _cheapest(np.where(into[moving].reshape(source.shape),
+                                           flat[t - 1][source] + lengths[allowed, None], np.inf))
+            region = costs[t][inside].shape
+            costs[t][inside] = best.reshape(region)
+            came[t - 1][near] = np.where(row < 0, -1, allowed[row]).reshape(region)
+        inner = tuple(slice(1, n + 1) for n in box)
+        self.costs = [c[inner] for c in costs]
+        self.came = list(came)
 
     def _local(self, b: np.ndarray) -> tuple[int, ...] | None:
         rel = np.asarray(b) - self.lo
@@ -168,6 +195,30 @@ class _Search:
         return out
 
 
+def _cheapest(ways: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(B,) each column's value and (B,) row of ``ways`` (M, B) as the rule "a row replaces the best so far where it
+    is shorter by more than _TOL, the rows in order" leaves them (inf and -1 where all are inf).
+
+    That rule picks the first row within _TOL / 2 of the column's least value where no value lies
+    between _TOL / 2 and 2 _TOL above it: from there no row is shorter by _TOL, and each row before
+    it is longer by more. The ways' lengths are sums of a window's unit moves, 1, sqrt(2) or
+    sqrt(3) cells: two of them are the same up to rounding or, up to 16 moves, 7e-4 apart at
+    least. Where a column has a value in that band all the same, the rows are taken in order.
+    """
+    if not len(ways):
+        return np.full(ways.shape[1], np.inf), np.full(ways.shape[1], -1, dtype=np.int64)
+    least = ways.min(axis=0)
+    first = ways <= least + _TOL / 2
+    if np.count_nonzero(ways <= least + 2 * _TOL) != np.count_nonzero(first):
+        best, row = np.full(ways.shape[1], np.inf), np.full(ways.shape[1], -1, dtype=np.int64)
+        for j, way in enumerate(ways):
+            better = way < best - _TOL
+            best, row = np.where(better, way, best), np.where(better, j, row)
+        return best, row
+    row = first.argmax(axis=0)
+    return ways[row, np.arange(ways.shape[1])], np.where(least < np.inf, row, -1)
+
+
 def straighten(paths: np.ndarray, free: np.ndarray, downwash: float = 1.0,
                window: int = WINDOW) -> tuple[np.ndarray, int]:
     """The (T + 1, N, d) ``paths`` with each robot's way shortened where safe (see the module docstring), and the
@@ -180,7 +231,7 @@ def straighten(paths: np.ndarray, free: np.ndarray, downwash: float = 1.0,
     scale = downwash_scale(P.shape[-1], downwash)
     # a straightened move is never longer than the one it replaces, per axis at most 1
     largest_move = float(np.abs(np.diff(P, axis=0)).max())
-    clear = clear_moves(np.asarray(free, dtype=bool))
+    into = clear_into(clear_moves(np.asarray(free, dtype=bool)))
     done = 0
     for _ in range(PASSES):
         before = done
@@ -193,7 +244,7 @@ def straighten(paths: np.ndarray, free: np.ndarray, downwash: float = 1.0,
                 col = P[:, i]
                 ks = np.flatnonzero(slack[s, i])[::-1]  # the window lengths with room, longest first
                 own = np.linalg.norm(np.diff(col[s:s + ks[0] + 1], axis=0), axis=1)
-                search = _Search(col[s], own, clear, [(k, col[s + k]) for k in ks.tolist()])
+                search = _Search(col[s], own, into, [(k, col[s + k]) for k in ks.tolist()])
                 for k in ks.tolist():
                     e = s + k
                     if search.cost(k, col[e]) >= own[:k].sum() - 1e-6:

@@ -6,10 +6,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from mrfswarm.config import apply_overrides, from_dict
 from mrfswarm.discrete.loops import drop_loops, returns
+from mrfswarm.discrete.merge_waits import CellIndex, robot_clear, waits_clear
 from mrfswarm.discrete.safety import discrete_violations
+from mrfswarm.geometry import downwash_scale
 from mrfswarm.pipeline import plan
 
 EXPERIMENTS = Path(__file__).resolve().parents[2] / "experiments"
@@ -73,11 +76,16 @@ def test_a_loop_that_makes_way_for_a_neighbour_is_kept():
     np.testing.assert_array_equal(out, paths)
 
 
-def test_the_guard_alone_keeps_the_drop_safe(monkeypatch):
-    """With the separation check switched off, the kept loop above is dropped and the robots collide."""
+@pytest.mark.parametrize("off", ["robot_clear", "waits_clear"])
+def test_the_guard_alone_keeps_the_drop_safe(off, monkeypatch):
+    """With the separation checks switched off (the steps' tests of the waits, then robot_clear of a loop they
+    pass), the kept loop above is dropped and the robots collide; with either one on, it is kept."""
     import mrfswarm.discrete.loops as lp
 
+    monkeypatch.setattr(lp, off, lambda *a: np.ones(len(a[3]), dtype=bool) if off == "waits_clear" else True)
+    assert lp.drop_loops(stepping_aside())[1] == 0
     monkeypatch.setattr(lp, "robot_clear", lambda *a: True)
+    monkeypatch.setattr(lp, "waits_clear", lambda *a: np.ones(len(a[3]), dtype=bool))
     unguarded, dropped = lp.drop_loops(stepping_aside())
     assert dropped == 1
     assert discrete_violations(unguarded, np.ones((7, 6), dtype=bool)) != []
@@ -143,3 +151,85 @@ def test_the_paper_configs_keep_the_mrfs_paths():
                                     ["smoothing.enabled=false", "simulation.enabled=false"]), EXPERIMENTS)
     assert cfg.mrf.drop_loops is False
     assert plan(cfg, progress=False).discrete.dropped_loops == 0
+
+
+def crowd(rng: np.random.Generator, n: int, steps: int, dim: int, box: int, reach: int = 1) -> np.ndarray:
+    """(steps + 1, n, dim) random walks of up to ``reach`` cells per axis and step (``mrf.order`` > 2 moves two),
+    held in a box of side ``box``: crowded robots that come back to cells they left."""
+    start = rng.integers(0, box, size=(1, n, dim))
+    moves = rng.integers(-reach, reach + 1, size=(steps, n, dim)) * (rng.random((steps, n, 1)) < 0.6)
+    return np.clip(np.concatenate([start, moves]).cumsum(axis=0), 0, box - 1)
+
+
+@pytest.mark.parametrize("dim, downwash, reach", [(2, 1.0, 1), (2, 1.0, 2), (3, 2.0, 1), (3, 2.0, 2)])
+def test_each_step_of_a_wait_is_tested_as_robot_clear_tests_it(dim, downwash, reach):
+    """waits_clear, a robot's wait at one cell tested step by step against the robots a CellIndex finds near, against
+    robot_clear of each step and of the whole wait against every robot: the same answers, on crowds where both
+    occur."""
+    rng = np.random.default_rng(10 * dim + reach)
+    scale = downwash_scale(dim, downwash)
+    answers = []
+    for _ in range(100):
+        paths = crowd(rng, 30, 12, dim, 4 + 3 * reach, reach)
+        largest = float(np.abs(np.diff(paths, axis=0)).max())
+        robot = int(rng.integers(30))
+        s, u = sorted(int(v) for v in rng.choice(13, size=2, replace=False))
+        own = paths[:, robot].copy()
+        own[s:u + 1] = paths[s, robot]
+        steps = np.arange(s, u)
+        got = waits_clear(paths, robot, own[steps], steps, scale, largest, CellIndex(paths))
+        assert got.tolist() == [robot_clear(paths, robot, t, t + 1, scale, own, largest) for t in steps.tolist()]
+        assert got.all() == robot_clear(paths, robot, s, u, scale, own, largest)
+        answers.append(bool(got.all()))
+    assert 0.1 < np.mean(answers) < 0.9
+
+
+def drop_loops_checking_each(paths: np.ndarray, downwash: float) -> tuple[np.ndarray, int]:
+    """The reference: drop_loops checking each loop alone with robot_clear against every robot (no index)."""
+    P = np.array(paths, dtype=np.int64)
+    T, N = len(P) - 1, P.shape[1]
+    scale = downwash_scale(P.shape[-1], downwash)
+    largest = float(np.abs(np.diff(P, axis=0)).max())
+    dropped = 0
+    while True:
+        before = dropped
+        for i in range(N):
+            later, s = returns(P[:, i]), 0
+            while s < T - 1:
+                for u in later[s]:
+                    col = P[:, i].copy()
+                    col[s + 1:u] = P[s, i]
+                    if robot_clear(P, i, s, u, scale, col, largest):
+                        P[:, i], dropped, s = col, dropped + 1, u - 1
+                        break
+                s += 1
+        if dropped == before:
+            return P, dropped
+
+
+@pytest.mark.parametrize("dim, downwash", [(2, 1.0), (3, 2.0)])
+@pytest.mark.parametrize("reach", [1, 2])
+@pytest.mark.parametrize("seed", range(3))
+def test_dropping_with_the_index_drops_what_checking_each_loop_drops(dim, downwash, reach, seed, monkeypatch):
+    """drop_loops tests the steps of a robot's loops at once against the robots near (a CellIndex kept as loops are
+    dropped), and checks those that pass with robot_clear and that index; the index must be the plan's at every
+    check, and the paths and count those of checking each loop against every robot, on crowds (downwash-scaled in
+    3-D) where loops are both dropped and kept."""
+    import mrfswarm.discrete.loops as lp
+
+    rng = np.random.default_rng(seed)
+    paths = crowd(rng, 40, 30, dim, 9, reach)
+    checks = []
+
+    def checked(P, robot, first, last, scale, own, largest_move, index):
+        np.testing.assert_array_equal(index.keys % 40, CellIndex(P).keys % 40)  # each step's robots in order
+        checks.append(robot_clear(P, robot, first, last, scale, own, largest_move, index))
+        return checks[-1]
+
+    monkeypatch.setattr(lp, "robot_clear", checked)
+    fast, n_fast = lp.drop_loops(paths, downwash)
+    slow, n_slow = drop_loops_checking_each(paths, downwash)
+    assert n_fast == n_slow
+    np.testing.assert_array_equal(fast, slow)
+    kept = sum(any(returns(slow[:, i])) for i in range(slow.shape[1]))  # robots left with a loop
+    assert n_slow >= 5 and kept >= 5 and sum(checks) == n_slow

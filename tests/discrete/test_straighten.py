@@ -229,3 +229,108 @@ def test_the_free_map_filter_skips_only_windows_without_a_shorter_way(seed, monk
     slow, done_slow = straighten(paths, free)
     assert done_slow == done
     np.testing.assert_array_equal(fast, slow)
+
+
+def cheapest_in_order(ways: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The reference: the rows (moves) in order, each replacing the best so far where shorter by more than 1e-9."""
+    best, row = np.full(ways.shape[1], np.inf), np.full(ways.shape[1], -1)
+    for j, way in enumerate(ways):
+        better = way < best - 1e-9
+        best, row = np.where(better, way, best), np.where(better, j, row)
+    return best, row
+
+
+@pytest.mark.parametrize("band", [False, True], ids=["apart", "within-the-tolerance"])
+def test_the_cheapest_move_is_the_one_taking_the_moves_in_order_keeps(band):
+    """_cheapest picks at once the value and row the rule in order leaves: on lengths of ways equal up to rounding
+    (a few ulps apart, in any order) or apart, and no way at all; and, where values lie within the tolerance of
+    each other without being equal, by taking the rows in order."""
+    import mrfswarm.discrete.straighten as st
+
+    rng = np.random.default_rng(int(band))
+    values = np.array([1.0, 1 + np.sqrt(2), 2 * np.sqrt(2), 3.0, 2 + np.sqrt(3), np.inf])
+    for _ in range(300):
+        ways = rng.choice(values, size=(int(rng.integers(0, 10)), int(rng.integers(0, 30))))
+        ways = np.where(rng.random(ways.shape) < 0.3, np.nextafter(ways, np.inf), ways)
+        ways = np.where(rng.random(ways.shape) < 0.3, np.nextafter(ways, 0.0), ways)
+        if band:
+            ways = ways + rng.choice([0.0, 6e-10, 1e-9, 1.5e-9, 3e-9], size=ways.shape)
+        best, row = st._cheapest(ways)
+        want_best, want_row = cheapest_in_order(ways)
+        np.testing.assert_array_equal(best, want_best)
+        np.testing.assert_array_equal(row, want_row)
+
+
+class SearchMoveByMove:
+    """The reference: the shortest ways' program of :class:`~mrfswarm.discrete.straighten._Search` with each move in
+    turn into the whole box at every step, from :func:`~mrfswarm.discrete.straighten.clear_moves`' table."""
+
+    def __init__(self, a: np.ndarray, own: np.ndarray, clear: np.ndarray, ends: list) -> None:
+        from mrfswarm.discrete.straighten import unit_moves
+
+        self.moves, lengths = unit_moves(len(a))
+        K = len(own)
+        self.lo = np.maximum(np.maximum(a - K, 0), np.min([b - k for k, b in ends], axis=0))
+        hi = np.minimum(np.minimum(a + K, np.array(clear.shape[:-1]) - 1), np.max([b + k for k, b in ends], axis=0))
+        box = tuple(int(v) for v in hi - self.lo + 1)
+        local = clear[tuple(slice(int(x), int(y) + 1) for x, y in zip(self.lo, hi))]
+        cost = np.full(box, np.inf)
+        cost[tuple(a - self.lo)] = 0.0
+        self.costs, self.came = [cost], []
+        for t in range(K):
+            new, how = np.full(box, np.inf), np.full(box, -1)
+            for j, m in enumerate(self.moves.tolist()):
+                if not (lengths[j] <= own[t] + 1e-9 and (lengths[j] > 0) == (own[t] > 0)):
+                    continue
+                src = tuple(slice(max(0, -v), n - max(0, v)) for v, n in zip(m, box))
+                dst = tuple(slice(max(0, v), n - max(0, -v)) for v, n in zip(m, box))
+                val = np.where(local[(*src, j)], cost[src] + lengths[j], np.inf)
+                better = val < new[dst] - 1e-9
+                new[dst] = np.where(better, val, new[dst])
+                how[dst] = np.where(better, j, how[dst])
+            cost = new
+            self.costs.append(cost)
+            self.came.append(how)
+
+    def cost_and_way(self, k: int, b: np.ndarray) -> tuple[float, list]:
+        cell = np.asarray(b) - self.lo
+        if np.any(cell < 0) or np.any(cell >= self.costs[0].shape) or not np.isfinite(self.costs[k][tuple(cell)]):
+            return np.inf, []
+        way = [cell + self.lo]
+        for t in range(k, 0, -1):
+            cell = cell - self.moves[self.came[t - 1][tuple(cell)]]
+            way.append(cell + self.lo)
+        return float(self.costs[k][tuple(b - self.lo)]), way[::-1]
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_search_finds_the_ways_the_move_by_move_program_finds(dim):
+    """_Search relaxes all moves at once and only into the cells a way read can pass; the lengths and cells of the
+    ways to its ends must be those of relaxing each move in turn into the whole box, ties and all, on maps with
+    obstacles (near the map's edges too), with capped steps and waits, and ends reachable or not."""
+    from mrfswarm.discrete.straighten import _Search, clear_into, clear_moves, unit_moves
+
+    rng = np.random.default_rng(dim)
+    shape = (16, 16) if dim == 2 else (10, 10, 6)
+    moves, lengths = unit_moves(dim)
+    found = 0
+    for _ in range(60):
+        free = rng.random(shape) > 0.2
+        clear = clear_moves(free)
+        into = clear_into(clear)
+        for _ in range(5):
+            a = np.array([int(rng.integers(n)) for n in shape])
+            K = int(rng.integers(2, 9))
+            own = rng.choice(np.unique(lengths), size=K)  # the caps, waits (0) among them
+            walk = a + np.cumsum([moves[rng.choice(np.flatnonzero(np.abs(lengths - c) < 1e-9))] for c in own], axis=0)
+            ks = sorted({K, *rng.integers(1, K + 1, size=2).tolist()}, reverse=True)
+            ends = [(k, walk[k - 1] if rng.random() < 0.8 else a + rng.integers(-k, k + 1, size=dim)) for k in ks]
+            fast = _Search(a, own, into, ends)
+            slow = SearchMoveByMove(a, own, clear, ends)
+            for k, b in ends:
+                cost, way = slow.cost_and_way(k, b)
+                assert fast.cost(k, b) == cost
+                if np.isfinite(cost):
+                    np.testing.assert_array_equal(fast.way(k, b), way)
+                    found += 1
+    assert found > 200
