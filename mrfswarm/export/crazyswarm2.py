@@ -175,20 +175,17 @@ def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0,
 
     header = "# Crazyswarm2 robots of this mrfswarm run: cf<k> flies trajectories/robot_<k-1>.csv (see fly.py)\n"
     texts = []
-    pairs = shared_ground(starts, 2 * radius) if radius > 0 else []
-    if pairs:
-        names = ", ".join(f"{robot_name(i)} and {robot_name(k)}" for i, k in pairs[:6])
-        more = f" and {len(pairs) - 6} more pairs" if len(pairs) > 6 else ""
-        texts.append(f"robots start above the same ground spot ({names}{more}): crazyflies.yaml places them there; "
-                     f"put one elsewhere and fly it to its start by hand (fly.py and cflib_upload.py take off "
-                     f"straight up), or give scenario.start positions one per ground spot")
-    landing = shared_ground(ends, 2 * radius) if radius > 0 and ends is not None else []
-    if landing:
-        names = ", ".join(f"{robot_name(i)} and {robot_name(k)}" for i, k in landing[:6])
-        more = f" and {len(landing) - 6} more pairs" if len(landing) > 6 else ""
-        texts.append(f"robots end above the same ground spot ({names}{more}): fly.py and cflib_upload.py land every "
-                     f"robot straight down at once, one onto the other; land them one at a time, after flying one "
-                     f"aside, or give the goal room for the swarm on one level")
+    stacked = (("start", starts, "crazyflies.yaml places them there; put one elsewhere and fly it to its start by "
+                "hand (fly.py and cflib_upload.py take off straight up), or give scenario.start positions one per "
+                "ground spot"),
+               ("end", ends, "fly.py and cflib_upload.py land every robot straight down at once, one onto the other; "
+                "land them one at a time, after flying one aside, or give the goal room for the swarm on one level"))
+    for where, points, advice in stacked:
+        pairs = shared_ground(points, 2 * radius) if radius > 0 and points is not None else []
+        if pairs:
+            names = ", ".join(f"{robot_name(i)} and {robot_name(k)}" for i, k in pairs[:6])
+            more = f" and {len(pairs) - 6} more pairs" if len(pairs) > 6 else ""
+            texts.append(f"robots {where} above the same ground spot ({names}{more}): {advice}")
     z_min = None if lowest is None else np.asarray(lowest, dtype=float)
     low = below_ground(z_min, radius) if z_min is not None else np.array([], dtype=int)
     if z_min is not None and len(low):
