@@ -18,6 +18,9 @@ import multiprocessing
 import signal
 from collections.abc import Iterator
 from multiprocessing.context import BaseContext
+from typing import Any
+
+from solvers.registry import Backend, added, restore
 
 #: Seconds :func:`stop` waits for the pool's manager thread to end after terminating the workers.
 STOP_JOIN_S = 5.0
@@ -42,6 +45,13 @@ def ignore_sigint() -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
+def _start_worker(backends: dict[str, tuple[Backend[Any], ...]]) -> None:
+    """A worker's start: :func:`ignore_sigint`, and the backends the parent registered (``solvers.registry.added``;
+    a spawned or forkserver worker does not run the parent's ``register`` calls)."""
+    ignore_sigint()
+    restore(backends)
+
+
 def stop(pool: cf.ProcessPoolExecutor) -> None:
     """Cancel ``pool``'s queued tasks and terminate its running workers; returns once the pool's manager thread
     has seen them go (at most :data:`STOP_JOIN_S`).
@@ -63,7 +73,8 @@ def stop(pool: cf.ProcessPoolExecutor) -> None:
 def process_pool(workers: int, mp_context: BaseContext | None = None) -> Iterator[cf.ProcessPoolExecutor]:
     """A process pool for a ``with`` block: shut down normally at its end, stopped
     (:func:`stop`) when the block raises."""
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp_context, initializer=ignore_sigint)
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp_context, initializer=_start_worker,
+                                  initargs=(added(),))
     try:
         yield pool
     except BaseException:

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import solvers.registry
 from mrfswarm.config import Config, current_key, load_config, parse_override
 from mrfswarm.errors import ConfigError, MrfswarmError, PlanError, SolversError
 from mrfswarm.pools import process_pool
@@ -102,6 +103,9 @@ class _Task:
     seed: int | None
     point_dir: str
     figures: bool
+    #: the backends the sweep's process registered (``solvers.registry.added``), which a spawned or Dask worker
+    #: repeats: a script's ``register`` did not reach them ("unknown MRF method" in every row)
+    backends: dict[str, tuple[solvers.registry.Backend[Any], ...]] = field(default_factory=dict)
 
 
 # --- the grid ------------------------------------------------------------------------------
@@ -269,6 +273,7 @@ def _run_point(task: _Task) -> dict:
     """
     from mrfswarm.pipeline import plan
 
+    solvers.registry.restore(task.backends)
     t0 = time.perf_counter()
     summary, error, result = None, None, None
     try:
@@ -526,6 +531,7 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
     width = max(3, len(str(len(points) - 1)))
     tasks: list[_Task] = []
     bases: list[dict] = []
+    added = solvers.registry.added()
     for p, values in enumerate(points):
         items = overrides + [f"{k}={toml_literal(v)}" for k, v in values.items()]
         try:
@@ -536,7 +542,7 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
         for s in [None] if seeds is None else seeds:
             base = {"point": p, **values} | ({} if s is None else {"seed": s})
             d = out_dir / "points" / f"{p:0{width}d}_{_slug(values, s)}"
-            tasks.append(_Task(cfg, s, str(d.resolve()), figures))
+            tasks.append(_Task(cfg, s, str(d.resolve()), figures, added))
             bases.append(base)
 
     from mrfswarm.outputs import check_output_dir

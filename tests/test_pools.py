@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import multiprocessing
 import signal
 import time
 from pathlib import Path
@@ -9,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from mrfswarm.pools import process_pool
+from support.added_backends import registered
 
 SLOW_S = 3.0
 
@@ -25,6 +27,20 @@ def _started(path: str) -> None:
 def test_workers_leave_ctrl_c_to_the_parent():
     with process_pool(1) as pool:
         assert pool.submit(signal.getsignal, signal.SIGINT).result() == signal.SIG_IGN
+
+
+def _methods() -> list[str]:
+    from solvers.mrf import METHODS
+
+    return METHODS.names()
+
+
+@pytest.mark.parametrize("start", ["spawn", "forkserver"])
+def test_workers_know_the_backends_the_parent_registered(start):
+    """A spawned or forkserver worker imports the packages afresh: without the parent's registrations it did not
+    know a script's method (the window QPs and the simulation run their processes here too)."""
+    with registered() as twin, process_pool(1, multiprocessing.get_context(start)) as pool:
+        assert pool.submit(_methods).result()[-1] == twin.name
 
 
 def test_an_interrupted_block_terminates_the_tasks_still_running(tmp_path):

@@ -14,6 +14,7 @@ from mrfswarm.config import load_config
 from mrfswarm.errors import ConfigError
 from mrfswarm.pipeline import plan
 from mrfswarm.sweep import SchedulerError, is_timing_column, parse_grid, run_sweep, toml_literal
+from support.added_backends import registered
 from support.repository import EXPERIMENTS
 
 FREE5 = EXPERIMENTS / "free5.toml"
@@ -72,6 +73,15 @@ def test_a_dask_worker_plans_and_flies_without_a_pool_of_its_own(cluster, tmp_pa
     r = run_sweep(config, {"interaction.k": [3, 4]}, tmp_path / "dask", scheduler=cluster.scheduler_address)
     assert [row["error"] for row in r.rows] == [None, None]
     assert all(row["n_robots"] == 14 and row["simulation_max_tracking_error_m"] > 0 for row in r.rows)
+
+
+def test_a_registered_method_reaches_the_dask_workers(cluster, tmp_path):
+    """The sweep's points carry the backends its process registered: a Dask worker never ran the script."""
+    with registered():
+        r = run_sweep(FREE5, {"mrf.method": ["icm", "icm_twin"]}, tmp_path / "dask", scheduler=cluster.scheduler_address,
+                      overrides=FAST)
+    assert [row["error"] for row in r.rows] == [None, None]  # "unknown MRF method 'icm_twin'" on the worker before
+    assert r.rows[0]["mrf_steps"] == r.rows[1]["mrf_steps"]
 
 
 def test_same_table_in_process_and_on_dask(local, cluster, tmp_path):

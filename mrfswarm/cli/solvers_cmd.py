@@ -1,4 +1,5 @@
-"""``mrfswarm solvers``: every QP, NLP and MRF backend, installed or not, with the install hint."""
+"""``mrfswarm solvers``: every QP, NLP and MRF backend, installed or not, with the install hint; those added
+(an entry point, a script's ``register``) say by what."""
 
 from __future__ import annotations
 
@@ -26,8 +27,11 @@ def table() -> str:
     for title, registry, default in registries:
         lines.append(title)
         width = max(len(b.name) for b in registry)
+        added = registry.added()
         for b in registry:
             state = "installed" if b.is_available() else f"missing: {b.install_hint}"
+            if b in added:  # an entry point's (its distribution) or a script's
+                state += f", added by {b.distribution or 'register()'}"
             if b.name == default:
                 state += ", the default"
             lines.append(f"  {b.name:<{width}}  {state:<40}  {b.summary}")

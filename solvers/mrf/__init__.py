@@ -34,6 +34,8 @@ METHODS: Registry[MRFCapabilities] = Registry(
         exact.BACKEND,
     ],
     noun="method",
+    capabilities=MRFCapabilities,
+    group="solvers.mrf",
 )
 
 DEFAULT_METHOD = "icm"

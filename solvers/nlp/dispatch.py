@@ -36,6 +36,8 @@ BACKENDS: Registry[NLPCapabilities] = Registry(
         trust_constr_.BACKEND,
         lbfgsb_.BACKEND,
     ],
+    capabilities=NLPCapabilities,
+    group="solvers.nlp",
 )
 
 DEFAULT_BACKEND = "ipopt"

@@ -36,6 +36,8 @@ BACKENDS: Registry[QPCapabilities] = Registry(
         ipopt_.BACKEND,
         closed_form.BACKEND,
     ],
+    capabilities=QPCapabilities,
+    group="solvers.qp",
 )
 
 DEFAULT_BACKEND = "osqp"
