@@ -263,6 +263,8 @@ class Result:
                 # why the windows flown as their witness had no other solution: each one's last rejected attempt
                 "witness_reasons": sorted({w.failed[-1] for w in c.windows if w.attempt == "witness" and w.failed}),
                 "refined_windows": int(sum(w.refined for w in c.windows)),
+                # the NLP backend's errors where it raised (those windows kept their QP's durations or a point of it)
+                "refinement_errors": sorted({w.refine_error for w in c.windows if w.refine_error}),
                 "bisected_windows": int(sum(w.bisected > 0 for w in c.windows)),
                 "sampled_check": None if c.sampled is None else {
                     "rate_hz": sm.check_rate_hz, "min_separation_m": c.sampled.min_separation,

@@ -125,4 +125,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"mrfswarm: warning: {witness} of {s['windows']} smoothing windows had no solution at their planned "
               f"durations and fly the rest-to-rest witness (slower, with stops){because}: see result.json's "
               "witness_reasons; smoothing.qp_options or the QP backend may be too tight", file=sys.stderr)
+    errors = s.get("refinement_errors") or []
+    if errors:  # the refinement only shortens a certified flight: a backend that raised leaves the window as it was
+        more = f" ({len(errors) - 1} other errors in result.json's refinement_errors)" if len(errors) > 1 else ""
+        print(f"mrfswarm: warning: the time refinement's NLP backend raised: {errors[0]}{more}; those windows fly "
+              "their QP's durations or the best point it had evaluated", file=sys.stderr)
     return 0

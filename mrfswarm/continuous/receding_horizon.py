@@ -396,6 +396,9 @@ class WindowRecord:
         (:func:`~mrfswarm.continuous.regions.arrival_holds`; tried with the creep rows, then without them).
     released
         The arrived robots not held where the holds failed (:meth:`RecedingHorizon._releases`).
+    refine_error
+        The NLP backend's error where it raised in the refinement (its first line; empty otherwise): the window
+        keeps the best certified point it had evaluated, or its QP's durations.
     bisected
         Steps of :meth:`RecedingHorizon._bisect` kept: the window flies durations between ``attempt``'s and
         those of a faster attempt that failed.
@@ -416,6 +419,7 @@ class WindowRecord:
     rounds: int = 0
     active_pairs: int = 0
     refined: bool = False
+    refine_error: str = ""
     creep: bool = False
     hold: bool = False
     released: list[int] = field(default_factory=list)
@@ -1359,8 +1363,13 @@ class RecedingHorizon:
             scaled = scale_durations(alloc.problem, alloc.weight, self.cfg.derivative, total=sol.durations.sum())
             method, status = "scaling", scaled.status
         else:
-            res = solvers.nlp.minimize(self._not_longer(alloc.problem, sol), self.cfg.nlp, NLP_OPTIONS)
-            method, status = res.backend, res.raw_status
+            try:
+                res = solvers.nlp.minimize(self._not_longer(alloc.problem, sol), self.cfg.nlp, NLP_OPTIONS)
+                method, status = res.backend, res.raw_status
+            except SolverError as e:  # as a failed QP backend's windows fly their witness, the run goes on: the
+                # points the backend had evaluated are window QPs' solutions, certified below like any other
+                rec.refine_error = str(e).splitlines()[0] if str(e) else type(e).__name__
+                method, status = self.cfg.nlp, f"failed: {rec.refine_error}"
         before = sol.cost + alloc.weight * sol.durations.sum()
         found = {k: s for k, s in alloc.solved.items() if s is not None}
         tried = sorted((s.cost + alloc.weight * s.durations.sum(), k) for k, s in found.items())

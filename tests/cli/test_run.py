@@ -179,6 +179,49 @@ def test_the_nlp_flag_reaches_the_time_refinement(tmp_path, monkeypatch):
     assert res["makespan_s"] < plain["makespan_s"] - 0.01
 
 
+def _crashing(problem, options):
+    """L-BFGS-B whose native part dies at its fourth evaluation: a backend that raises in the middle of a solve."""
+    import dataclasses
+
+    from solvers.nlp import lbfgsb_
+
+    calls = 0
+
+    def fun(x):
+        nonlocal calls
+        calls += 1
+        if calls > 3:
+            raise RuntimeError("the native library crashed")
+        return problem.fun(x)
+
+    return lbfgsb_.solve(dataclasses.replace(problem, fun=fun), options)
+
+
+def test_an_nlp_backend_that_raises_leaves_its_windows_unrefined_and_says_so(tmp_path, capsys):
+    """The refinement only shortens a certified flight: a backend that raised aborted the whole run (exit 2), where
+    a QP backend's failure flies the window's witness. Now the run goes on, certified, and one line says why."""
+    import solvers.nlp
+    from solvers.registry import Backend
+
+    record = Backend(name="crashing", entry=_crashing, capabilities=solvers.nlp.BACKENDS.get("lbfgsb").capabilities)
+    common = [str(EXPERIMENTS / "free5.toml"), "--set", "simulation.enabled=false", "--set", "smoothing.time_weight=1000"]
+    solvers.nlp.BACKENDS.register(record)
+    try:
+        rc = main(["run", *common, "--out", str(tmp_path / "out"), "--set", "smoothing.time_refinement=true",
+                   "--nlp", "crashing"])
+    finally:
+        solvers.nlp.BACKENDS.unregister("crashing")
+    err = capsys.readouterr().err
+    res = json.loads((tmp_path / "out" / "result.json").read_text())
+    assert rc == 0 and res["certificate"]["ok"] and res["nlp"] == "crashing"
+    assert res["refinement_errors"] == ["crashing failed: RuntimeError: the native library crashed"]
+    assert "warning: the time refinement's NLP backend raised: crashing failed: RuntimeError: the native library " \
+           "crashed;" in err
+    assert main(["run", *common, "--out", str(tmp_path / "plain")]) == 0
+    plain = json.loads((tmp_path / "plain" / "result.json").read_text())
+    assert plain["refinement_errors"] == [] and res["makespan_s"] <= plain["makespan_s"] + 1e-9
+
+
 def test_the_run_line_reports_the_flight_against_its_lower_bound(tmp_path, capsys):
     """A smoothed run prints its makespan over the lower bound and its stops per robot, as result.json has them."""
     import re
