@@ -258,6 +258,7 @@ class Result:
                     else 1,
                 },
                 "windows": len(c.windows),
+                "window_steps": c.horizon,  # smoothing.horizon, or more where the windows' tails brake from cruise
                 "window_attempts": {name: sum(w.attempt == name for w in c.windows)
                                     for name in sorted({w.attempt for w in c.windows})},
                 # why the windows flown as their witness had no other solution: each one's last rejected attempt
@@ -266,6 +267,8 @@ class Result:
                 # the NLP backend's errors where it raised (those windows kept their QP's durations or a point of it)
                 "refinement_errors": sorted({w.refine_error for w in c.windows if w.refine_error}),
                 "bisected_windows": int(sum(w.bisected > 0 for w in c.windows)),
+                # the factor of the windows' durations the whole flight was re-timed to (a short flight), or null
+                "retimed": c.retimed,
                 "sampled_check": None if c.sampled is None else {
                     "rate_hz": sm.check_rate_hz, "min_separation_m": c.sampled.min_separation,
                     "min_clearance_m": _num(c.sampled.min_clearance), "in_obstacle": c.sampled.in_obstacle},

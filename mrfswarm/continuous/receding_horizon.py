@@ -111,6 +111,7 @@ from mrfswarm.continuous.sampled_check import SampledCheck, check_positions, uni
 from mrfswarm.continuous.time_grid import (
     FlightModel,
     SwarmProfile,
+    braking_distance,
     drift_waits,
     motion_profile,
     next_moves,
@@ -227,6 +228,26 @@ def flight_model(cfg: SmoothingConfig, resolution: float, radius: float) -> Flig
     name, cruise, acc = next(p for p in PROFILES if p[0] == "moderate")
     return FlightModel(resolution, cruise * cfg.v_max, motion_acceleration(cfg.v_max, cfg.a_max, cfg.j_max, acc),
                        drift_room(resolution, radius))
+
+
+def braking_horizon(cfg: SmoothingConfig, speed: float, resolution: float) -> int:
+    """Steps per window: ``cfg.horizon``, or more where the steps a window plans and does not fly could not hold
+    the braking from ``speed`` (the profiles' top speed) to rest, which every window ends at.
+
+    The fast attempt's unflown steps brake as the bold profile does (its acceleration, the jerk limit):
+    :data:`BRAKING_ROOM` times that distance in cells, over the share of the window not flown (1 - ``execution``).
+    On 1 m cells at 2 m/s (1.4 m) or 0.25 m cells at 1 m/s (0.46 m) the default 8 steps hold it; on 0.1 m
+    cells at 2 m/s they did not: every window's tail braked from at most 0.86 m/s, its faster attempts had no
+    solution, and two robots crossing 5 m (47 steps, one piece each: ``max_pieces = 0``) flew 10.8 s at v_max 2
+    against 6.4 s at v_max 1; in windows of 36 steps 4.7 s. Only for flights whose pieces are not merged
+    (``max_pieces`` 0 or at least the steps): with the 31 pieces of a Crazyflie the same crossing flew 13.0 s in
+    windows of 8 steps and 18.9 s in windows of 36 (more steps per piece, and those pieces' faster attempts fail).
+    """
+    if cfg.seam == "rest" or cfg.execution >= 1:
+        return cfg.horizon
+    acc = motion_acceleration(speed, cfg.a_max, cfg.j_max, ACCELERATION)
+    tail = math.ceil(BRAKING_ROOM * braking_distance(speed, acc, cfg.j_max) / resolution)
+    return max(cfg.horizon, math.ceil(tail / (1 - cfg.execution)))
 
 
 def motion_acceleration(v_max: float, a_max: float, j_max: float, fraction: float = ACCELERATION) -> float:
@@ -369,6 +390,24 @@ SLOWDOWN = 1.5
 #: 111 -> 163 s for a flight 2 % sooner, the 1000-robot crossing 241 -> 392 s for 0.1 %; CSV
 #: flight_quality_bisection_every_window_big.csv).
 BISECTIONS = 1
+#: Room a window's unflown steps give the braking from the cruise to rest (:func:`braking_horizon`), over the
+#: distance of the jerk-limited braking at the bold profile's acceleration: the window QP's snap-optimal braking
+#: within given durations needs more (0.1 m cells at 2 m/s: windows whose tail held 12 cells of its 13 failed).
+BRAKING_ROOM = 1.25
+#: A flight of at most this many horizons' steps is re-timed as a whole once its windows are planned
+#: (:meth:`RecedingHorizon._retime`): where a flight spans few windows, their tails, each braking to rest for the
+#: next window's sake, weigh most. Measured (flight_quality.py --variants default,refined --baseline bc673d4
+#: --baseline-variants default,refined, CSV flight_quality_retime.csv): the arena (16 steps) 5.78 -> 5.43 s
+#: (1.34 -> 1.26 x its bound), refined 5.48 -> 5.37 (1.27 -> 1.246 x), its planning 0.5 -> 1.5 s; the other maps
+#: are longer and fly the same. Longer flights gain less for a whole-flight QP each try (in-process, one run each:
+#: the doorway's 17 steps and the trap's 38, one piece per step, 1 % at x0.99, 0.4-0.5 s; the maps whose pieces
+#: merge for a Crazyflie's memory, none at x0.99).
+RETIME_HORIZONS = 2
+#: The factors of the flown durations at which the whole flight's QP is tried, in this order, until one has no
+#: certified solution (the last certified one is flown). A try that fails runs to the QP backend's iteration cap
+#: (0.5 s on the arena against 0.15-0.2 s for one solved): descending, one try fails. At a third of the budget
+#: (the attempts' OPTIMISTIC_BUDGET) the refined arena's x0.98 was not solved.
+RETIME_FACTORS = (0.98, 0.96, 0.94, 0.92, 0.90)
 
 
 @dataclass
@@ -495,6 +534,8 @@ class ContinuousPlan:
     max_pieces: int = 0
     pieces_per_robot: list[int] = field(default_factory=list)
     downwash: float = 1.0
+    retimed: float | None = None
+    horizon: int = 0
 
     @property
     def min_separation_scaled(self) -> float:
@@ -617,13 +658,7 @@ class RecedingHorizon:
                                                       max_iter=max(1, math.ceil(OPTIMISTIC_BUDGET * budget)))
         self.trial_options = dataclasses.replace(self.qp_options, max_iter=max(1, math.ceil(TRIAL_BUDGET * budget)))
         self.T, self.N = len(self.paths) - 1, self.paths.shape[1]
-        self.E = max(1, round(cfg.execution * cfg.horizon))
-        if cfg.seam == "continuous" and self.E >= cfg.horizon and self.T > self.E:
-            # every window ends at rest at its last step: flown to its end, the flight stops there (on a 14 x 10 m
-            # map of 4 robots: 8.3 s by default, 11.5 s at execution 1.0, 26.4 s at horizon 1)
-            log.warning("smoothing.execution = %g of smoothing.horizon = %d flies every window to its end, where "
-                        "the robots are planned at rest: the flight stops every %d steps (flying less than the whole "
-                        "window lets the next one take over while they move)", cfg.execution, cfg.horizon, self.E)
+        self.horizon = cfg.horizon  # lengthened below where the windows' tails could not brake from the cruise
         self.radius = float(radius)
         self.distance = 2 * self.radius
         # room for the compressed export's rounding, where the cells leave it (a quarter of what a cell leaves
@@ -671,10 +706,22 @@ class RecedingHorizon:
             if drift > 0:
                 self.creep = CREEP_SPEED * way
             self._exit = next_moves(moves)  # a run's rows go in a window that holds its way out
+            if not cfg.max_pieces or self.T <= cfg.max_pieces:  # merged pieces fly later in longer windows
+                self.horizon = braking_horizon(cfg, change, grid.resolution)
+            if self.horizon > cfg.horizon:
+                log.info("windows of %d steps instead of smoothing.horizon = %d: their unflown steps brake from %.2f "
+                         "m/s on %g m cells", self.horizon, cfg.horizon, change, grid.resolution)
         elif cfg.speed is None:
             self.nominal = np.zeros(0)
         else:
             self.nominal = nominal_durations(self.paths, grid.resolution, cfg.speed, NOMINAL_ACCELERATION * cfg.a_max)
+        self.E = max(1, round(cfg.execution * self.horizon))
+        if cfg.seam == "continuous" and self.E >= self.horizon and self.T > self.E:
+            # every window ends at rest at its last step: flown to its end, the flight stops there (on a 14 x 10 m
+            # map of 4 robots: 8.3 s by default, 11.5 s at execution 1.0, 26.4 s at horizon 1)
+            log.warning("smoothing.execution = %g of smoothing.horizon = %d flies every window to its end, where "
+                        "the robots are planned at rest: the flight stops every %d steps (flying less than the whole "
+                        "window lets the next one take over while they move)", cfg.execution, self.horizon, self.E)
         self.witness = np.maximum(self.nominal, witness_durations(
             self.paths, grid.resolution, self.row_limits, cfg.degree, cfg.derivative, MARGIN))
         # the reference: each step's longest move (at least a cell) at REFERENCE_SPEED, whatever the limits
@@ -711,7 +758,7 @@ class RecedingHorizon:
         out, a = [], 0
         while a < self.T:
             c = min(a + self.E, self.T)
-            b = c if self.cfg.seam == "rest" else min(a + self.cfg.horizon, self.T)
+            b = c if self.cfg.seam == "rest" else min(a + self.horizon, self.T)
             out.append((a, c, b))
             a = c
         return out
@@ -1493,11 +1540,53 @@ class RecedingHorizon:
             records.append(rec)
             if on_window is not None:
                 on_window(rec)
+        sizes = [g for rec in records for g in rec.piece_steps]
+        retimed = None
+        # not with a cruise `speed`: its durations are the user's pace
+        if cfg.speed is None and cfg.seam != "rest" and 1 < len(windows) and T <= RETIME_HORIZONS * self.horizon:
+            retimed = self._retime(Y, B, durations, records, np.array(sizes))
         trajectories = [hermite_trajectory(Y[:, i], B[:, i], durations, cfg.degree, q) for i in range(N)]
         knots = np.concatenate([[0.0], np.cumsum(durations)])
-        sizes = [g for rec in records for g in rec.piece_steps]
-        return self._finish(merge_trajectories(trajectories, np.array(sizes), q), knots, records, tic,
+        plan = self._finish(merge_trajectories(trajectories, np.array(sizes), q), knots, records, tic,
                             np.concatenate([[0], np.cumsum(sizes)]))
+        plan.retimed, plan.horizon = retimed, self.horizon
+        return plan
+
+    def _retime(self, Y: np.ndarray, B: np.ndarray, durations: np.ndarray, records: list[WindowRecord],
+                sizes: np.ndarray) -> float | None:
+        """The whole flight planned as one window at its flown durations times each of :data:`RETIME_FACTORS` in
+        turn, until one has no certified solution; the last certified one replaces ``Y``, ``B`` and ``durations``
+        (in place). Returns its factor, or None where even the first has none.
+
+        The windows' solutions, put together, are a solution of the whole flight's problem at the flown durations:
+        the regions and corridors are the same, every seam is continuous, and the flight ends at rest. Each
+        window, though, planned its tail to rest for the next one's sake, and flew its steps so that it could; the
+        whole flight's QP has no such tails, and the same durations a few per cent shorter still have solutions.
+        The creep rows stay on where a window had them (no robot stops where it drifted through a wait), and the
+        arrived robots stay held where a window held them (every one held at every step it is held in: where a
+        window released some, the whole flight may have no solution, and is not re-timed).
+        The solution kept is certified for all t like every window's.
+        """
+        T = self.T
+        start = Y[0]
+        merged = merged_knots(sizes, T) if (sizes > 1).any() else None
+        creep = T if any(rec.creep for rec in records) else None
+        hold = any(rec.hold for rec in records)
+        rec = WindowRecord(a=0, c=T, b=T)
+        best, kept = None, None
+        for factor in RETIME_FACTORS:
+            sol = self._solve(0, T, start, durations * factor, rec, merged=merged, creep=creep, hold=hold)[0]
+            if sol is None or not self._certify(sol, 0).ok:
+                break
+            best, kept = sol, factor
+        log.info("the whole flight re-timed: %s (%d QP rounds)", "not shorter" if kept is None else
+                 f"x{kept:g}, {durations.sum() * kept:.3f} s", rec.rounds)
+        if best is None:
+            return None
+        Y[:] = best.Y.transpose(1, 0, 2, 3)
+        B[:] = best.B.transpose(1, 0, 2, 3)
+        durations[:] = best.durations
+        return kept
 
     def _undo_refinement(self, before: tuple, window: tuple[int, int, int], sol: _Solution, rec: WindowRecord,
                          Y: np.ndarray, commit: Callable[[int, int, int, _Solution], tuple | None], pieces: int | None,

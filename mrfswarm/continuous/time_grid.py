@@ -84,6 +84,12 @@ def _rest_curve(v_max: float, a_max: float, j_max: float, samples: int = 4001) -
     return t, s
 
 
+def braking_distance(speed: float, a_max: float, j_max: float) -> float:
+    """Metres of the shortest braking from ``speed`` to rest with acceleration <= a_max and jerk <= j_max (the
+    fastest start from rest to ``speed``, backwards: :func:`_rest_curve`)."""
+    return float(_rest_curve(float(speed), float(a_max), float(j_max))[1][-1])
+
+
 def rest_times(distance: np.ndarray, v_max: float, a_max: float, j_max: float) -> np.ndarray:
     """The least time to cover ``distance`` (metres, any shape) from rest with speed <= v_max, acceleration <=
     a_max and jerk <= j_max (the end speed free): the fastest start (:func:`_rest_curve`), then cruise at v_max.

@@ -12,6 +12,7 @@ import solvers.qp
 from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous.receding_horizon import RecedingHorizon, solve_window
 from mrfswarm.continuous.window_cache import WINDOWS, WindowCache, formulation_bytes, spec_key
+from support.attempts import unretimed
 from support.passing import GRID, PASSING, first_window
 
 
@@ -26,6 +27,7 @@ def _refined_first_window(monkeypatch, backend: str) -> list[tuple]:
         return out
 
     monkeypatch.setattr(rh_mod, "solve_window", spy)
+    unretimed(monkeypatch)  # the windows' solves alone: the whole flight's are other problems
     WINDOWS.clear()
     WINDOWS.hits = WINDOWS.misses = 0
     rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, backend=backend), 0.25, workers=1)

@@ -19,3 +19,10 @@ def unbisected(monkeypatch: pytest.MonkeyPatch) -> None:
     or of what an attempt carries (holds, releases, the first step), written on flights from before the bisection
     and comparing two flights at the same durations (the bisection's own: tests/continuous/test_bisection.py)."""
     monkeypatch.setattr(rhm, "BISECTIONS", 0)
+
+
+def unretimed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The windows' flight as they planned it, the whole of it not re-timed (``receding_horizon.RETIME_HORIZONS``
+    0): for the tests of a window's attempts, refinement or cache on a flight short enough to be re-timed, which
+    compare flights or count solves that the re-timing changes (its own: tests/continuous/test_retime.py)."""
+    monkeypatch.setattr(rhm, "RETIME_HORIZONS", 0)
