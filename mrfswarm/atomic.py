@@ -28,6 +28,16 @@ def file_mode() -> int:
     return 0o666 & ~umask()
 
 
+def not_writable(folder: Path) -> str | None:
+    """Why no file can be made in ``folder`` (an existing folder), or None when one can: a file written there
+    after the work is done failed with a traceback, the work lost (``--out`` on a read-only file system)."""
+    if os.access(folder, os.W_OK | os.X_OK):
+        return None
+    if os.statvfs(folder).f_flag & os.ST_RDONLY:
+        return f"{str(folder)!r} is on a read-only file system"
+    return f"{str(folder)!r} is not writable (permission denied)"
+
+
 def atomic_write(path: Path, write: Callable[[Path], object]) -> Path:
     """Call ``write(tmp)`` (its return value is ignored) then rename ``tmp`` to ``path`` (same folder, same
     suffix), the folder made if needed; ``tmp`` gets :func:`file_mode` first. Nothing is left at ``path``

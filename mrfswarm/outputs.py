@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from mrfswarm import plots
-from mrfswarm.atomic import atomic_write, umask
+from mrfswarm.atomic import atomic_write, not_writable, umask
 from mrfswarm.errors import ExportError
 from mrfswarm.pipeline import Result
 
@@ -72,7 +72,8 @@ def check_output_dir(out: Path, overwrite: bool = False, marker: str = RUN_MARKE
     ExportError
         ``out`` is not empty and ``overwrite`` is false; or ``out`` holds files but no
         ``marker`` (not a run's folder: ``overwrite`` never deletes that); or ``out`` is the
-        current folder or holds it (a run replaces its folder as a whole, by renaming).
+        current folder or holds it (a run replaces its folder as a whole, by renaming); or no folder can be made
+        where ``out`` goes (a read-only file system, no permission).
     """
     out = Path(out)
     try:
@@ -83,6 +84,10 @@ def check_output_dir(out: Path, overwrite: bool = False, marker: str = RUN_MARKE
     if here is not None and (folder == here or folder in here.parents):
         raise ExportError(f"output folder {str(out)!r} is the current folder or holds it: a {what} replaces its output "
                           f"folder as a whole; give --out a folder of its own (e.g. --out {what}1)")
+    # the folder is made (or replaced) beside itself, in its nearest existing parent
+    why = not_writable(next(p for p in (folder.parent, *folder.parent.parents) if p.is_dir()))
+    if why is not None:
+        raise ExportError(f"output folder {str(out)!r} cannot be written: {why}")
     if not out.is_dir():
         return
     names = sorted(p.name + "/" * p.is_dir() for p in out.iterdir())
@@ -133,8 +138,10 @@ def write_outputs(result: Result, out: Path, animate: bool = False, overwrite: b
         written.append(write_json(stage / RUN_MARKER, {**result.summary(), "complete": True}))
         check_output_dir(out, overwrite)  # nobody wrote into it meanwhile
         _swap(stage, out)
-    except BaseException:
+    except BaseException as e:
         shutil.rmtree(stage, ignore_errors=True)
+        if isinstance(e, OSError):  # the file system's refusal (full, a mount point to replace): one line
+            raise ExportError(f"cannot write the outputs to {str(out)!r}: {e}") from e
         raise
     return [out / p.relative_to(stage) for p in written]
 
@@ -145,11 +152,21 @@ def _swap(stage: Path, out: Path) -> None:
         os.rename(stage, out)
         return
     old = set_aside(out)
-    if old is None:  # an empty folder
-        out.rmdir()
-    os.rename(stage, out)
+    try:
+        if old is None:  # an empty folder
+            out.rmdir()
+        os.rename(stage, out)
+    except BaseException:  # interrupted before the new run is in place: the old one goes back
+        if old is not None and not out.exists():
+            os.rename(old / out.name, out)
+            old.rmdir()
+        raise
     if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+        try:
+            shutil.rmtree(old, ignore_errors=True)
+        except BaseException:  # interrupted: the new run is in place, and the old one is not left beside it
+            shutil.rmtree(old, ignore_errors=True)
+            raise
 
 
 def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -> list[Path]:

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 import solvers.qp
+from mrfswarm.atomic import not_writable
 from mrfswarm.config import ScenarioConfig
 from mrfswarm.errors import ConfigError
 from mrfswarm.trajectory.min_snap import CLOSED_FORM, solve_min_snap
@@ -188,6 +189,9 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--out: directory {str(out.parent)!r} does not exist")
     if out.is_dir():
         raise ConfigError(f"--out: {str(out)!r} is a directory")
+    why = not_writable(out.parent)
+    if why is not None:
+        raise ConfigError(f"--out: {str(out)!r} cannot be written: {why}")
     if out.exists() and Path(args.waypoints).exists() and out.samefile(args.waypoints):
         raise ConfigError(f"--out: {str(out)!r} is the waypoints file; give another --out (it would be replaced)")
     if out.exists() and not args.overwrite:

@@ -184,6 +184,8 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None, downwa
     if len(center) != d:
         raise ConfigError(f"scenario.start.center = {list(center)!r}: {len(center)} coordinates on a {d}-D map, "
                           f"give {axes}")
+    if not all(np.isfinite(center)):
+        raise ConfigError(f"scenario.start.center must be finite, got {list(center)!r}")
     n = spec["n_robots"]
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ConfigError(f"scenario.start.n_robots = {n!r}: must be a positive integer")

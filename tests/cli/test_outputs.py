@@ -95,6 +95,75 @@ def test_a_late_writer_failing_leaves_the_old_run_intact(tmp_path, monkeypatch):
     assert not fresh.exists()  # nothing complete-looking, nothing at all
 
 
+def test_an_interrupt_while_the_runs_are_swapped_leaves_one_whole_run(tmp_path, monkeypatch):
+    """Ctrl-C between setting the old run aside and renaming the new one into place left --out missing (the old run
+    only in a hidden .out.old-* folder); Ctrl-C while the old run was deleted left that folder beside --out."""
+    import shutil
+
+    out = tmp_path / "out"
+    assert run(tmp_path, 6, out) == 0
+    first = snapshot(out)
+    rename, rmtree = os.rename, shutil.rmtree
+
+    def interrupted_rename(src, dst):
+        if Path(src).name.startswith(".out.partial-"):
+            raise KeyboardInterrupt
+        rename(src, dst)
+
+    monkeypatch.setattr(outputs.os, "rename", interrupted_rename)
+    assert run(tmp_path, 5, out, "--overwrite") == 130
+    assert snapshot(out) == first  # the old run is back in place
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+    monkeypatch.setattr(outputs.os, "rename", rename)
+
+    def interrupted_rmtree(path, *args, **kwargs):
+        monkeypatch.setattr(outputs.shutil, "rmtree", rmtree)  # once
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(outputs.shutil, "rmtree", interrupted_rmtree)
+    assert run(tmp_path, 5, out, "--overwrite") == 130
+    assert json.loads((out / "result.json").read_text())["n_robots"] == 5  # the new run, whole
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # the old one not left beside
+
+
+def test_a_folder_that_cannot_be_written_is_refused_before_anything_runs(tmp_path, monkeypatch, capsys):
+    """--out on a read-only file system (or in a folder without write permission) planned in full and then lost the
+    plan to a traceback from the first write (`mrfswarm run`, `smooth` and `sweep` alike)."""
+    import mrfswarm.pipeline
+
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    access = os.access
+    monkeypatch.setattr(os, "access", lambda path, mode, **kw: Path(path) != locked and access(path, mode, **kw))
+    monkeypatch.setattr(mrfswarm.pipeline, "plan", lambda *a, **kw: pytest.fail("planned"))
+    waypoints = tmp_path / "w.csv"
+    waypoints.write_text("x,y\n0,0\n3,4\n")
+    for argv in (["run", str(config(tmp_path, 3)), "--out", str(locked / "a" / "run")],
+                 ["smooth", str(waypoints), "--out", str(locked / "traj.csv")],
+                 ["sweep", str(config(tmp_path, 3)), "--grid", "interaction.k_a=8,14", "--out", str(locked / "sw")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "cannot be written" in err and "not writable" in err and str(locked) in err
+    assert list(locked.iterdir()) == []
+
+
+def test_a_write_the_file_system_refuses_is_one_line_and_keeps_the_old_run(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "out"
+    assert run(tmp_path, 6, out) == 0
+    first = snapshot(out)
+
+    def full(result, out):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(outputs, "write_crazyflie_outputs", full)
+    capsys.readouterr()
+    assert run(tmp_path, 5, out, "--overwrite") == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot write the outputs to" in err and "No space left on device" in err
+    assert snapshot(out) == first
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
 def test_killed_run_leaves_no_result(tmp_path):
     """Kill a real process while it writes its outputs: --out gets no result.json (nor anything)."""
     out = tmp_path / "out"

@@ -102,6 +102,8 @@ def test_bad_3d_positions_name_the_robot(positions, match):
                                               r"give \[x, y, z\]$"),
     ({"center": [1, 1, 1], "n_robots": 3}, "2d", r"scenario\.start\.center = \[1, 1, 1\]: 3 coordinates on a 2-D map"),
     ({"center": [1, 1, "z"], "n_robots": 3}, "3d", r"scenario\.start\.center must be \[x, y, z\], got \[1, 1, 'z'\]"),
+    # was "world_to_cell: points must be finite", naming neither the key nor the value
+    ({"center": [float("nan"), 1], "n_robots": 3}, "2d", r"^scenario\.start\.center must be finite, got \[nan, 1\]$"),
 ])
 def test_points_with_the_wrong_number_of_coordinates(spec, grid, match):
     g = room() if grid == "3d" else load_map({"kind": "free", "size": [5, 5]}, ".")
