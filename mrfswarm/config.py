@@ -459,6 +459,18 @@ def check_nlp(name: str) -> None:
         raise ConfigError(f"smoothing.nlp = {name!r}: must be one of {', '.join(NLP_BACKENDS.names())}")
 
 
+#: Upper bounds of keys whose huge values exhausted the memory or hung instead of failing (a robustness tour,
+#: 2026-11-29): scenario.altitude 1e300 overflowed the Crazyflie packing; scenario.downwash 1000 took 7.5 GB on a
+#: small voxel map; obstacle_potential.sigma and mrf.order 1e11 ran out of memory (mrf.order 100: 7.3 GB, 29 s on the
+#: corridor; 32: 0.3 GB, 1.6 s); smoothing.region_growth 1e11 hung; smoothing.check_rate_hz 1e11 ran out of memory
+#: after the discrete stage. Each bound is far past any use (a sigma or growth of 1000 cells: 2 s on the corridor).
+MAX_ALTITUDE = 1e4  # m
+MAX_DOWNWASH = 20.0
+MAX_CELLS = 1000  # obstacle_potential.sigma, smoothing.region_growth
+MAX_ORDER = 32  # cells²
+MAX_CHECK_RATE_HZ = 1e4
+
+
 def _validate(cfg: Config) -> None:
     """Range checks that do not need the map (those live with the map and the planner)."""
 
@@ -472,9 +484,10 @@ def _validate(cfg: Config) -> None:
     need(s.goal is None or len(s.goal) in (2, 3), "scenario.goal", None if s.goal is None else list(s.goal),
          "must be [x, y] or, on a 3-D map, [x, y, z] (metres)")
     need(s.goal_radius is None or s.goal_radius > 0, "scenario.goal_radius", s.goal_radius, "must be > 0 (metres)")
-    need(s.altitude > 0, "scenario.altitude", s.altitude, "must be > 0")
+    need(0 < s.altitude <= MAX_ALTITUDE, "scenario.altitude", s.altitude, f"must be in (0, {MAX_ALTITUDE:g}] (metres)")
     need(s.robot_radius > 0, "scenario.robot_radius", s.robot_radius, "must be > 0 (metres)")
-    need(s.downwash >= 1, "scenario.downwash", s.downwash, "must be >= 1")
+    need(1 <= s.downwash <= MAX_DOWNWASH, "scenario.downwash", s.downwash,
+         f"must be in [1, {MAX_DOWNWASH:g}] (a Crazyflie's is about 2)")
     i = cfg.interaction
     need(i.k >= 1, "interaction.k", i.k, "must be >= 1")
     # the paper's Morse conditions and zeta, where the potential is defined (one place); imported
@@ -493,9 +506,10 @@ def _validate(cfg: Config) -> None:
     need(g.congestion_every >= 1, "goal_potential.congestion_every", g.congestion_every, "must be >= 1 (steps)")
     o = cfg.obstacle_potential
     need(o.gamma > 0, "obstacle_potential.gamma", o.gamma, "must be > 0")
-    need(o.sigma >= 0, "obstacle_potential.sigma", o.sigma, "must be >= 0")
+    need(0 <= o.sigma <= MAX_CELLS, "obstacle_potential.sigma", o.sigma, f"must be in [0, {MAX_CELLS}] (cells)")
     m = cfg.mrf
-    need(m.order >= 1, "mrf.order", m.order, "must be >= 1")
+    need(1 <= m.order <= MAX_ORDER, "mrf.order", m.order, f"must be in 1..{MAX_ORDER} (cells²: moves of up to "
+         f"{math.isqrt(MAX_ORDER)} cells along an axis)")
     need(m.max_steps >= 1, "mrf.max_steps", m.max_steps, "must be >= 1")
     need(m.tol >= 0, "mrf.tol", m.tol, "must be >= 0")
     need(m.patience >= 1, "mrf.patience", m.patience, "must be >= 1")
@@ -516,15 +530,16 @@ def _validate(cfg: Config) -> None:
     need(sm.degree >= 2 * sm.derivative - 1, "smoothing.degree", sm.degree,
          f"must be >= 2 * smoothing.derivative - 1 = {2 * sm.derivative - 1}")
     need(sm.speed is None or sm.speed > 0, "smoothing.speed", sm.speed, "must be > 0 (or left out: from the limits)")
-    need(sm.region_growth >= 0, "smoothing.region_growth", sm.region_growth, "must be >= 0")
+    need(0 <= sm.region_growth <= MAX_CELLS, "smoothing.region_growth", sm.region_growth,
+         f"must be in [0, {MAX_CELLS}] (cells)")
     need(sm.horizon >= 1, "smoothing.horizon", sm.horizon, "must be >= 1")
     need(0 < sm.execution <= 1, "smoothing.execution", sm.execution, "must be in (0, 1]")
     need(sm.seam in SEAM_MODES, "smoothing.seam", sm.seam, f"must be one of {', '.join(SEAM_MODES)}")
     need(sm.time_weight > 0, "smoothing.time_weight", sm.time_weight, "must be > 0")
     need(sm.refinement in REFINEMENTS, "smoothing.refinement", sm.refinement, f"must be one of {', '.join(REFINEMENTS)}")
     check_nlp(sm.nlp)
-    need(sm.check_rate_hz == 0 or sm.check_rate_hz >= 100, "smoothing.check_rate_hz", sm.check_rate_hz,
-         "must be 0 (off) or >= 100")
+    need(sm.check_rate_hz == 0 or 100 <= sm.check_rate_hz <= MAX_CHECK_RATE_HZ, "smoothing.check_rate_hz",
+         sm.check_rate_hz, f"must be 0 (off) or in [100, {MAX_CHECK_RATE_HZ:g}] (Hz)")
     need(sm.max_pieces >= 0, "smoothing.max_pieces", sm.max_pieces, "must be >= 0 (0: one piece per step)")
     need(sm.v_max > 0, "smoothing.v_max", sm.v_max, "must be > 0")
     need(sm.speed is None or sm.speed <= sm.v_max, "smoothing.speed", sm.speed,

@@ -16,9 +16,10 @@ def read_bytes(path: Path, what: str, error: type[MrfswarmError] = ScenarioError
 
 
 def read_text(path: Path, what: str, error: type[MrfswarmError] = ScenarioError) -> str:
-    """The text of ``path`` (UTF-8), as :func:`read_bytes` for errors; a file that is not UTF-8 text is one too."""
+    """The text of ``path`` (UTF-8, a byte-order mark skipped: some editors save one, and TOML refused it at line 1,
+    column 1), as :func:`read_bytes` for errors; a file that is not UTF-8 text is one too."""
     try:
-        return path.read_text(encoding="utf-8")
+        return path.read_text(encoding="utf-8-sig")
     except OSError as e:
         raise error(f"cannot read {what} {str(path)!r}: {e.strerror or e}") from e
     except UnicodeDecodeError as e:

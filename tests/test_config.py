@@ -220,8 +220,15 @@ def test_set_reaches_the_options_tables_from_the_cli(tmp_path):
     ("smoothing.qp_options.eps=1e-6", "unknown config key smoothing.qp_options.eps; allowed: eps_abs, eps_rel"),
     ("smoothing.qp_options.eps_abs=true", "smoothing.qp_options.eps_abs must be a number, got True"),
     ("smoothing.qp_options.time_limit=-1", "smoothing.qp_options: time_limit must be positive, got -1"),
-    ("scenario.downwash=0.5", "scenario.downwash = 0.5: must be >= 1"),
+    ("scenario.downwash=0.5", "scenario.downwash = 0.5: must be in [1, 20]"),
     ("scenario.downwash=inf", "scenario.downwash must be finite, got inf"),
+    # huge values exhausted the memory, hung or overflowed (a robustness tour); each bound far past any use
+    ("scenario.downwash=1000", "scenario.downwash = 1000.0: must be in [1, 20]"),
+    ("scenario.altitude=1e300", "scenario.altitude = 1e+300: must be in (0, 10000] (metres)"),
+    ("obstacle_potential.sigma=99999999999", "obstacle_potential.sigma = 99999999999.0: must be in [0, 1000] (cells)"),
+    ("mrf.order=100", "mrf.order = 100: must be in 1..32"),
+    ("smoothing.region_growth=1e11", "smoothing.region_growth = 100000000000.0: must be in [0, 1000] (cells)"),
+    ("smoothing.check_rate_hz=1e11", "smoothing.check_rate_hz = 100000000000.0: must be 0 (off) or in [100, 10000]"),
     # a degree the run's own outputs cannot hold is refused before planning, not after it
     ("smoothing.degree=9", "smoothing.degree = 9: must be <= 7"),
     ("smoothing.derivative=5", "smoothing.derivative = 5: must be in 1..4"),
@@ -235,6 +242,13 @@ def test_bad_solver_options_are_one_line_naming_the_key(tmp_path, capsys, overri
     rc = main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(tmp_path / "o"), "--set", override])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and err[0].startswith(f"mrfswarm: error: {message}"), err
+
+
+def test_a_config_saved_with_a_byte_order_mark_is_read(tmp_path):
+    """Some editors save UTF-8 with a byte-order mark: TOML refused it, "Invalid statement (line 1, column 1)"."""
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + (EXPERIMENTS / "free5.toml").read_bytes())
+    assert load_config(path) == load_config(EXPERIMENTS / "free5.toml")
 
 
 def test_the_nlp_key_is_checked_against_the_registry(tmp_path):

@@ -249,7 +249,7 @@ BAD = {
     "unknown section": (["--grid", "interactions.k=1,2"], "unknown config section"),
     "wrong type": (["--grid", "interaction.k=two"], "interaction.k must be an integer"),
     "wrong type at the last point": (["--grid", "interaction.k=2,3,3.5"], "sweep point 2 (interaction.k=3.5)"),
-    "out of range": (["--grid", "mrf.order=2,0"], "mrf.order = 0: must be >= 1"),
+    "out of range": (["--grid", "mrf.order=2,0"], "mrf.order = 0: must be in 1..32"),
     "Morse conditions": (["--grid", "interaction.k_a=14,3"],
                          "sweep point 1 (interaction.k_a=3): interaction.k_a = 3.0: must be > interaction.k_r = 4.0"),
     "unknown method": (["--grid", "mrf.method=icm,nosuch"], "nosuch"),
