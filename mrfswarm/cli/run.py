@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
 from mrfswarm.cli import _args
 from mrfswarm.config import load_config
-from mrfswarm.errors import ConfigError
+from mrfswarm.errors import ConfigError, ExportError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -73,6 +74,19 @@ def flown_warnings(flown: dict | None, radius: float) -> list[str]:
     return out
 
 
+#: A failed run given --overwrite over a complete run is written to ``DIR`` + this, the complete run kept.
+FAILED_SUFFIX = ".failed"
+
+
+def _complete_run(out: Path) -> bool:
+    """Whether ``out`` holds a run that completed (its ``result.json`` says so, with no failure)."""
+    try:
+        summary = json.loads((Path(out) / "result.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(summary, dict) and summary.get("complete") is True and summary.get("failure") is None
+
+
 def run(args: argparse.Namespace) -> int:
     from mrfswarm.errors import PlanError
     from mrfswarm.outputs import check_output_dir, write_outputs
@@ -89,8 +103,18 @@ def run(args: argparse.Namespace) -> int:
     try:
         result = plan(cfg, mrf=args.mrf, qp=args.qp, nlp=args.nlp, seed=args.seed, workers=args.workers)
     except PlanError as e:  # keep what was computed before the failure
-        write_outputs(e.result, out, overwrite=args.overwrite)
-        raise PlanError(f"{e} (what was computed is in {out})", e.result) from e
+        where = out
+        if args.overwrite and _complete_run(out):
+            # a failed run does not replace a complete one (a tour's --overwrite lost a good run so): it goes beside
+            where = out.with_name(out.name + FAILED_SUFFIX)
+            try:
+                check_output_dir(where, overwrite=True)
+            except ExportError as refused:
+                raise PlanError(f"{e} (the run in {out} is kept; what was computed is not written: {refused})",
+                                e.result) from e
+        write_outputs(e.result, where, overwrite=args.overwrite or where != out)
+        kept = f"; the run in {out} is kept" if where != out else ""
+        raise PlanError(f"{e} (what was computed is in {where}{kept})", e.result) from e
     write_outputs(result, out, animate=args.animate, overwrite=args.overwrite)
     s = result.summary()
     goal = "" if s["reached_goal"] is None else (

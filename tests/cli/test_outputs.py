@@ -48,6 +48,26 @@ def test_six_then_five_robots_refused_then_overwritten(tmp_path, capsys):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out.")]  # no staging or old folder left
 
 
+def test_a_failed_run_does_not_replace_a_complete_one(tmp_path, capsys):
+    """--overwrite and a plan that fails after the discrete stage: what it computed replaced the complete run (a tour);
+    now the complete run stays and the failed one goes beside it, DIR.failed, said in the error line."""
+    out = tmp_path / "out"
+    assert run(tmp_path, 3, out) == 0
+    first = snapshot(out)
+    capsys.readouterr()
+    # a Morse zeta this large leaves no move that lowers the energy: "the swarm cannot move", after the discrete stage
+    assert run(tmp_path, 3, out, "--overwrite", "--set", "interaction.zeta=1e300") == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the swarm cannot move" in err and f"the run in {out} is kept" in err
+    assert snapshot(out) == first
+    failed = json.loads((tmp_path / "out.failed" / "result.json").read_text())
+    assert failed["failure"].startswith("the swarm cannot move") and failed["complete"] is True
+    # again: the failed folder is a run's folder, replaced; a failed run over a failed one replaces it as before
+    assert run(tmp_path, 3, out, "--overwrite", "--set", "interaction.zeta=1e300") == 2 and snapshot(out) == first
+    assert run(tmp_path, 3, tmp_path / "out.failed", "--overwrite", "--set", "interaction.zeta=1e300") == 2
+    assert not (tmp_path / "out.failed.failed").exists()
+
+
 def test_a_folder_that_is_not_a_run_is_never_replaced(tmp_path, capsys):
     out = tmp_path / "mine"
     out.mkdir()
