@@ -325,6 +325,10 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
         cfg = cfg.replace(mrf=dataclasses.replace(cfg.mrf, method=mrf))
     if qp is not None:
         cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, backend=qp))
+        # as an unused --nlp is said (a tour's --qp went unused without a word); an unknown name is refused below
+        if not cfg.smoothing.enabled and qp in solvers.qp.BACKENDS:
+            warnings.warn(f"QP backend {qp!r} not used: the continuous stage is off", UnusedSettingWarning,
+                          stacklevel=2)
     if nlp is not None:  # naming an NLP backend asks for the NLP refinement
         check_nlp(nlp)  # the config's own check of the key
         cfg = cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, nlp=nlp, refinement="nlp"))

@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import logging
+import multiprocessing
 import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -163,8 +164,10 @@ class Registry(Generic[C]):
         if old == b:
             return False
         if old is not None:
-            where = "built in" if b.name in self._builtin else "registered already"
-            raise ValueError(f"{self.kind} {self.noun} {b.name!r} is {where} ({old.entry!r})")
+            where = "built in" if b.name in self._builtin else \
+                f"registered already, by {old.distribution or 'a register() call'}"
+            entry = f"{getattr(old.entry, '__module__', '?')}:{getattr(old.entry, '__qualname__', repr(old.entry))}"
+            raise ValueError(f"{self.kind} {self.noun} {b.name!r} is {where} ({entry})")
         self._backends[b.name] = b
         return True
 
@@ -227,7 +230,9 @@ class Registry(Generic[C]):
                 self._add(record)
             except Exception as e:  # a broken plugin must not take the other backends down
                 self._broken[ep.name] = f"{where} failed to load: {type(e).__name__}: {e}"
-                log.warning("%s %s %s", self.kind, self.noun, self._broken[ep.name])
+                # said once: a worker process (a sweep's, a pool's, Dask's) loads the group again, its parent warned
+                level = logging.WARNING if multiprocessing.parent_process() is None else logging.INFO
+                log.log(level, "%s %s %s", self.kind, self.noun, self._broken[ep.name])
 
     def __iter__(self) -> Iterator[Backend[C]]:
         self._load()

@@ -98,6 +98,13 @@ def test_an_unknown_method_is_one_line_naming_it(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+def test_an_unused_qp_flag_is_said(tmp_path):
+    """--qp with the continuous stage off went unused without a word, where an unused --nlp is said (a tour)."""
+    cfg = load_config(EXPERIMENTS / "free5.toml", ["smoothing.enabled=false"])
+    with pytest.warns(UnusedSettingWarning, match="^QP backend 'osqp' not used: the continuous stage is off$"):
+        resolve_config(cfg, qp="osqp")
+
+
 @pytest.mark.parametrize("flag, name, sets", [("--mrf", "exact", ["mrf.method=exact"]),
                                               ("--qp", "osqp", ["smoothing.backend=osqp"]),
                                               # naming an NLP backend asks for the NLP refinement

@@ -7,6 +7,8 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 from support.repository import EXPERIMENTS
 
 FREE5 = EXPERIMENTS / "free5.toml"
@@ -87,3 +89,24 @@ def test_an_installed_entry_point_is_listed_run_and_swept(tmp_path):
                     "--out", str(tmp_path / "sweep")], capture_output=True, text=True, env=env, check=True)
     rows = _columns(tmp_path / "sweep" / "sweep.csv")
     assert [r["error"] for r in rows] == ["", ""] and rows[0]["mrf_steps"] == rows[1]["mrf_steps"]
+
+
+def test_a_record_the_workers_cannot_import_is_refused_before_the_sweep(tmp_path):
+    """A lambda registered in a script: the workers' start failed with a pickling traceback and left an empty output
+    folder (a tour); now one line naming the backend, before anything is written."""
+    from mrfswarm.errors import ConfigError
+    from mrfswarm.sweep import run_sweep
+    from solvers.mrf import METHODS, icm
+    from solvers.registry import Backend
+
+    METHODS.register(Backend(name="icm_lambda", entry=lambda m, o: icm.minimize(m, o),
+                             capabilities=icm.BACKEND.capabilities))
+    try:
+        with pytest.raises(ConfigError, match=r"^backend 'icm_lambda' \(solvers\.mrf\), registered in this process, "
+                                              "cannot reach the sweep's worker processes"):
+            run_sweep(FREE5, {"mrf.method": ["icm", "icm_lambda"]}, tmp_path / "out", workers=2, overrides=FAST)
+        assert not (tmp_path / "out").exists()
+        one = run_sweep(FREE5, {"mrf.method": ["icm", "icm_lambda"]}, tmp_path / "one", workers=1, overrides=FAST)
+        assert [r["error"] for r in one.rows] == [None, None]  # in this process it is known
+    finally:
+        METHODS.unregister("icm_lambda")

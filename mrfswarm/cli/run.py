@@ -56,14 +56,23 @@ def flown_warnings(flown: dict | None, radius: float) -> list[str]:
     out = []
     safety = 2 * radius
     bound = flown["tracking_error_bound_m"]
-    if flown["min_separation_m"] < safety or flown["entered_obstacle"]:
-        what = (f"two robots {flown['min_separation_m']:.3f} m apart (safety distance {safety:g} m)"
-                if flown["min_separation_m"] < safety else "")
+    clearance = flown.get("min_obstacle_clearance_m")
+    grazed = clearance is not None and clearance < radius and not flown["entered_obstacle"]
+    if flown["min_separation_m"] < safety or flown["entered_obstacle"] or grazed:
+        parts = []
+        if flown["min_separation_m"] < safety:  # 2 r: the two bodies overlap
+            parts.append(f"two robots {flown['min_separation_m']:.3f} m apart, less than twice the radius "
+                         f"({safety:g} m): their bodies touch")
         if flown["entered_obstacle"]:
-            what += (" and " if what else "") + "a robot inside an obstacle"
-        guarantee = "" if bound is None else (f" (bound {bound * 100:.1f} cm, flown separation guaranteed "
-                                              f"{flown['guaranteed_separation_m']:.3f} m)")
-        out.append(f"the simulated flight came closer than the plan: {what}; tracking error "
+            parts.append("a robot inside an obstacle")
+        elif grazed:  # a tour's arena flew 0.096 m from a wall at radius 0.1 without a word
+            parts.append(f"a robot {clearance:.3f} m from an obstacle, less than its radius ({radius:g} m)")
+        guarantee = ""
+        if bound is not None:
+            sep = flown["guaranteed_separation_m"]
+            guarantee = f" (bound {bound * 100:.1f} cm, " + (f"flown separation guaranteed {sep:.3f} m)" if sep >= 0
+                                                              else "no flown separation guaranteed)")
+        out.append(f"the simulated flight came closer than the plan: {' and '.join(parts)}; tracking error "
                    f"{flown['max_tracking_error_m'] * 100:.1f} cm{guarantee}: see result.json's simulation")
     if bound is not None and (flown.get("guaranteed_clearance_m") or 0.0) < 0:
         out.append(f"the tracking bound of this flight ({bound * 100:.1f} cm) exceeds the robot radius ({radius:g} m): "

@@ -28,14 +28,18 @@ def table() -> str:
         lines.append(title)
         width = max(len(b.name) for b in registry)
         added = registry.added()
+        states = []
         for b in registry:
             state = "installed" if b.is_available() else f"missing: {b.install_hint}"
             if b in added:  # an entry point's (its distribution) or a script's
                 state += f", added by {b.distribution or 'register()'}"
             if b.name == default:
                 state += ", the default"
-            lines.append(f"  {b.name:<{width}}  {state:<40}  {b.summary}")
-            lines.append(f"  {'':<{width}}  {'':<40}  [{', '.join(b.capabilities.flags()) or 'none'}]")
+            states.append(state)
+        column = max([40, *(len(state) for state in states)])  # a plugin's install hint is longer than ours
+        for b, state in zip(registry, states):
+            lines.append(f"  {b.name:<{width}}  {state:<{column}}  {b.summary}")
+            lines.append(f"  {'':<{width}}  {'':<{column}}  [{', '.join(b.capabilities.flags()) or 'none'}]")
         lines.append("")
     return "\n".join(lines).rstrip() + "\n"
 

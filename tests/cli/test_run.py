@@ -295,11 +295,16 @@ def test_a_simulated_flight_closer_than_the_plan_is_said(tmp_path, capsys, monke
     flown["min_separation_m"] = 0.183
     assert main([*args, "--out", str(tmp_path / "b")]) == 0
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("mrfswarm: warning: the simulated flight came closer than the plan: "
-                                               "two robots 0.183 m apart (safety distance 0.5 m); tracking error 6.5 cm")
+    assert err == ["mrfswarm: warning: the simulated flight came closer than the plan: two robots 0.183 m apart, "
+                   "less than twice the radius (0.5 m): their bodies touch; tracking error 6.5 cm (bound 18.0 cm, no "
+                   "flown separation guaranteed): see result.json's simulation"]
     flown["min_separation_m"], flown["entered_obstacle"] = 0.6, True
     assert main([*args, "--out", str(tmp_path / "c")]) == 0
     assert "a robot inside an obstacle" in capsys.readouterr().err
+    # a robot closer to a wall than its radius, its centre outside: the arena of a tour, 0.096 m at radius 0.1
+    flown["entered_obstacle"], flown["min_obstacle_clearance_m"] = False, 0.2
+    assert main([*args, "--out", str(tmp_path / "d")]) == 0
+    assert "a robot 0.200 m from an obstacle, less than its radius (0.25 m)" in capsys.readouterr().err
 
 
 def test_a_tracking_bound_past_the_radius_is_said():

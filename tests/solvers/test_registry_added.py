@@ -66,7 +66,8 @@ def test_a_wrong_record_is_refused_naming_itself(record, message):
 def test_a_second_record_under_a_registered_name_is_refused():
     try:
         mrf.METHODS.register(twin())
-        with pytest.raises(ValueError, match="'icm_twin' is registered already"):
+        with pytest.raises(ValueError, match=r"'icm_twin' is registered already, by a register\(\) call "
+                                             r"\(solvers\.mrf\.icm:minimize\)"):
             mrf.METHODS.register(dataclasses.replace(twin(), summary="another"))
     finally:
         mrf.METHODS.unregister("icm_twin")
@@ -151,6 +152,18 @@ def test_entry_points_join_when_first_read_and_broken_ones_say_why(installed, ca
         reg.get("broken")
     reg.unregister("icm_plugin")
     assert reg.names() == ["icm"]
+
+
+def test_a_worker_process_does_not_warn_again(installed, caplog, monkeypatch):
+    """A sweep's or a pool's worker loads the entry points again: its parent warned once, the worker only informs
+    (a tour's sweep of 2 workers printed each broken entry point three times)."""
+    monkeypatch.setattr(registry_module.multiprocessing, "parent_process", lambda: object())
+    reg = Registry("MRF", [], noun="method", capabilities=MRFCapabilities, group="test.mrf")
+    with caplog.at_level(logging.INFO, logger="solvers.registry"):
+        assert reg.names() == ["icm_plugin"]
+    assert caplog.records and all(r.levelno == logging.INFO for r in caplog.records)
+    with pytest.raises(SolverNotFound, match="failed to load"):  # asking for it still says why
+        reg.get("broken")
 
 
 def test_entry_points_are_read_once(installed):
