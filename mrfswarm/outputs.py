@@ -207,7 +207,8 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
     f = result.flight
     if f is not None:
         err = np.stack([fl.tracking_error for fl in f.flights], axis=1)
-        written.append(atomic_write(figs / "tracking_error.png", lambda p: plots.plot_tracking(p, f.flights[0].times, err)))
+        written.append(atomic_write(figs / "tracking_error.png", lambda p: plots.plot_tracking(
+            p, f.flights[0].times, err, end=c.makespan_s)))
     if animate:
         frames = np.linspace(0.0, c.makespan_s, max(2, int(c.makespan_s * 5) + 1))  # 5 frames per flown second
         written.append(atomic_write(out / "animation.gif", lambda p: plots.animate(p, grid, frames, c.positions(frames),

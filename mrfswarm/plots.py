@@ -393,11 +393,16 @@ def _time_lines(ax, t: np.ndarray, values: np.ndarray, lw: float = 1.2) -> None:
     ax.autoscale_view()
 
 
-def plot_tracking(path: Path, t: np.ndarray, errors: np.ndarray) -> Path:
-    """Tracking error of each simulated robot over time; ``errors`` (S, N) metres."""
+def plot_tracking(path: Path, t: np.ndarray, errors: np.ndarray, end: float | None = None) -> Path:
+    """Tracking error of each simulated robot over time; ``errors`` (S, N) metres; ``end``: the planned flight's end
+    (s), marked, where the simulation hovers on past it."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 3.5), dpi=110)
     _time_lines(ax, t, errors * 100, lw=1.0)
+    if end is not None and len(t) and t[-1] > end:
+        ax.axvline(end, color="0.4", ls="--", lw=0.8)
+        ax.annotate("end of the plan (hovering after)", (end, 0.97), xycoords=("data", "axes fraction"), fontsize=7,
+                    ha="right", va="top", color="0.3", xytext=(-3, 0), textcoords="offset points")
     if errors.shape[1] > INDIVIDUAL_MAX:
         ax.plot(t, errors.max(axis=1) * 100, color="k", lw=1.0, label="maximum over robots")
         ax.legend(fontsize=8)
