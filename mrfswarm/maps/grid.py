@@ -190,7 +190,9 @@ class OccupancyGrid:
         if not np.isfinite(p).all():
             raise ScenarioError("world_to_cell: points must be finite")
         u = (p - np.asarray(self.origin)) / self.resolution
-        return np.floor(u + (0.5 + _EDGE_TOL)).astype(np.int64)
+        # a point 1e300 m away is off the map as one 2^62 cells away is: clipped, it casts to int64 without numpy's
+        # "invalid value" warning beside the one-line error (a tour)
+        return np.floor(np.clip(u, -2.0**62, 2.0**62) + (0.5 + _EDGE_TOL)).astype(np.int64)
 
     def cell_to_world(self, ij: np.ndarray) -> np.ndarray:
         """The world coordinates (metres) of each cell's centre; ``ij`` is ``(..., d)``."""

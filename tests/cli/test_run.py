@@ -4,6 +4,7 @@ import csv
 import json
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -77,6 +78,10 @@ BAD = {
                       "[interaction]\nk = 1\n", r"robot 1 at \(20, 30\) is inside an obstacle"),
     "robot off map": ("[scenario]\nmap = { kind = \"free\", size = [10, 10] }\nstart = { positions = [[1, 1], [12, 3]] }\n"
                       "[interaction]\nk = 1\n", r"robot 1 at \(12, 3\) is off the map"),
+    # numpy's "invalid value encountered in cast" was printed beside the error (a tour)
+    "robot far off map": ("[scenario]\nmap = { kind = \"free\", size = [10, 10] }\n"
+                          "start = { positions = [[1, 1e300], [2, 3]] }\n[interaction]\nk = 1\n",
+                          r"robot 0 at \(1, 1e\+300\) is off the map"),
     "goal in wall": (f"[scenario]\n{CORRIDOR_MAP}\nstart = {{ positions = [[4, 16], [4, 18]] }}\ngoal = [20, 30]\n"
                      "[interaction]\nk = 1\n", r"scenario.goal \(20, 30\) is inside an obstacle"),
     "two in one cell": ("[scenario]\nmap = { kind = \"free\", size = [10, 10] }\n"
@@ -104,7 +109,9 @@ def test_bad_input_is_one_line_exit_2(case, tmp_path, capsys):
     cfg = write_config(tmp_path, body)
     out = tmp_path / "out"
     argv = ["run", str(cfg), "--out", str(out)] + (["--mrf", "nope"] if case == "unknown mrf" else [])
-    rc = main(argv)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # a numpy warning printed beside the error is a second line
+        rc = main(argv)
     err = capsys.readouterr().err
     assert rc == 2
     lines = err.strip().splitlines()
