@@ -328,6 +328,7 @@ class WindowSpec:
     limit_mask: np.ndarray | None = None
     merged: np.ndarray | None = None
     creep: np.ndarray | None = None
+    unit_merge_rows: bool = False
 
     @property
     def steps(self) -> int:
@@ -407,6 +408,7 @@ class WindowFormulation:
 
     def __init__(self, spec: WindowSpec) -> None:
         self.spec = spec
+        self._merge_rows = (0, 0)
         pm = self.maps = piece_maps(spec.degree, spec.derivative)
         # the last durations' coefficients, one tuple (read and replaced whole: a cached formulation may serve
         # two threads at once)
@@ -533,6 +535,7 @@ class WindowFormulation:
             add((0,), ridx, col(Gi, Dd, J[Jm] + 1, Aa), pm.t_index(J[Jm] + 1, 0, q + Rr, Aa), -1.0,
                 pm.t_mask[Rr, Aa], 0.0, 0.0)
             n_rows = first_rows + len(J) * G * dim * nt
+            self._merge_rows = (first_rows, n_rows)
         # ends: the start state and rest at the end
         ends_fixed = np.concatenate([
             ((np.arange(G)[:, None, None] * dim + np.arange(dim)[None, None, :]) * self.per_dim + knot * pm.stride
@@ -585,8 +588,24 @@ class WindowFormulation:
         k = self._k(durations)
         (ai, ap, SA), (pi, pp, SP) = self._A, self._P
         A = sp.csc_matrix((SA @ k, ai, ap), shape=(self.m, self.n))
+        scale = self._row_scale(A)
+        if scale is not None:
+            A = sp.csc_matrix((A.data * scale[A.indices], A.indices, A.indptr), shape=A.shape)
         P = sp.csc_matrix((SP @ k, pi, pp), shape=(self.n, self.n))
         return QPProblem(P=P, q=np.zeros(self.n), A=A, l=self.l, u=self.u)
+
+    def _row_scale(self, A: sp.csc_matrix) -> np.ndarray | None:
+        """(m,) the rows' factors in :meth:`qp` with ``spec.unit_merge_rows``: the merge rows (= 0) to unit norm, so
+        that they are met to the solver's tolerance whatever the durations (in the short time unit of
+        ``receding_horizon.MERGED_TIME_UNIT``, at a witness's long steps their order-7 coefficients shrank, and a
+        block's projection moved it 0.019 m); the others 1. None without merge rows or the flag."""
+        lo, hi = self._merge_rows
+        if hi <= lo or not self.spec.unit_merge_rows:
+            return None
+        norm = np.sqrt(np.bincount(A.indices, A.data**2, minlength=self.m))
+        scale = np.ones(self.m)
+        scale[lo:hi] = 1.0 / np.maximum(norm[lo:hi], 1e-300)
+        return scale
 
     def objective(self, x: np.ndarray, durations: np.ndarray) -> float:
         """The snap integral (physical units) of solution ``x`` at ``durations``."""
@@ -616,6 +635,10 @@ class WindowFormulation:
         """
         spec, pm = self.spec, self.maps
         M, G = spec.steps, spec.robots
+        (ai, ap, SA) = self._A
+        scale = self._row_scale(sp.csc_matrix((SA @ self._k(durations), ai, ap), shape=(self.m, self.n)))
+        if scale is not None:  # the multipliers of the scaled merge rows, for the unscaled rows' derivatives (the
+            y = y * scale  # rows are 0 at a solution, so their factors' own derivative adds nothing)
         dk = pm.evaluate_derivative(self.normalized(durations)).ravel()  # (M * size,): d k / d T_j, piece j's block
         if self._gradient_maps is None:
             self._gradient_maps = [self._gradient_map(*m) for m in (self._A, self._P)]

@@ -143,6 +143,19 @@ MARGIN = 1e-6
 #: per block (merge_pieces.project_blocks) moves control points by the solver's tolerance on the merge
 #: rows, amplified by the block (up to 2.4e-6 m measured on a slow 8-step window), which MARGIN did not cover.
 MERGED_MARGIN = 1e-5
+#: The time unit of a window with pieces spanning several steps, as a share of the geometric-mean nominal step
+#: (the unit of a window whose pieces are its steps), in a flight whose windows were lengthened to brake in
+#: (:func:`braking_horizon`: fine cells), whose merge rows are then also scaled to unit norm
+#: (``WindowSpec.unit_merge_rows``). Its merge rows (formulation: Taylor coefficients q..D equal at a merged knot)
+#: in the usual unit, where a step lasts about 1, left piqp's interior point stalling on feasible windows (dual
+#: residual stuck near 1e-4, MAX_ITER_REACHED; clarabel: InsufficientProgress; a helper's analysis, 2026-11-29):
+#: two robots crossing 5 m of 0.1 m cells in 31 pieces flew 13.0 s (18.9 s in windows of 36 steps). Measured
+#: (in-process, that crossing / a tour's 8 robots through a 0.4 m door on 0.1 m cells at v_max 3, 8.4 s before):
+#: 0.05: 4.70 / 4.43 s (planning 13.8 s for the second); 0.1: 4.82 / 4.45 s (7.5 s); 0.15: 4.90 / 13.15; 0.2:
+#: 5.19 / 18.6. Not on every flight: on the flight-quality maps (1 m cells, windows not lengthened) the unit 0.2 flew
+#: clutter40 1.28 -> 1.39 x by default (refined 1.19 -> 1.22), the aisles 1.29 -> 1.28 (flight_quality.py
+#: --baseline 2ce447c); gated, those maps fly the same.
+MERGED_TIME_UNIT = 0.1
 #: With a cruise ``speed`` given, the nominal time grid speeds up and slows down at this fraction of a_max.
 NOMINAL_ACCELERATION = 0.25
 #: Without one (the default), each robot's speed profile cruises at this fraction of v_max (the rest is the
@@ -239,9 +252,9 @@ def braking_horizon(cfg: SmoothingConfig, speed: float, resolution: float) -> in
     On 1 m cells at 2 m/s (1.4 m) or 0.25 m cells at 1 m/s (0.46 m) the default 8 steps hold it; on 0.1 m
     cells at 2 m/s they did not: every window's tail braked from at most 0.86 m/s, its faster attempts had no
     solution, and two robots crossing 5 m (47 steps, one piece each: ``max_pieces = 0``) flew 10.8 s at v_max 2
-    against 6.4 s at v_max 1; in windows of 36 steps 4.7 s. Only for flights whose pieces are not merged
-    (``max_pieces`` 0 or at least the steps): with the 31 pieces of a Crazyflie the same crossing flew 13.0 s in
-    windows of 8 steps and 18.9 s in windows of 36 (more steps per piece, and those pieces' faster attempts fail).
+    against 6.4 s at v_max 1; in windows of 36 steps 4.7 s. With the 31 pieces of a Crazyflie the same crossing
+    flew 13.0 s in windows of 8 steps, and 18.9 s in windows of 36 until the merged windows got their own time
+    unit (:data:`MERGED_TIME_UNIT`): 4.8 s now.
     """
     if cfg.seam == "rest" or cfg.execution >= 1:
         return cfg.horizon
@@ -659,6 +672,7 @@ class RecedingHorizon:
         self.trial_options = dataclasses.replace(self.qp_options, max_iter=max(1, math.ceil(TRIAL_BUDGET * budget)))
         self.T, self.N = len(self.paths) - 1, self.paths.shape[1]
         self.horizon = cfg.horizon  # lengthened below where the windows' tails could not brake from the cruise
+        self.merged_unit = 1.0  # the time unit of merged windows, a share of their steps' (MERGED_TIME_UNIT)
         self.radius = float(radius)
         self.distance = 2 * self.radius
         # room for the compressed export's rounding, where the cells leave it (a quarter of what a cell leaves
@@ -706,9 +720,9 @@ class RecedingHorizon:
             if drift > 0:
                 self.creep = CREEP_SPEED * way
             self._exit = next_moves(moves)  # a run's rows go in a window that holds its way out
-            if not cfg.max_pieces or self.T <= cfg.max_pieces:  # merged pieces fly later in longer windows
-                self.horizon = braking_horizon(cfg, change, grid.resolution)
+            self.horizon = braking_horizon(cfg, change, grid.resolution)
             if self.horizon > cfg.horizon:
+                self.merged_unit = MERGED_TIME_UNIT
                 log.info("windows of %d steps instead of smoothing.horizon = %d: their unflown steps brake from %.2f "
                          "m/s on %g m cells", self.horizon, cfg.horizon, change, grid.resolution)
         elif cfg.speed is None:
@@ -780,9 +794,10 @@ class RecedingHorizon:
                                                                      else self.regions.window(a, b, robots)),
             pair_step=seps.step - a, pair_first=local[seps.first], pair_second=local[seps.second],
             pair_normal=seps.normal, distance=self.distance, start=start[robots], end=self.X[b, robots],
-            origin=self.X[a, robots], limits=self.row_limits, time_scale=float(np.exp(np.log(self.nominal[a:b]).mean())),
+            origin=self.X[a, robots], limits=self.row_limits,
+            time_scale=float(np.exp(np.log(self.nominal[a:b]).mean())) * (1.0 if merged is None else self.merged_unit),
             margin=MARGIN if merged is None else MERGED_MARGIN, slack=self.slack, limit_mask=self.limit_rows[a:b, robots],
-            merged=merged,
+            merged=merged, unit_merge_rows=merged is not None and self.merged_unit != 1.0,
             creep=None if creep is None else self._creep_rows(a, b, creep)[:, robots])
 
     def _held_regions(self, a: int, b: int, robots: np.ndarray, start: np.ndarray,

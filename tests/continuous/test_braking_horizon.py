@@ -20,6 +20,8 @@ start = { positions = [[0.45, 1.25], [0.45, 1.75]] }
 goal = [3.45, 1.55]
 robot_radius = 0.04
 """
+#: 5 m: 47 steps, more than a Crazyflie's 31 pieces, so its windows' pieces span several steps
+FINE_LONG = FINE.replace("size = [40, 30]", "size = [60, 30]").replace("goal = [3.45, 1.55]", "goal = [5.45, 1.55]")
 
 
 def test_the_horizon_holds_the_braking_in_its_unflown_steps():
@@ -49,3 +51,18 @@ def test_fine_cells_fly_sooner_at_a_higher_v_max(tmp_path, monkeypatch):
     monkeypatch.setattr(rhm, "BRAKING_ROOM", 0.0)  # windows of the configured 8 steps
     short = _fly(tmp_path)
     assert short.continuous.makespan_s > 1.4 * fast.continuous.makespan_s
+
+
+def test_fine_cells_with_merged_pieces_fly_near_the_limits(tmp_path, monkeypatch):
+    """The 5 m crossing in 31 pieces (a tour's): 13.0 s in windows of 8 steps, 18.9 s in windows of 36 whose merged
+    pieces piqp could not solve (a feasible QP; its interior point stalled on the merge rows in the usual time unit).
+    In the merged windows' own unit (MERGED_TIME_UNIT, merge rows scaled), 4.8 s, certified, within 31 pieces."""
+    (tmp_path / "long.toml").write_text(FINE_LONG)
+    r = plan(load_config(tmp_path / "long.toml", ["simulation.enabled=false"]), progress=False)
+    c = r.continuous
+    assert c.certificate.ok and max(c.pieces_per_robot) <= 31 and r.summary()["window_steps"] == 36
+    assert any(len(w.piece_steps) < w.c - w.a for w in c.windows)  # merged pieces flown
+    assert c.makespan_s < 6.0
+    monkeypatch.setattr(rhm, "MERGED_TIME_UNIT", 1.0)
+    assert plan(load_config(tmp_path / "long.toml", ["simulation.enabled=false"]), progress=False).continuous.makespan_s \
+        > 2 * c.makespan_s
