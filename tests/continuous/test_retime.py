@@ -77,3 +77,20 @@ def test_rest_seams_a_cruise_speed_and_long_flights_are_not_re_timed(arena, monk
     assert _fly(arena, True, monkeypatch, seam="rest").retimed is None
     assert _fly(arena, True, monkeypatch, speed=0.8).retimed is None
     assert _fly(arena, True, monkeypatch, horizon=6).retimed is None
+
+
+def test_a_re_timed_flight_keeps_its_arrived_robots_held(monkeypatch):
+    """The whole flight's QP keeps the windows' holds: robot 0 of tests/continuous/test_hold.py's flight (16 steps,
+    arrived at step 6) stays at its cell, to the QP's tolerance on the equality rows (5e-9 to 4e-8 measured, where a
+    window's QP met them to 1e-11), and the flight is re-timed sooner."""
+    sys.path.insert(0, str(EXPERIMENTS.parent / "tests" / "continuous"))
+    import test_hold
+
+    monkeypatch.setattr(rhm, "RETIME_HORIZONS", 0)
+    windows = test_hold._flight(monkeypatch, True)  # its ladder as the hold tests take it
+    monkeypatch.setattr(rhm, "RETIME_HORIZONS", 2)
+    after = test_hold._flight(monkeypatch, True)
+    assert after.retimed is not None and after.makespan_s < windows.makespan_s and after.certificate.ok
+    assert any(w.hold for w in after.windows)
+    v, off = test_hold._after_arrival(after)
+    assert v.max() < 1e-6 and off.max() < 1e-6
