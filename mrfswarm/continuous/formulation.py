@@ -635,8 +635,10 @@ class WindowFormulation:
         """
         spec, pm = self.spec, self.maps
         M, G = spec.steps, spec.robots
-        (ai, ap, SA) = self._A
-        scale = self._row_scale(sp.csc_matrix((SA @ self._k(durations), ai, ap), shape=(self.m, self.n)))
+        scale = None
+        if self.spec.unit_merge_rows:  # the matrix rebuilt only where the QP scaled rows (not on every gradient)
+            ai, ap, SA = self._A
+            scale = self._row_scale(sp.csc_matrix((SA @ self._k(durations), ai, ap), shape=(self.m, self.n)))
         if scale is not None:  # the multipliers of the scaled merge rows, for the unscaled rows' derivatives (the
             y = y * scale  # rows are 0 at a solution, so their factors' own derivative adds nothing)
         dk = pm.evaluate_derivative(self.normalized(durations)).ravel()  # (M * size,): d k / d T_j, piece j's block
