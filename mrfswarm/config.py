@@ -318,7 +318,13 @@ class SimulationConfig:
 
 @dataclass(frozen=True)
 class Config:
-    """A whole experiment. ``base_dir`` is where relative paths are resolved."""
+    """A whole experiment. ``base_dir`` is where relative paths are resolved.
+
+    Made by :func:`load_config` (a TOML file, ``--set`` overrides) or :func:`from_dict` (the same tables as
+    Python data), which check every key. Changed with :meth:`replace` and ``dataclasses.replace`` of a section
+    (``cfg.replace(smoothing=dataclasses.replace(cfg.smoothing, v_max=1.0))``); :func:`mrfswarm.plan` checks
+    such a config again (:func:`validated`).
+    """
 
     scenario: ScenarioConfig = field(default_factory=ScenarioConfig)
     interaction: InteractionConfig = field(default_factory=InteractionConfig)
@@ -565,6 +571,9 @@ def from_dict(data: dict, base_dir: Path | str = ".") -> Config:
     ConfigError
         Unknown key, wrong type or out-of-range value; the message names the key.
     """
+    if not isinstance(data, dict):  # a list gave "cannot convert dictionary update sequence element #0 to a sequence"
+        raise ConfigError(f"a config's data is a table of sections ({{'scenario': {{...}}, ...}}), got "
+                          f"{type(data).__name__} {data!r:.60}")
     types = _section_types()
     data = _current_names(_plain(data))
     for key in data:
@@ -578,6 +587,26 @@ def from_dict(data: dict, base_dir: Path | str = ".") -> Config:
     cfg = Config(**sections, base_dir=Path(base_dir))
     _validate(cfg)
     return cfg
+
+
+def validated(cfg: Config) -> Config:
+    """``cfg`` checked as :func:`load_config` checks a file (types, ranges, unknown keys), as a new :class:`Config`.
+
+    A config changed in code (``cfg.replace(...)`` with ``dataclasses.replace`` of a section, or ``Config(...)``
+    built by hand) skips the checks :func:`from_dict` makes; :func:`mrfswarm.plan` runs them again through this.
+
+    Raises
+    ------
+    ConfigError
+        Naming the dotted key and the bad value.
+    """
+    if not isinstance(cfg, Config):
+        raise ConfigError(f"expected a Config, got {type(cfg).__name__} {cfg!r:.60}")
+    try:
+        data = cfg.to_dict()
+    except TypeError as e:  # a section that is not a dataclass nor a dict (asdict cannot copy it)
+        raise ConfigError(f"a Config's sections are its dataclasses (or tables): {e}") from None
+    return from_dict(data, cfg.base_dir)
 
 
 def _start_size(start: Any) -> int | None:
@@ -682,8 +711,9 @@ def load_config(path: str | Path | None = None, overrides: list[str] | None = No
     data: dict = {}
     base = Path(".")
     if path is not None and not isinstance(path, (str, os.PathLike)):
+        hint = "; from a dict: mrfswarm.config.from_dict(data)" if isinstance(path, dict) else ""
         raise ConfigError(f"a config is a path to a TOML file (or, to plan, a Config object), got "
-                          f"{type(path).__name__} {path!r:.60}")
+                          f"{type(path).__name__} {path!r:.60}{hint}")
     if path is not None:
         p = Path(path)
         text = read_text(p, "config", ConfigError)

@@ -16,7 +16,7 @@ import numpy as np
 
 import solvers.nlp
 import solvers.qp
-from mrfswarm.config import Config, check_nlp, load_config
+from mrfswarm.config import Config, check_nlp, load_config, validated
 from mrfswarm.discrete.motion import cell_values
 from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, plan_discrete
 from mrfswarm.discrete.pruning import prune_paths
@@ -312,15 +312,17 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     Raises
     ------
     SolverNotFound
-        An unknown or missing MRF method, an unknown QP backend (whatever stage is on), a QP
-        backend that is not installed where the continuous stage runs, or an NLP backend that
+        An unknown or missing MRF method (``mrf.method`` or ``mrf.escalation``), an unknown QP backend (whatever
+        stage is on), a QP backend that is not installed where the continuous stage runs, or an NLP backend that
         the time refinement would use and that is not installed.
     ConfigError
         A QP backend that cannot solve the continuous stage's problems (its capabilities
         lack inequality rows: regions, corridors and limits are inequalities), an ``nlp``
         that names no NLP backend, or an unknown ``simulation.vehicle`` (whatever stage is on).
     """
-    cfg = config if isinstance(config, Config) else load_config(config)
+    # a Config changed in code (cfg.replace with dataclasses.replace) was not checked: a negative v_max ended in
+    # "math domain error" inside the continuous stage, seam = "bogus" planned without a word
+    cfg = validated(config) if isinstance(config, Config) else load_config(config)
     if mrf is not None:
         cfg = cfg.replace(mrf=dataclasses.replace(cfg.mrf, method=mrf))
     if qp is not None:
@@ -344,6 +346,8 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
                           f"{cfg.smoothing.refinement!r} (set smoothing.refinement = \"nlp\" too, or give "
                           f"--nlp {cfg.smoothing.nlp})", UnusedSettingWarning, stacklevel=2)
     mrf_solvers.METHODS.get(cfg.mrf.method)  # fail now, not after the map is loaded
+    if cfg.mrf.escalation != "none":  # a method that is not installed failed only at the first step it solved
+        mrf_solvers.METHODS.get(cfg.mrf.escalation)
     if cfg.smoothing.backend not in solvers.qp.BACKENDS:  # a name no backend has is wrong with the stage off too
         solvers.qp.BACKENDS.get(cfg.smoothing.backend)
     from mrfswarm.simulation import check_available, check_vehicle

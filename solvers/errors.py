@@ -35,3 +35,11 @@ class SolverError(SolversError, RuntimeError):
 
 class InfeasibleError(SolverError):
     """The backend proved (or reported) the problem infeasible."""
+
+
+def check_argument(value: object, cls: type, what: str, error: type[SolversError], public: str) -> None:
+    """Raise ``error`` naming ``what`` unless ``value`` is a ``cls`` (``public``: its name for the user). A dict
+    of options or a tuple as a problem ended in an AttributeError that blamed the backend ("piqp failed:
+    AttributeError: 'dict' object has no attribute 'time_limit'")."""
+    if not isinstance(value, cls):
+        raise error(f"{what} must be a {public}, got {type(value).__name__}")

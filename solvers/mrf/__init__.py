@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from solvers.errors import InvalidProblem, SolverError
+from solvers.errors import InvalidOptions, InvalidProblem, SolverError, check_argument
 from solvers.mrf import bp, exact, gibbs, icm, lazy_flipper, trws
 from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.problem import PairwiseMRF, repair
@@ -53,12 +53,17 @@ def minimize(mrf: PairwiseMRF, method: str = DEFAULT_METHOD, options: Options | 
     ------
     SolverNotFound
         Unknown method.
+    InvalidProblem, InvalidOptions
+        ``mrf`` not a :class:`PairwiseMRF`, ``options`` not an :class:`Options` (or None).
     SolverError
         The method raised (its error text), or returned something else than an :class:`MRFResult` whose labels are
         one whole number per node (a tour's methods returning a tuple, n + 1 labels or float labels ended in numpy's
         errors inside the planner).
     """
     entry = METHODS.get(method).entry
+    check_argument(mrf, PairwiseMRF, "mrf", InvalidProblem, "solvers.mrf.PairwiseMRF")
+    if options is not None:
+        check_argument(options, Options, "options", InvalidOptions, "solvers.mrf.Options")
     t0 = time.perf_counter()
     try:
         res = entry(mrf, options or Options())

@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from solvers.errors import InvalidProblem, SolverError
+from solvers.errors import InvalidOptions, InvalidProblem, SolverError, check_argument
 from solvers.nlp import ipopt_, lbfgsb_, slsqp_, sqpmethod_, trust_constr_
 from solvers.nlp.capabilities import NLPCapabilities
 from solvers.nlp.evaluation import Evaluations
@@ -109,14 +109,19 @@ def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Optio
     SolverNotFound
         If ``backend`` is unknown or not installed.
     InvalidProblem
-        If the problem has linear rows and the backend takes none, or ``grad`` returns a
-        vector of the wrong size.
+        If ``problem`` is not an :class:`NLPProblem`, has linear rows and the backend takes none, or ``grad``
+        returns a vector of the wrong size.
+    InvalidOptions
+        If ``options`` is not an :class:`Options` (or None).
     SolverError
         If the backend itself fails (raises), carrying its error text.
     Exception
         Whatever ``problem.fun`` or ``problem.grad`` raised, as itself.
     """
     record = BACKENDS.get(backend)
+    check_argument(problem, NLPProblem, "problem", InvalidProblem, "solvers.nlp.NLPProblem")
+    if options is not None:
+        check_argument(options, Options, "options", InvalidOptions, "solvers.nlp.Options")
     _accepts(record, problem)
     options = options or Options()
     ev = Evaluations(problem, replace_nan=not record.capabilities.nan_step_back)

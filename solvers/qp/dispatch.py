@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from solvers.errors import InvalidProblem
+from solvers.errors import InvalidOptions, InvalidProblem, check_argument
 from solvers.qp import casadi_, clarabel_, closed_form, cvxpy_, ipopt_, osqp_, piqp_, proxsuite_, qpsolvers_
 from solvers.qp.base import PreparedQP
 from solvers.qp.capabilities import QPCapabilities
@@ -63,9 +63,14 @@ def prepare(problem: QPProblem, backend: str = DEFAULT_BACKEND, options: Options
     SolverNotFound
         If ``backend`` is unknown or not installed.
     InvalidProblem
-        If ``problem`` has inequality rows and the backend takes none.
+        If ``problem`` is not a :class:`QPProblem`, or has inequality rows and the backend takes none.
+    InvalidOptions
+        If ``options`` is not an :class:`Options` (or None).
     """
     record = BACKENDS.get(backend)
+    check_argument(problem, QPProblem, "problem", InvalidProblem, "solvers.qp.QPProblem")
+    if options is not None:
+        check_argument(options, Options, "options", InvalidOptions, "solvers.qp.Options")
     _accepts(record, problem)
     prepared: PreparedQP = record.entry(problem, options)
     return prepared
