@@ -31,6 +31,9 @@ Cases (deterministic maps built here; 1 m cells unless said):
 - ``arena8``: 8 robots in a 6 x 3.5 m arena of 0.25 m cells (robot radius 0.1 m, v_max 1 m/s);
 - ``big200`` (``--cases`` only): 200 robots on 128 x 128 with 15 % obstacles;
 - ``cross1000`` (``--cases`` only): 1000 robots crossing 240 m of open field;
+- ``funnel20``, ``halls50`` (``--cases`` only): queues at gaps, from a new-user tour (twenty-third session): 20
+  robots into walls converging on a one-cell gap (40 x 30), 50 robots between two halls through three 2-cell
+  corridors in an 8-cell wall (56 x 40); k = 7;
 - ``field3d``, ``window3d``, ``columns3d`` (``--cases`` only): the 3-D scenarios of ``experiments/``
   (40, 12 and 16 robots on voxel maps, downwash 2; the bound on the 26-connected voxel graph);
 - ``cross300`` (``--cases`` only): 300 robots crossing 110 m of open field (the big swarm's windows, quicker).
@@ -157,6 +160,25 @@ def case_config(case: str) -> tuple[dict, Path]:
         occ = _random_field(128, 128, 0.15, 2, (12, 12), (115, 115), 9)
         scn = {"map": {"kind": "ascii", "rows": _rows(occ)},
                "start": {"center": [12, 12], "n_robots": 200, "sigma": 5.0, "seed": 0}, "goal": [115, 115]}
+        return {"scenario": scn, "interaction": {"k": 7}}, EXP
+    if case == "funnel20":  # a tour's queue: walls converging on a one-cell gap (twenty-third session)
+        occ = np.zeros((40, 30), dtype=bool)
+        for x in range(12, 20):
+            half = max(15 - (x - 12) * 2, 0)
+            occ[x, :max(0, 15 - half)] = True
+            occ[x, 15 + half + 1:] = True
+        occ[20, :] = True
+        occ[20, 15] = False
+        scn = {"map": {"kind": "ascii", "rows": _rows(occ)},
+               "start": {"center": [5, 15], "n_robots": 20, "sigma": 2.5, "seed": 0}, "goal": [32, 15]}
+        return {"scenario": scn, "interaction": {"k": 7}}, EXP
+    if case == "halls50":  # a tour's queue: two halls joined by three 2-cell corridors through an 8-cell wall
+        occ = np.zeros((56, 40), dtype=bool)
+        occ[24:32, :] = True
+        for y0 in (6, 19, 32):
+            occ[24:32, y0:y0 + 2] = False
+        scn = {"map": {"kind": "ascii", "rows": _rows(occ)},
+               "start": {"center": [10, 20], "n_robots": 50, "sigma": 3.5, "seed": 0}, "goal": [46, 20]}
         return {"scenario": scn, "interaction": {"k": 7}}, EXP
     if case == "cross1000":
         scn = {"map": {"kind": "free", "size": [300, 120]},

@@ -528,6 +528,16 @@ class ContinuousPlan:
         The optional dense sampled check (None unless ``smoothing.check_rate_hz`` > 0).
     timings
         Seconds per part: regions, smoothing, checking.
+    retimed
+        The factor a short flight's durations were re-timed by as a whole (``RETIME_FACTORS``), None if it was
+        not.
+    horizon
+        Steps per planning window (``smoothing.horizon``, or more where :func:`braking_horizon` lengthened them).
+    makespan_s, dim
+        The flight's duration (s, the last knot) and its dimension (properties).
+
+    :meth:`positions` gives every robot's position at given times; a robot's velocity and higher
+    derivatives are ``trajectories[i].evaluate(t, derivative)``.
     """
 
     trajectories: list[PiecewisePolynomial]
@@ -570,8 +580,17 @@ class ContinuousPlan:
         return self.max_pieces == 0 or max(self.pieces_per_robot, default=0) <= self.max_pieces
 
     def positions(self, times: np.ndarray | float) -> np.ndarray:
-        """(S, N, dim) every robot's position at ``times`` ((N, dim) at one time given as a number)."""
+        """(S, N, dim) every robot's position at ``times`` ((N, dim) at one time given as a number); times outside
+        the flight are clamped to it (before it: the starts, after it: where the robots rest).
+
+        Raises
+        ------
+        ValueError
+            A time that is not finite (NaN gave NaN positions without a word).
+        """
         t = np.asarray(times, dtype=float)
+        if not np.all(np.isfinite(t)):
+            raise ValueError(f"positions: times must be finite, got {times!r:.60}")
         out = np.stack([tr.evaluate(np.atleast_1d(t)) for tr in self.trajectories], axis=1)
         return out[0] if t.ndim == 0 else out
 

@@ -184,7 +184,8 @@ class DiscretePlan:
         True if the energy converged (a step lowered it by less than the tolerance) with
         every robot that can reach the goal region in it (any fixed point without a goal).
     stop_reason
-        "converged"; "trapped" (the energy stopped decreasing with robots short of the
+        "arrived" (every robot that can reach the goal region is in it, ``mrf.arrival``; counted as
+        converged); "converged"; "trapped" (the energy stopped decreasing with robots short of the
         goal region: ICM, a local method, found no move that lowers it); "stalled" (no
         progress in ``patience`` steps; the paths end at the last progress) or
         "max_steps".

@@ -50,3 +50,21 @@ def test_keys_the_running_code_does_not_know_are_dropped_for_a_baseline():
     drop_unknown_keys(data)
     assert data == {"mrf": {"follow": False}, "scenario": {"map": {"kind": "free", "size": [8, 8]}},
                     "smoothing": {"v_max": 1.0}}
+
+
+def test_the_queue_cases_are_the_tours_maps():
+    """funnel20 and halls50: one gap one cell wide, three corridors two wide, every robot starting free."""
+    import numpy as np
+    from flight_quality import case_config
+
+    from mrfswarm.config import from_dict
+    from mrfswarm.scenario import build_scenario
+
+    widths = {}
+    for case, wall in (("funnel20", 20), ("halls50", 24)):
+        data, base = case_config(case)
+        scn = build_scenario(from_dict(data, base))
+        free = scn.grid.free
+        widths[case] = int(free[wall].sum())
+        assert free[tuple(np.asarray(scn.start).T)].all() and len(scn.start) == data["scenario"]["start"]["n_robots"]
+    assert widths == {"funnel20": 1, "halls50": 6}

@@ -76,6 +76,13 @@ def test_positions_at_one_time_are_robot_major():
     np.testing.assert_array_equal(one[2], c.trajectories[2].evaluate(np.array([t]))[0])
 
 
+@pytest.mark.parametrize("t", [float("nan"), np.array([0.0, np.inf])])
+def test_positions_refuse_times_that_are_not_finite(t):
+    """NaN gave NaN positions without a word (a library tour)."""
+    with pytest.raises(ValueError, match="times must be finite"):
+        run("free5").continuous.positions(t)
+
+
 def test_corridor_flies_without_stopping():
     """The default (continuous seams, safe regions) flies the paper's corridor without a stop."""
     c = run("corridor").continuous
