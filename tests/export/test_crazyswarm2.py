@@ -217,15 +217,16 @@ def test_yaml_as_crazyswarm2_launch_reads_it(run_dir):
 
 
 class FakeTrajectory:
-    """crazyflie_py.uav_trajectory.Trajectory: loadcsv as Crazyswarm2 does it."""
+    """crazyflie_py.uav_trajectory.Trajectory: loadcsv as Crazyswarm2 does it (IMRCLab/crazyswarm2 f6154e2,
+    crazyflie_py/uav_trajectory.py: np.loadtxt without ndmin, so one row is a 1-D array)."""
 
     def loadcsv(self, filename):
-        data = np.loadtxt(filename, delimiter=",", skiprows=1, usecols=range(33), ndmin=2)
-        self.rows = data
+        data = np.loadtxt(filename, delimiter=",", skiprows=1, usecols=range(33))
         P = types.SimpleNamespace
         self.polynomials = [P(duration=r[0], px=P(p=r[1:9]), py=P(p=r[9:17]), pz=P(p=r[17:25]), pyaw=P(p=r[25:33]))
                             for r in data]
         self.duration = float(np.sum(data[:, 0]))
+        self.rows = data
 
     def n_pieces(self):
         return len(self.polynomials)
@@ -525,3 +526,54 @@ def test_cflib_upload_flies_a_3d_compressed_plan(tmp_path):
     dec = cflib_.decode_compressed(link.data, origin, dim=3)
     t = np.linspace(0.0, dec.duration, 2001)
     assert np.abs(dec.evaluate(t) - trs[2].evaluate(np.minimum(t, trs[2].duration))).max() < 3e-3
+
+
+def test_fly_py_flies_a_plan_of_one_piece(tmp_path, monkeypatch):
+    """Robots that start at the goal fly one hover piece; Crazyswarm2's loadcsv failed on a CSV of one row
+    ("IndexError: invalid index to scalar variable", a 3-D tour). fly.py hands it the same polynomial in two
+    halves; without that, this fake (which reads as Crazyswarm2 does) raises the same IndexError."""
+    cfg = tmp_path / "onestep.toml"
+    cfg.write_text("""[scenario]
+map = { kind = "free", size = [8, 8, 6], resolution = 0.25, origin = [0.125, 0.125, 0.125] }
+start = { positions = [[0.875, 0.875, 0.875], [1.375, 0.875, 0.875]] }
+goal = [1.125, 1.125, 0.875]
+robot_radius = 0.1
+downwash = 2.5
+[simulation]
+enabled = false
+""")
+    out = tmp_path / "out"
+    assert main(["run", str(cfg), "--out", str(out), "--workers", "1"]) == 0
+    csv = read_uav_csv(out / "trajectories" / "robot_1.csv", dim=4)
+    assert csv.pieces == 1
+    calls = []
+    monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, ["cf1", "cf2"])})
+    load_script(out / "crazyswarm2" / "fly.py", "fly_one_piece").main([])
+    up = next(c[4] for c in calls if c[0] == "upload" and c[1] == "cf2")
+    assert len(up.polynomials) == 2 and up.duration == pytest.approx(csv.durations.sum(), abs=1e-12)
+    half = up.polynomials[0].duration
+    for t in np.linspace(0.0, up.duration, 9):  # the same flight: the second half is the shifted polynomial
+        p = up.polynomials[0] if t <= half else up.polynomials[1]
+        tt = t if t <= half else t - half
+        got = [np.polynomial.polynomial.polyval(tt, q.p) for q in (p.px, p.py, p.pz)]
+        np.testing.assert_allclose(got, csv.evaluate(t)[:3], atol=1e-12)
+    assert sorted(f.name for f in (out / "trajectories").iterdir()) == ["robot_0.csv", "robot_1.csv"]
+
+
+def test_a_piece_written_in_two_halves_is_the_same_polynomial(run_dir, tmp_path):
+    """fly.loadable's halves of a piece of degree 7 on every axis evaluate as the piece does."""
+    fly = load_script(run_dir / "crazyswarm2" / "fly.py", "fly_halves")
+    rng = np.random.default_rng(3)
+    row = np.concatenate([[1.7], rng.normal(size=32)])
+    header = (run_dir / "trajectories" / "robot_0.csv").read_text().splitlines()[0]
+    path = tmp_path / "one.csv"
+    path.write_text(header + "\n" + ",".join(repr(float(v)) for v in row) + "\n")
+    halves = np.loadtxt(fly.loadable(path), delimiter=",", skiprows=1, ndmin=2)
+    assert halves.shape == (2, 33) and np.allclose(halves[:, 0], 0.85)
+    for t in np.linspace(0.0, 1.7, 11):
+        h = halves[0] if t <= 0.85 else halves[1]
+        tt = t if t <= 0.85 else t - 0.85
+        for k in range(4):
+            assert np.polynomial.polynomial.polyval(tt, h[1 + 8 * k:9 + 8 * k]) == pytest.approx(
+                np.polynomial.polynomial.polyval(t, row[1 + 8 * k:9 + 8 * k]), abs=1e-9)
+    assert fly.loadable(run_dir / "trajectories" / "robot_0.csv") == run_dir / "trajectories" / "robot_0.csv"

@@ -18,6 +18,8 @@
 from __future__ import annotations
 
 import argparse
+import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -83,8 +85,29 @@ def load(names: list[str]) -> dict:
     out = {}
     for name, path in paths.items():
         out[name] = traj = Trajectory()
-        traj.loadcsv(path)  # a row a piece, as counted above
+        traj.loadcsv(loadable(path))  # a row a piece, as counted above
     return out
+
+
+def loadable(path: Path) -> Path:
+    """``path``, or where a trajectory of one piece is written as two: Crazyswarm2's ``loadcsv`` reads the rows
+    without ``ndmin=2``, and one row ended in "IndexError: invalid index to scalar variable" (a plan whose robots
+    start at the goal: one hover piece). The halves are the same polynomial (its coefficients shifted to the
+    second half's start), so the same flight."""
+    lines = path.read_text().splitlines()
+    rows = [line for line in lines[1:] if line.strip()]
+    if len(rows) != 1:
+        return path
+    row = np.array(rows[0].split(","), dtype=float)
+    half = row[0] / 2
+    coefs = row[1:].reshape(-1, 8)  # x, y, z, yaw: powers 0..7 of the piece's own time
+    shifted = np.array([np.polynomial.Polynomial(c)(np.polynomial.Polynomial([half, 1.0])).coef for c in coefs])
+    shifted = np.pad(shifted, ((0, 0), (0, 8 - shifted.shape[1])))  # a constant composes to one coefficient
+    body = [",".join(repr(float(v)) for v in [half, *part.ravel()]) for part in (coefs, shifted)]
+    fd, name = tempfile.mkstemp(prefix=f"{path.stem}_", suffix=".csv")  # not in the run's folder
+    with os.fdopen(fd, "w") as f:
+        f.write("\n".join([lines[0], *body]) + "\n")
+    return Path(name)
 
 
 def start_of(traj) -> np.ndarray:
