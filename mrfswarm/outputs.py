@@ -262,7 +262,8 @@ def write_crazyflie_outputs(result: Result, out: Path) -> list[Path]:
         columns = (blocked_columns(grid.occupied, origin, grid.resolution, starts[:, :2],
                                    np.full(len(starts), starts[:, 2].max()), radius),
                    blocked_columns(grid.occupied, origin, grid.resolution, ends[:, :2], ends[:, 2], radius))
-    written = write_crazyswarm2(starts, out, radius, lowest, columns, ends, maneuver)
+    altitude = None if starts.shape[-1] == 3 else result.config.scenario.altitude
+    written = write_crazyswarm2(starts, out, radius, lowest, columns, ends, maneuver, altitude)
     _, comp = result._crazyflie_export()
     if comp is not None:
         written.append(write_json(out / "crazyflie" / "compressed.json", compressed_json(comp)))

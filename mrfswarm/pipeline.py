@@ -442,6 +442,7 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     t0 = time.perf_counter()
     scn = build_scenario(cfg)
     timings["scenario"] = time.perf_counter() - t0
+    _unused_scenario_settings(cfg, scn.grid.ndim)
     options = mrf_options(cfg)
     show = sys.stderr.isatty() if progress is None else progress
     from tqdm import tqdm
@@ -476,6 +477,19 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         raise PlanError(str(e), result) from e  # the CLI still writes what was computed
     _paper_pruning(result)
     return result
+
+
+def _unused_scenario_settings(cfg: Config, dim: int) -> None:
+    """Say (:class:`UnusedSettingWarning`) a scenario setting the map's dimension leaves unused: ``altitude`` on a
+    3-D map (the robots' z is the map's), ``downwash`` on a 2-D one (every robot flies at one altitude). Both were
+    accepted without a word (a 3-D tour); a value equal to the default cannot be told from an unset one."""
+    s, default = cfg.scenario, type(cfg.scenario)()
+    if dim == 3 and s.altitude != default.altitude:
+        warnings.warn(f"scenario.altitude = {s.altitude:g} not used: on a 3-D map the robots' z comes from the map's "
+                      "frame", UnusedSettingWarning, stacklevel=3)
+    if dim == 2 and s.downwash != default.downwash:
+        warnings.warn(f"scenario.downwash = {s.downwash:g} not used: on a 2-D map every robot flies at one altitude",
+                      UnusedSettingWarning, stacklevel=3)
 
 
 def _discrete_progress(bar, t: int, max_steps: int) -> None:

@@ -105,6 +105,37 @@ def test_an_unused_qp_flag_is_said(tmp_path):
         resolve_config(cfg, qp="osqp")
 
 
+@pytest.mark.parametrize("config, sets, said", [
+    ("window3d.toml", ["scenario.altitude=1.5"], "scenario.altitude = 1.5 not used: on a 3-D map"),
+    ("free5.toml", ["scenario.downwash=2.5"], "scenario.downwash = 2.5 not used: on a 2-D map"),
+    ("window3d.toml", [], None), ("free5.toml", ["scenario.altitude=1.5"], None),
+])
+def test_a_scenario_setting_the_maps_dimension_leaves_unused_is_said(config, sets, said):
+    """altitude on a 3-D map, downwash on a 2-D one: accepted without a word (a 3-D tour)."""
+    import warnings
+
+    from mrfswarm import pipeline
+
+    cfg = load_config(EXPERIMENTS / config, sets)
+    dim = 3 if "3d" in config else 2
+    if said is None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            pipeline._unused_scenario_settings(cfg, dim)
+    else:
+        with pytest.warns(UnusedSettingWarning, match=f"^{said}"):
+            pipeline._unused_scenario_settings(cfg, dim)
+
+
+def test_plan_says_an_unused_scenario_setting(monkeypatch):
+    """The check runs inside plan, once the map is loaded (its dimension is the map's)."""
+    from mrfswarm import pipeline
+
+    monkeypatch.setattr(pipeline, "mrf_options", lambda cfg: (_ for _ in ()).throw(RuntimeError("stop here")))
+    with pytest.warns(UnusedSettingWarning, match="scenario.downwash = 2 not used"), pytest.raises(RuntimeError):
+        pipeline.plan(load_config(EXPERIMENTS / "free5.toml", ["scenario.downwash=2"]))
+
+
 @pytest.mark.parametrize("flag, name, sets", [("--mrf", "exact", ["mrf.method=exact"]),
                                               ("--qp", "osqp", ["smoothing.backend=osqp"]),
                                               # naming an NLP backend asks for the NLP refinement

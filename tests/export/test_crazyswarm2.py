@@ -163,6 +163,19 @@ def test_robots_that_fly_into_the_ground_of_the_export_are_named_in_a_warning_an
     assert not caplog.text and "WARNING" not in (tmp_path / "b" / "crazyswarm2" / "crazyflies.yaml").read_text()
 
 
+@pytest.mark.parametrize("altitude, warned", [(0.05, True), (0.1, False), (1.0, False)])
+def test_a_2d_plan_flown_below_its_radius_is_a_warning(tmp_path, caplog, altitude, warned):
+    """scenario.altitude 0.05 with radius 0.1 took off to 5 cm without a word (a 3-D tour)."""
+    from mrfswarm.export.crazyswarm2 import write_crazyswarm2
+
+    starts = np.array([[0.0, 0.0], [1.0, 0.0]])
+    with caplog.at_level("WARNING"):
+        write_crazyswarm2(starts, tmp_path / "a", radius=0.1, altitude=altitude)
+    text = (tmp_path / "a" / "crazyswarm2" / "crazyflies.yaml").read_text()
+    said = "flies at scenario.altitude = 0.05 m, nearer than the robot radius (0.1 m)"
+    assert (said in caplog.text) == warned and (said in text) == warned
+
+
 def test_robots_whose_takeoff_or_landing_column_holds_an_obstacle_are_named():
     """A shelf (voxels x, y in [0, 1.5) m, z in [1.5, 2) m, 0.5 m voxels, the floor at z = 0) over one robot's
     ground spot: the scripts fly every robot straight up to the highest start (2.25 m), and it would climb
