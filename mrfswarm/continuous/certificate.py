@@ -194,14 +194,15 @@ def _certify(P: np.ndarray, limit_norms: list[np.ndarray], regions: Regions, dis
     worst = float(viol.max(initial=0.0))
     if worst > 0:
         j, i = (int(v) for v in np.unravel_index(int(np.argmax(viol)), viol.shape))
-        problems.append(f"robot {i} leaves its region in step {j} by {worst:.3g} m")
+        problems.append(f"robot {i} leaves its region in step {j} by {worst:.3g} m{_others(viol.max(axis=0) > 0)}")
     bounds = []
     for piece_top, lim, name in zip(limit_norms, limits, ("speed", "acceleration", "jerk")):
         top = float(piece_top.max(initial=0.0))
         bounds.append(top)
         if top > lim:
             i, j = (int(v) for v in np.unravel_index(int(np.argmax(piece_top)), piece_top.shape))
-            problems.append(f"robot {i}'s {name} control points reach {top:.4g} > {lim:g} in step {j} (by {top - lim:.2g})")
+            problems.append(f"robot {i}'s {name} control points reach {top:.4g} > {lim:g} in step {j} (by {top - lim:.2g})"
+                            f"{_others(piece_top.max(axis=1) > lim)}")
     S = P if scale is None or np.all(np.asarray(scale) == 1.0) else P * np.asarray(scale, dtype=float)
     lo, hi = S.min(axis=2), S.max(axis=2)  # (N, M, d), in the scaled space
     sep, checked = np.inf, 0
@@ -219,6 +220,13 @@ def _certify(P: np.ndarray, limit_norms: list[np.ndarray], regions: Regions, dis
                             f"their relative control points come {d[k]:.4f} m from the origin "
                             f"(safety distance {distance:g} m)")
     return Certificate(not problems, problems, min(sep, distance), worst, (bounds[0], bounds[1], bounds[2]), checked)
+
+
+def _others(over: np.ndarray) -> str:
+    """", the worst of n robots over" when more robots than the one a problem names break its rule (a problem names
+    the worst; a 3-D tour read one robot's jerk where all twelve were over)."""
+    n = int(np.count_nonzero(over))
+    return f", the worst of {n} robots over" if n > 1 else ""
 
 
 def control_point_stack(trajectories: list[PiecewisePolynomial]) -> list[np.ndarray]:

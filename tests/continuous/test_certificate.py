@@ -102,6 +102,10 @@ def test_leaving_a_region_is_caught():
     tight = Regions(regions.axes, regions.lower, regions.upper - [[[0.6, 0.0], [0.0, 0.0]]], regions.oriented, 0.25)
     cert = certify(flight, np.array([0.0, 8.0]), tight, 0.5, (2.0, 4.0, 4.0))
     assert not cert.ok and "robot 0 leaves its region in step 0" in cert.problems[0]
+    assert "worst of" not in cert.problems[0]  # robot 1 stays in its region
+    both = Regions(regions.axes, regions.lower, regions.upper - 0.6, regions.oriented, 0.25)
+    cert = certify(flight, np.array([0.0, 8.0]), both, 0.5, (2.0, 4.0, 4.0))
+    assert cert.problems[0].endswith(", the worst of 2 robots over")  # one problem names both robots' count
 
 
 def test_robots_too_close_are_caught():
@@ -116,6 +120,7 @@ def test_limits_are_caught(which, limits):
     flight, regions = _setting()
     cert = certify(flight, np.array([0.0, 8.0]), regions, 0.5, limits)
     assert not cert.ok and re.search(f"robot [01]'s {which} control points reach", cert.problems[0])
+    assert cert.problems[0].endswith(", the worst of 2 robots over")  # both fly the same move
 
 
 def test_pieces_off_the_time_grid_are_caught():
