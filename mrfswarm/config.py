@@ -111,7 +111,7 @@ class InteractionConfig:
 
 #: The default ``goal_potential.congestion`` with the geodesic distance (flight_quality bench: 200 robots in 15 %
 #: clutter all at the goal, 3.2 x the bound, against 164 of 200 at 4.1 x without; see mrfswarm.discrete.congestion).
-CONGESTION = 5.0
+CONGESTION = 8.0
 
 
 @dataclass(frozen=True)

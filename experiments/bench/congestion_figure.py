@@ -31,13 +31,13 @@ def main() -> None:
     import numpy as np
     from flight_quality import case_config
 
-    from mrfswarm.config import apply_overrides, from_dict
+    from mrfswarm.config import CONGESTION, apply_overrides, from_dict
     from mrfswarm.pipeline import plan
 
     data, base = case_config("big200")
     runs = []
     for label, extra in [("goal_potential.congestion = 0 (static field)", ["goal_potential.congestion=0"]),
-                         ("default (congestion = 5)", [])]:
+                         (f"default (congestion = {CONGESTION:g})", [])]:
         cfg = from_dict(apply_overrides(data, ["smoothing.enabled=false", "simulation.enabled=false", *extra]), base)
         r = plan(cfg, progress=False)
         at = sum(bool(o.at_goal) for o in r.robots())

@@ -28,6 +28,14 @@ instead of 2.98, the 300-robot crossing 1.31 instead of 1.40. Counting moving ro
 (a quarter each, w = 3) helped clutter more (2.2) but spread the crossing swarm sideways
 (1.59), so they do not count.
 
+w = 8 by default since the twenty-fourth session, measured on queues at gaps (flight_quality
+bench, ``--cases`` funnel20, halls50, clutter40@1-7, big200, cross300, the 3-D maps): 50 robots
+between two halls through three 2-cell corridors 1.69 -> 1.50 x the bound (0.64 -> 0.48 stops
+per robot; 1.63 -> 1.52 on average over three more start seeds), 200 robots in clutter 1.81 ->
+1.77 x, the seven clutter40 maps the same mean (1.343 x; their worst 1.44 -> 1.39, stops 0.05 ->
+0.07 per robot), a funnel into one gap the same (there is no other gap), the rest the same
+flights. Every 2 or 3 steps instead of 5 and w = 10 or 15 did no better on average.
+
 The guarantee of the static field holds for every field searched here: each move still
 costs at least its length plus the climb (1 + w rho >= 1), so the proof of
 :mod:`mrfswarm.discrete.goal_distance` goes through word for word and rho_S has no local

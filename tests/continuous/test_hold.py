@@ -179,9 +179,10 @@ def test_where_some_holds_fail_the_other_robots_are_still_held(monkeypatch):
     from flight_quality import case_config
 
     data, base = case_config("clutter40")
-    # the plan of the "downhill" rule, whose windows this test was written on
+    # the plan of the "downhill" rule and congestion 5 (the default before the twenty-fourth session), whose windows
+    # this test was written on
     cfg = from_dict(apply_overrides(data, ["simulation.enabled=false", "smoothing.enabled=false",
-                                           "mrf.contested=downhill"]), base)
+                                           "mrf.contested=downhill", "goal_potential.congestion=5"]), base)
     discrete = plan(cfg, progress=False)
     paths = discrete.discrete.paths
 
