@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import numbers
 import sys
@@ -229,6 +230,7 @@ class Result:
             "straightened": self.discrete.straightened,
             "escalated": self.discrete.escalated,
             "congested_fields": self.discrete.congested_fields,
+            "congestion_weight": self.config.goal_potential.congestion_weight,
             "contested": self.discrete.contested,
             "timings_s": {k: float(v) for k, v in self.timings_s.items()},
             "failure": self.failure,
@@ -294,7 +296,33 @@ class Result:
         out["flight_quality"] = self.flight_quality()
         out["crazyflie"] = self.crazyflie_memory()
         out["config"] = self.config.to_dict()
+        out["version"] = code_version()
         return out
+
+
+@functools.cache
+def code_version() -> dict:
+    """``{"mrfswarm": the package's version, "commit": the git commit it runs from (with "+dirty" when files differ
+    from it), or None outside a git checkout}``: ``result.json`` says which code made it, since defaults change
+    between commits (a tour's runs straddled one, and their files could not tell; unset keys are null in the config).
+    """
+    import subprocess
+
+    from mrfswarm import __version__
+
+    root = Path(__file__).resolve().parent.parent
+    commit = None
+    if (root / ".git").exists():
+        try:
+            def git(*args: str) -> str:
+                return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=10,
+                                      check=True).stdout.strip()
+
+            commit = git("rev-parse", "HEAD") + ("+dirty" if git("status", "--porcelain", "--untracked-files=no")
+                                                 else "")
+        except (OSError, subprocess.SubprocessError):
+            commit = None
+    return {"mrfswarm": __version__, "commit": commit}
 
 
 def _num(v: float | None) -> float | None:
@@ -535,6 +563,22 @@ def _continuous(result: Result, show: bool, workers: int | None = None) -> None:
     result.timings_s.update(plan.timings)
 
 
+#: Robot-seconds of flight (at 100 Hz) above which the per-process simulation is said to take long: it flew 20 robots'
+#: 30 s in 74 s on 2 processes (0.25 s per robot-second in each), so this is about two minutes there. A tour ran
+#: swarm100.toml as shipped and waited minutes with nothing said (the simulation is on by default).
+LONG_SIMULATION = 1000.0
+
+
+def _say_long_simulation(robots: int, seconds: float, rate_hz: float, backend: str) -> None:
+    from mrfswarm.simulation import resolve_backend
+
+    work = robots * seconds * rate_hz / 100.0
+    if work > LONG_SIMULATION and resolve_backend(backend) == "processes":
+        log.warning("simulating %d robots for %.0f s of flight each at %g Hz, one robot at a time per process: this "
+                    "takes minutes (simulation.enabled = false skips it; simulation.backend = \"batched\", with "
+                    "mrfswarm[batched], flies them together)", robots, seconds, rate_hz)
+
+
 def _simulate(result: Result, show: bool, workers: int | None = None) -> None:
     from mrfswarm.simulation import fly_swarm
 
@@ -543,6 +587,7 @@ def _simulate(result: Result, show: bool, workers: int | None = None) -> None:
     c = result.smoothed()
     log.info("simulation: %d robots, %.1f s of flight at %g Hz (simulation.backend = %r)", len(c.trajectories),
              c.makespan_s, cfg.simulation.rate_hz, cfg.simulation.backend)
+    _say_long_simulation(len(c.trajectories), c.makespan_s, cfg.simulation.rate_hz, cfg.simulation.backend)
     result.flight = fly_swarm(c.trajectories, cfg.scenario.altitude, result.scenario.grid,
                               cfg.simulation.rate_hz, cfg.simulation.vehicle, jerk=c.j_max,
                               workers=workers, speed=c.v_max, progress=show,

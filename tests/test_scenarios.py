@@ -67,3 +67,15 @@ def test_paths_are_in_metres_in_the_map_frame():
     r = plan(mrfswarm.load_config(EXPERIMENTS / "corridor.toml", DISCRETE + ["mrf.max_steps=3"]))
     w = r.discrete_paths_world()
     assert w[0].tolist() == [[4, 16], [4, 18], [4, 20], [4, 22], [4, 24]]
+
+
+@pytest.mark.parametrize("n, sets, said", [(1000, [], True), (100, [], False), (1000, ["mrf.arrival=false"], False)])
+def test_a_swarm_starting_in_its_goal_region_is_said(caplog, n, sets, said):
+    """1000 robots on swarm100's field: the goal region (4 free cells per robot) held 192 of them at the start, and
+    the plan ended "arrived" 43 m from the goal without a word (a scale tour)."""
+    from mrfswarm.config import load_config
+    from mrfswarm.scenario import build_scenario
+
+    with caplog.at_level("WARNING", logger="mrfswarm.scenario"):
+        build_scenario(load_config(EXPERIMENTS / "swarm100.toml", [f"scenario.start.n_robots={n}", *sets]))
+    assert ("of 1000 robots start inside the goal region" in caplog.text) == said

@@ -192,3 +192,14 @@ def test_both_backends_measure_in_the_downwash_metric_and_say_which_flew(monkeyp
                   downwash=2.0)
     assert f.backend == backend
     assert f.min_separation == pytest.approx(0.4)
+
+
+@pytest.mark.parametrize("robots, seconds, backend, said", [(100, 41.0, "processes", True),
+                                                             (20, 30.0, "processes", False)])
+def test_a_long_per_process_simulation_is_said(caplog, robots, seconds, backend, said):
+    """swarm100.toml as shipped simulated for minutes with nothing said (a scale tour)."""
+    from mrfswarm import pipeline
+
+    with caplog.at_level("WARNING", logger="mrfswarm.pipeline"):
+        pipeline._say_long_simulation(robots, seconds, 100.0, backend)
+    assert ("simulating 100 robots for 41 s of flight each" in caplog.text) == said
