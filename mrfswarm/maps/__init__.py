@@ -12,7 +12,7 @@ grid from the config table ``scenario.map``; one loader per ``kind``:
 ``ascii``     ``{kind="ascii", rows=["..#.", ...]}``
 ``movingai``  ``{kind="movingai", path="map.map"}`` (MovingAI benchmark ``.map``)
 ``ros``       ``{kind="ros", path="map.yaml"}`` (ROS map_server YAML + PGM/PNG)
-``npy``       ``{kind="npy", path="map.npy"}`` (a (W, H, D) NumPy array, True occupied)
+``npy``       ``{kind="npy", path="map.npy"}`` (a (W, H, D) or (W, H) NumPy array, True occupied)
 ``binvox``    ``{kind="binvox", path="map.binvox"}`` (binvox voxels, read with trimesh)
 ============  =================================================================
 

@@ -2,8 +2,9 @@
 
 ``npy``
     NumPy's own file format (``numpy.save``), read with ``numpy.lib.format.read_array``
-    (no pickles): an array of shape (W, H, D) indexed ``[ix, iy, iz]``, either boolean
-    (True = occupied) or floating point (P(occupied) in [0, 1], occupied at >= 0.5).
+    (no pickles): an array of shape (W, H, D) indexed ``[ix, iy, iz]``, or (W, H) indexed
+    ``[ix, iy]`` for a 2-D map, either boolean (True = occupied) or floating point
+    (P(occupied) in [0, 1], occupied at >= 0.5).
 ``binvox``
     Patrick Min's binvox format (https://www.patrickmin.com/binvox/binvox.html), what
     the ``binvox`` voxelizer and many mesh tools write: a text header (``dim``,
@@ -39,10 +40,13 @@ _TRIMESH = "reading and writing .binvox files needs trimesh: pip install 'mrfswa
 
 
 def load_npy(spec: dict, base_dir: Path) -> OccupancyGrid:
-    """``{kind="npy", path="x.npy"}``: a (W, H, D) NumPy array, True (or P >= 0.5) occupied."""
+    """``{kind="npy", path="x.npy"}``: a (W, H, D) or (W, H) NumPy array, True (or P >= 0.5) occupied."""
     check_keys(spec, _KEYS, PREFIX, required=("path",))
-    res, origin = placement(spec, 3)
-    return read_npy(file_path(spec, base_dir), resolution=res, origin=origin)
+    path = file_path(spec, base_dir)
+    placement({k: v for k, v in spec.items() if k != "origin"})  # the resolution before the file; its origin's
+    prob = _read_npy(path)  # length is the array's number of axes
+    res, origin = placement(spec, 2 if prob.ndim == 2 else 3)
+    return _grid(prob, path, res, origin, dims=(2, 3))
 
 
 def load_binvox(spec: dict, base_dir: Path) -> OccupancyGrid:
@@ -52,11 +56,13 @@ def load_binvox(spec: dict, base_dir: Path) -> OccupancyGrid:
     return read_binvox(file_path(spec, base_dir), resolution=res, origin=origin)
 
 
-def _grid(prob: np.ndarray, path: Path, resolution: float, origin: tuple[float, ...]) -> OccupancyGrid:
-    if prob.ndim != 3:
-        raise ScenarioError(f"{path}: array of shape {prob.shape}: a voxel map is (W, H, D)")
+def _grid(prob: np.ndarray, path: Path, resolution: float, origin: tuple[float, ...],
+          dims: tuple[int, ...] = (3,)) -> OccupancyGrid:
+    if prob.ndim not in dims:
+        shapes = " or ".join({2: "a map (W, H)", 3: "a voxel map (W, H, D)"}[d] for d in dims)
+        raise ScenarioError(f"{path}: array of shape {prob.shape}: expected {shapes}")
     if prob.size > MAX_CELLS:
-        raise ScenarioError(f"{path}: {' x '.join(map(str, prob.shape))} voxels exceeds the limit of {MAX_CELLS}")
+        raise ScenarioError(f"{path}: {' x '.join(map(str, prob.shape))} cells exceeds the limit of {MAX_CELLS}")
     try:
         return OccupancyGrid(prob, resolution=resolution, origin=origin)
     except ScenarioError as e:  # values outside [0, 1], an empty axis: say which file
@@ -64,8 +70,9 @@ def _grid(prob: np.ndarray, path: Path, resolution: float, origin: tuple[float, 
 
 
 def read_npy(path: Path | str, resolution: float = 1.0,
-             origin: tuple[float, ...] = (0.0, 0.0, 0.0)) -> OccupancyGrid:
-    """Read a ``.npy`` voxel array: bool (True occupied) or float P(occupied), shape (W, H, D).
+             origin: tuple[float, ...] | None = None) -> OccupancyGrid:
+    """Read a ``.npy`` array: bool (True occupied) or float P(occupied), shape (W, H, D) (voxels) or (W, H) (a
+    2-D map, indexed ``[ix, iy]``); ``origin`` defaults to zeros of the array's axes.
 
     Raises
     ------
@@ -74,7 +81,13 @@ def read_npy(path: Path | str, resolution: float = 1.0,
         dtype, another number of axes, values outside [0, 1]; names the file.
     """
     path = Path(path)
-    raw = read_bytes(path, "voxel file")
+    prob = _read_npy(path)
+    return _grid(prob, path, resolution, tuple([0.0] * prob.ndim) if origin is None else origin, dims=(2, 3))
+
+
+def _read_npy(path: Path) -> np.ndarray:
+    """The array of a ``.npy`` file as float P(occupied) (any shape: :func:`_grid` checks it)."""
+    raw = read_bytes(path, "map file")
     try:
         arr = np.lib.format.read_array(io.BytesIO(raw), allow_pickle=False)
     except (ValueError, EOFError, OSError, SyntaxError, TypeError) as e:
@@ -87,7 +100,7 @@ def read_npy(path: Path | str, resolution: float = 1.0,
     else:
         raise ScenarioError(f"{path}: dtype {arr.dtype}: expected bool (True = occupied) or float P(occupied) in "
                             f"[0, 1]; save a 0/1 array as array.astype(bool)")
-    return _grid(prob, path, resolution, origin)
+    return prob
 
 
 def read_binvox(path: Path | str, resolution: float = 1.0,

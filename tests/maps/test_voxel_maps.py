@@ -265,7 +265,9 @@ def npy_bytes(a: np.ndarray) -> bytes:
 
 @pytest.mark.parametrize("name, content, match", [
     ("v.npy", npy_bytes(np.zeros((2, 2, 2), dtype=np.int64)), r"dtype int64: expected bool"),
-    ("v.npy", npy_bytes(np.zeros((2, 2), dtype=bool)), r"shape \(2, 2\): a voxel map is \(W, H, D\)"),
+    ("v.npy", npy_bytes(np.zeros((2, 2, 2, 2), dtype=bool)),
+     r"shape \(2, 2, 2, 2\): expected a map \(W, H\) or a voxel map \(W, H, D\)"),
+    ("v.npy", npy_bytes(np.zeros(4, dtype=bool)), r"shape \(4,\): expected a map \(W, H\) or a voxel map"),
     ("v.npy", npy_bytes(np.zeros((2, 2, 0), dtype=bool)), r"must have shape"),
     ("v.npy", npy_bytes(np.full((2, 2, 2), 1.5)), r"prob\[0, 0, 0\] = 1\.5 is not in \[0, 1\]"),
     ("v.npy", npy_bytes(np.array([{"a": 1}], dtype=object)), r"not a NumPy \.npy array"),
@@ -289,14 +291,16 @@ def test_bad_voxel_files_are_one_line_scenario_errors(tmp_path, name, content, m
 
 def test_missing_voxel_files(tmp_path):
     for kind in ("npy", "binvox"):
-        with pytest.raises(ScenarioError, match=rf"cannot read voxel file .*nope\.{kind}.*No such file") as e:
+        what = "map" if kind == "npy" else "voxel"  # a .npy file holds a 2-D map or voxels
+        with pytest.raises(ScenarioError, match=rf"cannot read {what} file .*nope\.{kind}.*No such file") as e:
             load_map({"kind": kind, "path": f"nope.{kind}"}, tmp_path)
         one_line(e)
 
 
 @pytest.mark.parametrize("spec, match", [
     ({"kind": "npy"}, r"scenario\.map\.path is missing"),
-    ({"kind": "npy", "path": "v.npy", "origin": [0, 0]}, r"origin = \[0, 0\]: must be a list of 3 numbers"),
+    ({"kind": "binvox", "path": "v.binvox", "origin": [0, 0]}, r"origin = \[0, 0\]: must be a list of 3 numbers"),
+    ({"kind": "npy", "path": "v.npy", "resolution": -1}, r"resolution = -1: must be > 0"),  # before the file
     ({"kind": "binvox", "path": "v.binvox", "resolution": 0}, r"resolution = 0: must be > 0"),
     ({"kind": "binvox", "path": 7}, r"path = 7"),
 ])
@@ -345,3 +349,16 @@ def test_binvox_without_trimesh_says_how_to_install(tmp_path, monkeypatch):
     with pytest.raises(ScenarioError, match=r"needs trimesh: pip install 'mrfswarm\[voxels\]'") as e:
         read_binvox(write(tmp_path / "v.binvox", b"#binvox 1\n"))
     one_line(e)
+
+
+def test_a_2d_npy_array_is_a_2d_map(tmp_path):
+    """A (W, H) array was refused ("a voxel map is (W, H, D)"): a library tour saved its 2-D map so and could not
+    load it. It is the 2-D map of the same cells, placed by resolution and a 2-number origin."""
+    occ = np.zeros((6, 4), dtype=bool)
+    occ[2, 1:3] = True
+    np.save(tmp_path / "flat.npy", occ)
+    g = load_map({"kind": "npy", "path": "flat.npy", "resolution": 0.5, "origin": [1.0, 2.0]}, tmp_path)
+    assert g.ndim == 2 and np.array_equal(g.occupied, occ) and tuple(g.origin) == (1.0, 2.0) and g.resolution == 0.5
+    assert tuple(load_map({"kind": "npy", "path": "flat.npy"}, tmp_path).origin) == (0.0, 0.0)
+    with pytest.raises(ConfigError, match=r"origin = \[1, 2, 3\]: must be a list of 2 numbers"):
+        load_map({"kind": "npy", "path": "flat.npy", "origin": [1, 2, 3]}, tmp_path)
