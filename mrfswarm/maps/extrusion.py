@@ -62,6 +62,9 @@ def load_extruded(spec: dict, base_dir: Path, loader: Callable[[dict, Path], Occ
     flat = {k: v for k, v in spec.items() if k != KEY}
     z0 = 0.0
     if "origin" in spec:
-        x, y, z0 = point(spec["origin"], f"{PREFIX}.origin", 3)
+        try:
+            x, y, z0 = point(spec["origin"], f"{PREFIX}.origin", 3)
+        except ConfigError as e:  # a 2-number origin read as a 3-D tour's puzzle: say what made the map 3-D
+            raise ConfigError(f"{e} ({PREFIX}.{KEY} makes it one: its z is the centre of layer 0)") from None
         flat["origin"] = [x, y]
     return extrude(loader(flat, base_dir), layers, z0)

@@ -181,7 +181,8 @@ def test_ros_extruded_keeps_its_frame_check(tmp_path):
     ({"kind": "free", "size": [3, 3], "extrude": True}, r"extrude = True: must be an integer"),
     ({"kind": "free", "size": [3, 3, 3], "extrude": 2}, r"extrude = 2: the map is already 3-D \(size = \[3, 3, 3\]\)"),
     ({"kind": "free", "size": [3, 3], "extrude": 2, "origin": [0, 0]},
-     r"origin = \[0, 0\]: must be a list of 3 numbers \[x, y, z\] on a 3-D map"),
+     r"origin = \[0, 0\]: must be a list of 3 numbers \[x, y, z\] on a 3-D map "
+     r"\(scenario\.map\.extrude makes it one: its z is the centre of layer 0\)$"),
     ({"kind": "free", "size": [10000, 10000], "extrude": 2}, r"extrude = 2: 10000 x 10000 x 2 voxels exceeds"),
     ({"kind": "npy", "path": "v.npy", "extrude": 2}, r"unknown key scenario\.map\.extrude; allowed: kind, path"),
     ({"kind": "binvox", "path": "v.binvox", "extrude": 2}, r"unknown key scenario\.map\.extrude"),
