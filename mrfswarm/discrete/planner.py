@@ -430,6 +430,12 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
                   progress: str = "static", arrival: bool = False) -> DiscretePlan:
     """Iterate MRF steps from ``problem.start`` until the swarm energy converges.
 
+    The keyword defaults are this function's own, not the config's (``arrival`` is off here, on in
+    ``mrf.arrival``): :func:`mrfswarm.pipeline.plan` passes every one from the config, so call it that way
+    (``method=cfg.mrf.method, max_steps=cfg.mrf.max_steps, tol=cfg.mrf.tol, patience=cfg.mrf.patience,
+    progress=cfg.mrf.progress, arrival=cfg.mrf.arrival, options=mrfswarm.pipeline.mrf_options(cfg)``) to get
+    the plan a run makes.
+
     Parameters
     ----------
     method
