@@ -201,7 +201,8 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
     safety = 2 * cfg.scenario.robot_radius
     ylabel = "distance [m]" if downwash == 1.0 else f"distance, z / {downwash:g} (downwash) [m]"
     written.append(atomic_write(figs / "distances.png", lambda p: plots.plot_distances(
-        p, t, ds.min, ds.mean, safety, mean_pairs=None if ds.exact else ds.n_pairs, ylabel=ylabel)))
+        p, t, ds.min, ds.mean, safety, mean_pairs=None if ds.exact else ds.n_pairs, ylabel=ylabel,
+        title="Inter-robot distance of the smooth trajectories")))
     axes = plots.AXES[:pos.shape[-1]]
     written.append(atomic_write(figs / f"robot_{axes}.png", lambda p: plots.plot_xy(p, t, pos)))
     f = result.flight
@@ -301,5 +302,6 @@ def write_discrete_outputs(result: Result, out: Path) -> list[Path]:
     m = result.metrics
     written.append(atomic_write(figs / "discrete_distances.png", lambda p: plots.plot_distances(
         p, np.arange(len(m.mean_distance)), m.min_distance, m.mean_distance, xlabel="MRF step",
-        mean_pairs=m.mean_distance_pairs, safety=float(grid.resolution), safety_label="one cell ({:g} m): the least")))
+        mean_pairs=m.mean_distance_pairs, safety=float(grid.resolution), safety_label="one cell ({:g} m): the least",
+        title="Inter-robot distance of the discrete plan, per MRF step")))
     return written

@@ -319,8 +319,10 @@ def plot_energy(path: Path, energies: dict[str, np.ndarray], title: str = "Swarm
 
 def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndarray, safety: float | None = None,
                    xlabel: str = "time [s]", mean_pairs: int | None = None, ylabel: str = "distance [m]",
-                   safety_label: str | None = None) -> Path:
+                   safety_label: str | None = None, title: str | None = None) -> Path:
     """Minimum and average inter-robot distance over time (the paper's Fig. 7c).
+
+    ``title``: above the legend (a run's two distance figures said neither which stage they show).
 
     ``mean_pairs``: when the average is over a sample of pairs, how many (said in the legend).
     ``ylabel``: which distance (the downwash-scaled one of a 3-D run says so).
@@ -341,7 +343,11 @@ def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndar
     ax.grid(alpha=0.3)
     # above the axes, in one row: inside them it covered the safety line or a curve (the arena's, at the start)
     ax.legend(fontsize=8, loc="lower left", bbox_to_anchor=(0.0, 1.01), ncol=3, frameon=False, borderaxespad=0.0)
-    fig.tight_layout()
+    if title:
+        fig.suptitle(title, fontsize=10)
+        fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.97))
+    else:
+        fig.tight_layout()
     return save_figure(fig, path, dpi=110)
 
 

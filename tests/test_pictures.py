@@ -387,3 +387,18 @@ start = {{ positions = [[0.5, 0.5], [0.5, 1.0], [1.0, 0.5], [1.0, 1.0]] }}
     outputs.write_discrete_outputs(plan(cfg, progress=False), tmp_path)
     (kw,) = calls
     assert kw["safety"] == 0.5 and kw["safety_label"].format(kw["safety"]) == "one cell (0.5 m): the least"
+
+
+def test_a_distance_figures_title_sits_above_its_legend(tmp_path, monkeypatch):
+    saved = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path, dpi=110: saved.append(fig) or path)
+    t = np.linspace(0.0, 2.0, 21)
+    plots.plot_distances(tmp_path / "d.png", t, np.full(21, 1.0), np.full(21, 2.0), 0.5, title="the stage")
+    plots.plot_distances(tmp_path / "e.png", t, np.full(21, 1.0), np.full(21, 2.0), 0.5)
+    titled, plain = saved
+    titled.canvas.draw()
+    legend = titled.axes[0].get_legend().get_window_extent()
+    assert titled._suptitle.get_text() == "the stage" and titled._suptitle.get_window_extent().y0 >= legend.y1
+    assert plain._suptitle is None
+    for fig in saved:
+        plots._plt().close(fig)
