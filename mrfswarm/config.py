@@ -517,7 +517,8 @@ def _validate(cfg: Config) -> None:
     need(1 <= m.order <= MAX_ORDER, "mrf.order", m.order, f"must be in 1..{MAX_ORDER} (cells²: moves of up to "
          f"{math.isqrt(MAX_ORDER)} cells along an axis)")
     need(m.max_steps >= 1, "mrf.max_steps", m.max_steps, "must be >= 1")
-    need(m.tol >= 0, "mrf.tol", m.tol, "must be >= 0")
+    # a tol of 1 or more converged at the first step: no step lowers the energy by all of it (a tour)
+    need(0 <= m.tol < 1, "mrf.tol", m.tol, "must be in [0, 1) (a fraction of the swarm energy)")
     need(m.patience >= 1, "mrf.patience", m.patience, "must be >= 1")
     need(m.trim_escape >= 0, "mrf.trim_escape", m.trim_escape, "must be >= 0")
     need(m.trim_slack >= 0, "mrf.trim_slack", m.trim_slack, "must be >= 0")

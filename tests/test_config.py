@@ -265,6 +265,7 @@ def test_set_reaches_the_options_tables_from_the_cli(tmp_path):
     ("scenario.altitude=1e300", "scenario.altitude = 1e+300: must be in (0, 10000] (metres)"),
     ("obstacle_potential.sigma=99999999999", "obstacle_potential.sigma = 99999999999.0: must be in [0, 1000] (cells)"),
     ("mrf.order=100", "mrf.order = 100: must be in 1..32"),
+    ("mrf.tol=2", "mrf.tol = 2.0: must be in [0, 1) (a fraction of the swarm energy)"),
     ("smoothing.region_growth=1e11", "smoothing.region_growth = 100000000000.0: must be in [0, 1000] (cells)"),
     ("smoothing.check_rate_hz=1e11", "smoothing.check_rate_hz = 100000000000.0: must be 0 (off) or in [100, 10000]"),
     # a degree the run's own outputs cannot hold is refused before planning, not after it
