@@ -98,7 +98,8 @@ def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Optio
     A run that stops short (``MAX_ITER``, ``TIME_LIMIT``, a failed line search) is not an
     exception: the solution says so in ``status`` and holds the last iterate, which a
     caller with an iteration budget uses. The point returned is inside the bounds. The status is the same
-    verdict for every backend (:mod:`solvers.nlp.verdict`): a point where ``f`` is not finite is never reported
+    verdict for every backend (:mod:`solvers.nlp.verdict`): a point where ``f`` or its gradient is not finite is
+    never reported
     optimal (``ERROR``), whatever the backend said; ``INFEASIBLE`` means that no ``x`` meets the bounds and
     rows (checked by a linear program after any run that did not end optimal); a failure at a point that
     meets the first-order conditions to :data:`~solvers.nlp.verdict.ACCEPTABLE` is ``OPTIMAL_INACCURATE``.
@@ -140,6 +141,11 @@ def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Optio
     x = np.clip(np.asarray(out.x, dtype=float).reshape(-1), problem.lower, problem.upper)  # Ipopt relaxes by 1e-8
     objective = ev.value_at(x)
     status = _verdict(problem, x, objective, out.status)
+    finite = ev.gradient_finite_at(x)
+    if finite is None:
+        finite = ev.gradient_finite_at(np.asarray(out.x, dtype=float))
+    if status.ok and finite is False:  # a NaN gradient was handed on as zeros (or the last finite one)
+        status = Status.ERROR
     sol = Solution(x=x, status=status, objective=objective, iterations=out.iterations,
                    evaluations=ev.fun_calls, gradient_evaluations=ev.grad_calls, setup_time_s=out.setup_time_s,
                    solve_time_s=total - out.setup_time_s, backend=record.name, raw_status=out.raw_status)

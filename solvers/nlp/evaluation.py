@@ -13,7 +13,9 @@ stop at the first NaN (L-BFGS-B's line search ends "abnormal", sqpmethod's sensi
 become irregular), so they see instead a value above every finite one seen so far (and the last finite
 gradient there, which a line search or a trust region never uses: it steps back, as Ipopt
 does).
-The returned :class:`~solvers.nlp.Solution` still reports ``f``'s own value.
+The returned :class:`~solvers.nlp.Solution` still reports ``f``'s own value. A point where the gradient was
+not finite is never reported optimal either (four backends stopped at the start of a problem whose gradient was
+NaN there and called it optimal: they had been handed zeros).
 """
 
 from __future__ import annotations
@@ -44,6 +46,8 @@ class Evaluations:
         self.grad_calls = 0
         self.raised: BaseException | None = None
         self._values: dict[bytes, float] = {}
+        #: x -> whether the user's gradient there was finite (a NaN gradient handed on as zeros looked stationary)
+        self._finite_gradient: dict[bytes, bool] = {}
 
     def fun(self, x: np.ndarray) -> float:
         """``f(x)``, counted and remembered."""
@@ -78,11 +82,16 @@ class Evaluations:
         except BaseException as e:
             self.raised = self.raised or e
             raise
+        self._finite_gradient[x.tobytes()] = bool(np.all(np.isfinite(g)))
         if self.replace_nan:
             if np.any(np.isnan(g)):
                 return np.zeros(x.size) if self._last_gradient is None else self._last_gradient.copy()
             self._last_gradient = g.reshape(-1).copy()
         return g.reshape(-1)
+
+    def gradient_finite_at(self, x: np.ndarray) -> bool | None:
+        """Whether the gradient evaluated at exactly ``x`` was finite; None if it was not evaluated there."""
+        return self._finite_gradient.get(np.asarray(x, dtype=float).reshape(-1).tobytes())
 
     def value_at(self, x: np.ndarray) -> float:
         """``f(x)``: the value already computed at exactly ``x``, else one more (uncounted) call."""

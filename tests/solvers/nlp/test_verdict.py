@@ -119,3 +119,30 @@ def test_first_order_residual():
     # off the row by more than the tolerance: not a first-order point at all
     assert first_order_residual(problem, np.array([0.5, 0.5 + 10 * ACCEPTABLE]), np.zeros(2)) == np.inf
     assert rows_feasible(problem)
+
+
+@pytest.mark.parametrize("name", nlp.BACKENDS.names(), ids=str)
+def test_a_nan_gradient_is_never_an_optimum(name):
+    """A gradient NaN everywhere: sqpmethod, SLSQP, trust-constr and L-BFGS-B were handed zeros (the NaN guard of
+    the backends without a step back) and reported the start OPTIMAL (a solver tour); only Ipopt said ERROR."""
+    installed(name)
+    problem = nlp.NLPProblem(_rosenbrock, lambda x: np.array([np.nan, 0.0]), np.array([-1.2, 1.0]))
+    sol = nlp.minimize(problem, name)
+    assert not sol.status.ok, (sol.status, sol.raw_status)
+
+
+@pytest.mark.parametrize("name", nlp.BACKENDS.names(), ids=str)
+def test_a_gradient_nan_only_away_from_the_optimum_still_finds_it(name):
+    """The guard looks at the end point's gradient: NaN elsewhere (where f is NaN too) leaves the optimum optimal."""
+    installed(name)
+
+    def fun(x):
+        return np.nan if x[0] > 3.0 else _rosenbrock(x)
+
+    def grad(x):
+        return np.full(2, np.nan) if x[0] > 3.0 else _rosenbrock_grad(x)
+
+    sol = nlp.minimize(nlp.NLPProblem(fun, grad, np.array([-1.2, 1.0]), -5.0, 5.0), name)
+    if sol.status.ok:
+        np.testing.assert_allclose(sol.x, [1.0, 1.0], atol=2e-2)
+    assert np.isfinite(sol.objective)
