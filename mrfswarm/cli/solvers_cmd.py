@@ -34,13 +34,17 @@ def table() -> str:
             if b in added:  # an entry point's (its distribution) or a script's
                 state += f", added by {b.distribution or 'register()'}"
             if b.name == default:
-                state += ", the default"
+                state += ", the run's default"
             states.append(state)
         column = max([40, *(len(state) for state in states)])  # a plugin's install hint is longer than ours
         for b, state in zip(registry, states):
             lines.append(f"  {b.name:<{width}}  {state:<{column}}  {b.summary}")
             lines.append(f"  {'':<{width}}  {'':<{column}}  [{', '.join(b.capabilities.flags()) or 'none'}]")
         lines.append("")
+    # solvers.qp.solve's own default differs from a run's (a solver tour read "the default" as the library's)
+    lines.append(f"The run's default is the config's; on their own, solvers.qp.solve() uses "
+                 f"{solvers.qp.DEFAULT_BACKEND!r}, solvers.nlp.minimize() {solvers.nlp.DEFAULT_BACKEND!r} and "
+                 f"solvers.mrf.minimize() {solvers.mrf.DEFAULT_METHOD!r} unless given a backend.")
     return "\n".join(lines).rstrip() + "\n"
 
 

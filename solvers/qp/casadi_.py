@@ -165,6 +165,7 @@ BACKEND = Backend(
     entry=CasadiQP,
     requires=("casadi",),
     extra="casadi",
-    summary=f"CasADi conic (qpsol) with {PLUGIN}: active set, hot-started re-solves, small/medium QPs",
+    summary=f"CasADi conic (qpsol) with {PLUGIN}: active set, hot-started re-solves, small QPs (a run's windows of "
+            "many robots take minutes)",
     capabilities=QPCapabilities(inequalities=True, warm_start=True, detects_infeasibility=True, sparse=False),
 )

@@ -95,8 +95,11 @@ def test_solvers_command_lists_every_registered_backend(capsys):
         assert b.name in out
         assert f"[{', '.join(b.capabilities.flags()) or 'none'}]" in out  # what the record says it can do
     # the config's defaults are marked, one per registry
-    defaults = [line.split()[0] for line in out.splitlines() if "the default" in line]
+    defaults = [line.split()[0] for line in out.splitlines() if "the run's default" in line and line.startswith("  ")]
     assert defaults == ["piqp", "ipopt", "icm"]
+    # and the solver layer's own defaults, which are not all the run's (a solver tour read one for the other)
+    assert (f"solvers.qp.solve() uses {solvers.qp.DEFAULT_BACKEND!r}, solvers.nlp.minimize() "
+            f"{solvers.nlp.DEFAULT_BACKEND!r}") in out
 
 
 def test_bad_options_are_invalid_options_naming_the_field():
