@@ -11,7 +11,7 @@ import pytest
 
 from mrfswarm import outputs
 from mrfswarm.cli import main
-from support.repository import ROOT
+from support.repository import EXPERIMENTS, ROOT
 
 
 def config(tmp_path: Path, n: int) -> Path:
@@ -333,6 +333,16 @@ def test_a_3d_runs_summary_line_says_its_separation_is_downwash_scaled(tmp_path,
     assert main(["run", str(flat), "--out", str(tmp_path / "b")]) == 0
     out = capsys.readouterr().out
     assert "min separation " in out and "downwash-scaled" not in out
+
+
+@pytest.mark.parametrize("sets, said", [([], "smooth (piqp), "),
+                                        (["smoothing.time_refinement=true", "smoothing.refinement=\"nlp\"",
+                                          "smoothing.nlp=slsqp"], "smooth (piqp, refined by slsqp), ")])
+def test_the_summary_line_names_the_nlp_backend_that_refined(tmp_path, capsys, sets, said):
+    """--nlp sqpmethod printed only "(piqp)" (a solver tour); result.json's nlp was right."""
+    args = [a for s in ["simulation.enabled=false", *sets] for a in ("--set", s)]
+    assert main(["run", str(EXPERIMENTS / "corridor.toml"), "--out", str(tmp_path / "a"), *args]) == 0
+    assert said in capsys.readouterr().out
 
 
 def yaml_robots(out: Path) -> list:
