@@ -89,10 +89,14 @@ class PreparedQP(ABC):
         """Solve; return ``(x, status, raw_status, iterations, y)``."""
 
     def solve(self, warm_start: np.ndarray | None = None) -> Solution:
-        """Solve the loaded problem.
+        """Solve the loaded problem; ``warm_start`` (primal x only) where the backend takes one: it may not shorten
+        the solve (osqp, SCS and qpOASES took as many iterations from the optimum itself); re-solving through
+        :class:`solvers.qp.QPSolver`, which keeps the backend's own state, does.
 
         Raises
         ------
+        InvalidProblem
+            A ``warm_start`` of the wrong shape or not finite.
         InfeasibleError
             When the backend reports infeasibility.
         SolverError
@@ -102,6 +106,9 @@ class PreparedQP(ABC):
             warm_start = np.asarray(warm_start, dtype=float)
             if warm_start.shape != (self.problem.n,):
                 raise InvalidProblem(f"warm_start has shape {warm_start.shape}, expected ({self.problem.n},)")
+            if not np.all(np.isfinite(warm_start)):  # osqp ran its 20000 iterations from a NaN and failed
+                bad = int(np.flatnonzero(~np.isfinite(warm_start))[0])
+                raise InvalidProblem(f"warm_start[{bad}] = {warm_start[bad]}: must be finite")
         t0 = time.perf_counter()
         x, status, raw, iters, y = self._guarded(self._solve, warm_start)
         solve_time = time.perf_counter() - t0

@@ -224,6 +224,10 @@ def test_update_rejects_another_pattern(name):
         prepared.update(other)
     with pytest.raises(InvalidProblem, match="warm_start"):
         prepared.solve(warm_start=np.zeros(base.n + 1))
+    nan = np.zeros(base.n)
+    nan[1] = np.nan
+    with pytest.raises(InvalidProblem, match=r"^warm_start\[1\] = nan: must be finite"):  # osqp ran 20000 iterations
+        prepared.solve(warm_start=nan)
 
 
 def _other_row_kinds(problem: qp.QPProblem) -> qp.QPProblem:
