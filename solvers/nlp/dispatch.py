@@ -97,7 +97,9 @@ def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Optio
 
     A run that stops short (``MAX_ITER``, ``TIME_LIMIT``, a failed line search) is not an
     exception: the solution says so in ``status`` and holds the last iterate, which a
-    caller with an iteration budget uses. The point returned is inside the bounds. The status is the same
+    caller with an iteration budget uses; a run that ends where ``f`` is not finite hands back the lowest finite
+    point it evaluated that meets the bounds and rows, if any. The point returned is inside the bounds. The status
+    is the same
     verdict for every backend (:mod:`solvers.nlp.verdict`): a point where ``f`` or its gradient is not finite is
     never reported
     optimal (``ERROR``), whatever the backend said; ``INFEASIBLE`` means that no ``x`` meets the bounds and
@@ -140,7 +142,14 @@ def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Optio
     _check_outcome(record.name, out, problem.n)
     x = np.clip(np.asarray(out.x, dtype=float).reshape(-1), problem.lower, problem.upper)  # Ipopt relaxes by 1e-8
     objective = ev.value_at(x)
-    status = _verdict(problem, x, objective, out.status)
+    if not np.isfinite(objective) and ev.best is not None and problem.max_violation(ev.best[1]) <= 1e-9:
+        # sqpmethod and SLSQP ended where f is NaN (or at a far point): the caller gets the best finite point seen,
+        # never reported optimal (the status is the run's, which the verdict keeps below optimal)
+        objective, x = ev.best[0], ev.best[1].copy()
+        status = Status.ERROR if out.status.ok else out.status
+    else:
+        status = out.status
+    status = _verdict(problem, x, objective, status)
     finite = ev.gradient_finite_at(x)
     if finite is None:
         finite = ev.gradient_finite_at(np.asarray(out.x, dtype=float))

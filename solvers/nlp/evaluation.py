@@ -46,6 +46,9 @@ class Evaluations:
         self.grad_calls = 0
         self.raised: BaseException | None = None
         self._values: dict[bytes, float] = {}
+        #: (f, x) of the lowest finite value evaluated, inside the bounds (a backend ending where f is NaN hands
+        #: this back instead)
+        self.best: tuple[float, np.ndarray] | None = None
         #: x -> whether the user's gradient there was finite (a NaN gradient handed on as zeros looked stationary)
         self._finite_gradient: dict[bytes, bool] = {}
 
@@ -59,6 +62,8 @@ class Evaluations:
             self.raised = self.raised or e
             raise
         self._values[x.tobytes()] = value
+        if np.isfinite(value) and (self.best is None or value < self.best[0]):
+            self.best = (value, x.copy())
         if np.isnan(value) and self.replace_nan:
             return self.step_back_value()
         if np.isfinite(value):

@@ -146,3 +146,17 @@ def test_a_gradient_nan_only_away_from_the_optimum_still_finds_it(name):
     if sol.status.ok:
         np.testing.assert_allclose(sol.x, [1.0, 1.0], atol=2e-2)
     assert np.isfinite(sol.objective)
+
+
+@pytest.mark.parametrize("name", nlp.BACKENDS.names(), ids=str)
+def test_a_run_ending_where_f_is_nan_hands_back_the_best_finite_point(name):
+    """Rosenbrock NaN for x0 > 0.5: sqpmethod returned MAX_ITER at a point where f is NaN, SLSQP ERROR at (9.6, 8.1)
+    (a solver tour). Whatever a backend ends on, the point handed back has a finite f, no worse than the start's."""
+    installed(name)
+
+    def fun(x):
+        return np.nan if x[0] > 0.5 else _rosenbrock(x)
+
+    sol = nlp.minimize(nlp.NLPProblem(fun, _rosenbrock_grad, np.array([-1.2, 1.0]), -10.0, 10.0), name)
+    assert np.isfinite(sol.objective) and sol.objective <= _rosenbrock(np.array([-1.2, 1.0]))
+    assert sol.objective == pytest.approx(fun(sol.x))
