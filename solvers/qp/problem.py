@@ -100,8 +100,11 @@ class QPProblem:
             A = sp.csc_matrix((0, n))
         else:
             A = self.A if _is_csc_float(self.A) else sp.csc_matrix(self.A, dtype=float)
-        l = np.asarray(self.l, dtype=float).reshape(-1)
-        u = np.asarray(self.u, dtype=float).reshape(-1)
+        # no rows: l and u may be None too (np.asarray(None, dtype=float) is one NaN: "got (1,) and (1,)", a tour)
+        if A.shape[0] and (self.l is None or self.u is None):
+            raise InvalidProblem(f"l and u are needed with A's {A.shape[0]} rows (-inf / inf for a free side)")
+        l = np.zeros(0) if self.l is None and A.shape[0] == 0 else np.asarray(self.l, dtype=float).reshape(-1)
+        u = np.zeros(0) if self.u is None and A.shape[0] == 0 else np.asarray(self.u, dtype=float).reshape(-1)
         if P.shape != (n, n):
             raise InvalidProblem(f"P has shape {P.shape}, expected ({n}, {n}) from q")
         if A.shape[1] != n:

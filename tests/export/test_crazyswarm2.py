@@ -561,7 +561,12 @@ enabled = false
     assert csv.pieces == 1
     calls = []
     monkeypatch.setattr(sys, "modules", {**sys.modules, **fake_crazyflie_py(calls, ["cf1", "cf2"])})
-    load_script(out / "crazyswarm2" / "fly.py", "fly_one_piece").main([])
+    made = []
+    fly = load_script(out / "crazyswarm2" / "fly.py", "fly_one_piece")
+    halves = fly.loadable
+    monkeypatch.setattr(fly, "loadable", lambda p: made.append(halves(p)) or made[-1])
+    fly.main([])
+    assert len(made) == 2 and not any(p.exists() for p in made)  # the temporary halves are removed
     up = next(c[4] for c in calls if c[0] == "upload" and c[1] == "cf2")
     assert len(up.polynomials) == 2 and up.duration == pytest.approx(csv.durations.sum(), abs=1e-12)
     half = up.polynomials[0].duration

@@ -33,6 +33,11 @@ def test_qp_problem_validation():
     with pytest.raises(InvalidProblem, match="P\\[0, 0\\] = -1 < 0: P must be positive semidefinite"):
         qp.QPProblem(P=-sp.eye(2), q=q, A=A, l=np.ones(1), u=np.ones(1))
     qp.QPProblem(P=sp.csc_matrix(np.diag([1.0, -1e-16])), q=q, A=A, l=np.ones(1), u=np.ones(1))  # rounding
+    # no rows: A, l and u may all be None ("l and u must have shape (0,), got (1,) and (1,)" before, a solver tour)
+    free = qp.QPProblem(P=P, q=np.ones(2), A=None, l=None, u=None)
+    assert free.l.shape == free.u.shape == (0,) and free.A.shape == (0, 2)
+    with pytest.raises(InvalidProblem, match="^l and u are needed with A's 1 rows"):
+        qp.QPProblem(P=P, q=q, A=A, l=None, u=np.ones(1))
 
 
 def test_nlp_problem_refuses_bounds_no_x_meets():

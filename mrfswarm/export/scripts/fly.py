@@ -85,7 +85,12 @@ def load(names: list[str]) -> dict:
     out = {}
     for name, path in paths.items():
         out[name] = traj = Trajectory()
-        traj.loadcsv(loadable(path))  # a row a piece, as counted above
+        readable = loadable(path)
+        try:
+            traj.loadcsv(readable)  # a row a piece, as counted above
+        finally:
+            if readable != path:  # the two halves' temporary file
+                readable.unlink(missing_ok=True)
     return out
 
 
