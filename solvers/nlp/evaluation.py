@@ -46,8 +46,8 @@ class Evaluations:
         self.grad_calls = 0
         self.raised: BaseException | None = None
         self._values: dict[bytes, float] = {}
-        #: (f, x) of the lowest finite value evaluated, inside the bounds (a backend ending where f is NaN hands
-        #: this back instead)
+        #: (f, x) of the lowest finite value evaluated, wherever it was (dispatch hands it back, if it meets the
+        #: bounds and rows, to a run that ended where f is not finite)
         self.best: tuple[float, np.ndarray] | None = None
         #: x -> whether the user's gradient there was finite (a NaN gradient handed on as zeros looked stationary)
         self._finite_gradient: dict[bytes, bool] = {}
