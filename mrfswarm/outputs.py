@@ -18,6 +18,7 @@ import logging
 import os
 import shutil
 import tempfile
+import warnings
 from functools import partial
 from pathlib import Path
 
@@ -25,7 +26,7 @@ import numpy as np
 
 from mrfswarm import plots
 from mrfswarm.atomic import atomic_write, not_writable, umask
-from mrfswarm.errors import ExportError
+from mrfswarm.errors import ExportError, UnusedSettingWarning
 from mrfswarm.pipeline import Result
 
 log = logging.getLogger(__name__)
@@ -125,6 +126,9 @@ def write_outputs(result: Result, out: Path, animate: bool = False, overwrite: b
     """
     out = Path(out)
     check_output_dir(out, overwrite)
+    if animate and result.continuous is None:  # the GIF draws the smoothed flight (a tour's went missing without a word)
+        warnings.warn("--animate not used: the run has no smoothed flight to animate (smoothing.enabled = false), "
+                      "no animation.gif", UnusedSettingWarning, stacklevel=2)
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.partial-"))
     log.info("writing the outputs to %s%s", out, " (with the animation)" if animate else "")

@@ -98,6 +98,15 @@ def test_an_empty_folder_is_used(tmp_path):
     assert run(tmp_path, 3, out) == 0 and json.loads((out / "result.json").read_text())["complete"] is True
 
 
+def test_animate_without_a_smoothed_flight_is_said(tmp_path, capsys):
+    """--animate with the continuous stage off wrote no animation.gif and said nothing (a tour): one warning line."""
+    out = tmp_path / "out"
+    assert run(tmp_path, 3, out, "--animate", "--set", "smoothing.enabled=false") == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("mrfswarm: warning: --animate not used") and "animation.gif" in err[0]
+    assert (out / "result.json").is_file() and not (out / "animation.gif").exists()
+
+
 def test_a_late_writer_failing_leaves_the_old_run_intact(tmp_path, monkeypatch):
     out = tmp_path / "out"
     assert run(tmp_path, 6, out) == 0
