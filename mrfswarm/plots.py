@@ -294,6 +294,13 @@ def plot_paths(path: Path, grid: OccupancyGrid, paths_world: Sequence[np.ndarray
     return save_figure(fig, path, dpi=110)
 
 
+def _whole_steps(ax) -> None:
+    """Ticks at whole MRF steps only (a plan of 3 steps had ticks at 0.5, 1.5 and 2.5; one of 0 steps at -0.04)."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))  # 2 (the default): fractions on one step
+
+
 def plot_energy(path: Path, energies: dict[str, np.ndarray], title: str = "Swarm energy") -> Path:
     """Swarm energy per MRF step, one line per series (the paper's Fig. 8a)."""
     plt = _plt()
@@ -301,6 +308,7 @@ def plot_energy(path: Path, energies: dict[str, np.ndarray], title: str = "Swarm
     for name, e in energies.items():
         ax.plot(np.arange(len(e)), e, "-o", ms=3, label=name)
     ax.set_xlabel("MRF step")
+    _whole_steps(ax)
     values = np.concatenate([np.asarray(e, dtype=float).ravel() for e in energies.values()] or [np.zeros(0)])
     values = values[np.isfinite(values)]
     # the goal potential is exponential in the distance: a big swarm's energy falls by orders of magnitude, and on
@@ -322,6 +330,7 @@ def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndar
                    safety_label: str | None = None, title: str | None = None) -> Path:
     """Minimum and average inter-robot distance over time (the paper's Fig. 7c).
 
+    ``t``: times (s), or MRF steps as an integer array (then ticks at whole steps only).
     ``title``: above the legend (a run's two distance figures said neither which stage they show).
 
     ``mean_pairs``: when the average is over a sample of pairs, how many (said in the legend).
@@ -331,13 +340,17 @@ def plot_distances(path: Path, t: np.ndarray, min_d: np.ndarray, mean_d: np.ndar
     """
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 3.5), dpi=110)
-    ax.plot(t, mean_d, label="average distance" + (f" ({mean_pairs:,} random pairs)" if mean_pairs else ""))
-    ax.plot(t, min_d, label="minimum distance")
+    marker = "o" if len(t) == 1 else None  # a plan of 0 steps: one point, which a line alone does not draw
+    average = "average distance" + (f" ({mean_pairs:,} random pairs)" if mean_pairs else "")
+    ax.plot(t, mean_d, marker=marker, label=average)
+    ax.plot(t, min_d, marker=marker, label="minimum distance")
     if safety is not None:
         # beneath the curves: a minimum on the line stays visible
         ax.axhline(safety, color="r", ls="--", lw=1, zorder=1,
                    label=(safety_label or "safety distance {:g} m").format(safety))
     ax.set_xlabel(xlabel)
+    if np.issubdtype(np.asarray(t).dtype, np.integer):  # MRF steps
+        _whole_steps(ax)
     ax.set_ylabel(ylabel)
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)

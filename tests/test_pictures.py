@@ -402,3 +402,22 @@ def test_a_distance_figures_title_sits_above_its_legend(tmp_path, monkeypatch):
     assert plain._suptitle is None
     for fig in saved:
         plots._plt().close(fig)
+
+
+@pytest.mark.parametrize("steps", [3, 0])
+def test_figures_per_mrf_step_tick_whole_steps(tmp_path, monkeypatch, steps):
+    """A short plan's step axes had ticks at 0.5, 1.5, 2.5 (a tour's 3-step plan); one of 0 steps at -0.04 to 0.04,
+    its distances not drawn at all (one point, no line)."""
+    saved = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path, dpi=110: saved.append(fig) or path)
+    e = np.linspace(10.0, 5.0, steps + 1)
+    plots.plot_energy(tmp_path / "e.png", {"icm": e})
+    plots.plot_distances(tmp_path / "d.png", np.arange(steps + 1), e / 10, e / 5, 0.5, xlabel="MRF step")
+    for fig in saved:
+        fig.canvas.draw()
+        ax = fig.axes[0]
+        lo, hi = ax.get_xlim()
+        ticks = [v for v in ax.get_xticks() if lo <= v <= hi]
+        assert ticks and all(float(v).is_integer() for v in ticks), ticks
+        assert all(line.get_marker() not in (None, "None", "") for line in ax.get_lines()[:2]) if steps == 0 else True
+        plots._plt().close(fig)
