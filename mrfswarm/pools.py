@@ -16,6 +16,7 @@ import contextlib
 import logging
 import multiprocessing
 import signal
+import threading
 from collections.abc import Iterator
 from multiprocessing.context import BaseContext
 from typing import Any
@@ -46,10 +47,16 @@ def ignore_sigint() -> None:
 
 
 def _start_worker(backends: dict[str, tuple[Backend[Any], ...]]) -> None:
-    """A worker's start: :func:`ignore_sigint`, and the backends the parent registered (``solvers.registry.added``;
-    a spawned or forkserver worker does not run the parent's ``register`` calls)."""
+    """A worker's start: :func:`ignore_sigint`, the backends the parent registered (``solvers.registry.added``;
+    a spawned or forkserver worker does not run the parent's ``register`` calls), and a thread lock for tqdm."""
     ignore_sigint()
     restore(backends)
+    # a progress bar, even a disabled one (a sweep's point plans with one), takes tqdm's lock, by default a named
+    # multiprocessing semaphore that only the process's exit unlinks: a worker stop() terminates never does, and
+    # Ctrl-C on a sweep of 2 workers printed "resource_tracker: There appear to be 2 leaked semaphore objects"
+    from tqdm import tqdm
+
+    tqdm.set_lock(threading.RLock())
 
 
 def stop(pool: cf.ProcessPoolExecutor) -> None:

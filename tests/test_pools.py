@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -80,3 +83,30 @@ def test_a_stopped_pool_has_no_manager_thread_left_for_the_exit_to_wake(tmp_path
         assert manager is not None and manager.is_alive()
         stop(pool)
         assert not manager.is_alive()
+
+
+def test_a_stopped_worker_leaves_no_semaphore_to_the_resource_tracker(tmp_path):
+    """A sweep's worker plans with a progress bar (disabled); tqdm's default lock is a named multiprocessing
+    semaphore, which a worker stop() terminates never unlinks: Ctrl-C on `mrfswarm sweep --workers 2` printed
+    "resource_tracker: There appear to be 2 leaked semaphore objects" after "mrfswarm: interrupted"."""
+    script = tmp_path / "stopped.py"
+    script.write_text(
+        "import multiprocessing, time\n"
+        "from mrfswarm.pools import process_pool\n"
+        "def bar_then_sleep():\n"
+        "    from tqdm import tqdm\n"
+        "    tqdm(total=1, disable=True)\n"
+        "    time.sleep(30)\n"
+        "if __name__ == '__main__':\n"
+        "    try:\n"
+        "        with process_pool(1, multiprocessing.get_context('spawn')) as pool:\n"
+        "            pool.submit(bar_then_sleep)\n"
+        "            time.sleep(3)\n"
+        "            raise KeyboardInterrupt\n"
+        "    except KeyboardInterrupt:\n"
+        "        print('interrupted')\n")
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=60,
+                          env={**os.environ, "PYTHONPATH": str(root)})
+    assert proc.stdout.strip() == "interrupted"
+    assert "leaked" not in proc.stderr, proc.stderr
