@@ -43,11 +43,13 @@ SWEEP_MARKER = "sweep.json"
 
 log = logging.getLogger(__name__)
 
-# summary keys that hold a list or a table when they are not None: never a column as such
-_STRUCTURED = {"goal", "simulation", "limits", "achieved"}
+# summary keys that hold a list or a table when they are not None: never a column as such (flight_quality's scalars
+# are columns under their own names; a discrete-only point's None made an empty column of it)
+_STRUCTURED = {"goal", "simulation", "limits", "achieved", "flight_quality"}
 # summary keys holding a table (or None) whose scalars are columns <key>_<name>: the limits asked and reached, the
-# certificate, the sampled check, the Crazyflie memory; None (the check off, no smoothing) leaves them empty
-_PREFIXED = ("limits", "achieved", "certificate", "sampled_check", "piece_limit", "crazyflie")
+# certificate, the sampled check, the Crazyflie memory, the windows the QP backend failed to solve; None (the check
+# off, no smoothing) leaves them empty
+_PREFIXED = ("limits", "achieved", "certificate", "sampled_check", "piece_limit", "crazyflie", "solve_failures")
 
 
 def is_timing_column(name: str) -> bool:

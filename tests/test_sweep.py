@@ -408,3 +408,18 @@ def test_point_folders_name_list_values_readably():
 
     assert _slug({"scenario.goal": [4, 3]}, None) == "goal=4x3"
     assert _slug({"scenario.goal": [-4, 3.5], "interaction.k_a": 8}, 2) == "goal=-4x3.5_k_a=8_seed=2"
+
+
+def test_a_discrete_only_point_leaves_no_empty_table_column_and_the_solve_failures_are_counted(tmp_path):
+    """A point without smoothing has ``flight_quality`` null: it was a column of its own, empty in every row, beside
+    the flight_quality scalars of the smoothed points; ``solve_failures`` (the windows the QP backend failed to
+    solve, what a sweep over backends compares) was no column at all."""
+    res = run_sweep(EXPERIMENTS / "corridor.toml", {"smoothing.enabled": [False, True]}, tmp_path, workers=1,
+                    overrides=["simulation.enabled=false"])
+    header = read_csv(res.csv_path)[0]
+    assert "flight_quality" not in header and "solve_failures" not in header
+    assert {"makespan_over_bound", "solve_failures_windows"} <= set(header)
+    discrete, smoothed = res.rows
+    summary = json.loads((sorted((tmp_path / "points").iterdir())[1] / "result.json").read_text())
+    assert discrete.get("makespan_over_bound") is None and discrete.get("solve_failures_windows") is None
+    assert smoothed["solve_failures_windows"] == summary["solve_failures"]["windows"]
