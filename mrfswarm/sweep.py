@@ -70,7 +70,7 @@ class SweepResult:
     rows
         One dict per run, in the order of the points (and of the seeds within a point):
         ``point``, the grid values, ``seed`` (with seeds), the scalars of
-        ``result.json``, ``mrf_step_time_<stage>_s``, ``wall_s`` and ``error``.
+        ``result.json``, ``swarm_energy_final``, ``mrf_step_time_<stage>_s``, ``wall_s`` and ``error``.
     csv_path
         ``out_dir / "sweep.csv"``.
     out_dir
@@ -304,6 +304,8 @@ def _row(base: dict, out: dict) -> dict:
         for name, v in (s.get(k) or {}).items():
             if v is None or isinstance(v, (bool, numbers.Number, str)):
                 row[f"{k}_{name}"] = v
+    if s.get("swarm_energy"):  # what the MRF methods minimize, at the final configuration
+        row["swarm_energy_final"] = s["swarm_energy"][-1]
     for k, v in (s.get("flight_quality") or {}).items():  # makespan over its lower bound, stops, speed
         if v is None or isinstance(v, (bool, numbers.Number, str)):
             row[k] = v
