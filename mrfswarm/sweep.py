@@ -322,10 +322,11 @@ def _row(base: dict, out: dict) -> dict:
 
 
 def _point_json(out: dict) -> dict:
-    """The point's ``result.json``: the run's summary, plus ``error`` when it failed."""
+    """The point's ``result.json``: the run's as ``mrfswarm run`` writes it (the summary, ``"complete": true``;
+    with figures it replaces that very file), plus ``error`` when it failed."""
     if out["summary"] is None:
         return {"error": out["error"], "config": out["config"]}
-    data = dict(out["summary"])
+    data = {**out["summary"], "complete": True}
     if out["error"] is not None:
         data["error"] = out["error"]
     return data

@@ -436,3 +436,13 @@ def test_a_sweep_over_mrf_methods_tabulates_the_final_swarm_energy(tmp_path):
         assert row["swarm_energy_final"] == json.loads((d / "result.json").read_text())["swarm_energy"][-1]
     icm, trws = res.rows
     assert trws["swarm_energy_final"] < icm["swarm_energy_final"]  # paper_figs/ablation.md: free5, -1.43 %
+
+
+def test_figures_leave_each_point_folder_as_a_run_writes_one(tmp_path):
+    """With figures, a point's folder is written as `mrfswarm run` writes one, result.json with ``"complete": true``
+    last; the sweep then wrote its own result.json over it, without that flag."""
+    res = run_sweep(FREE5, {"interaction.k": [2, 3]}, tmp_path, workers=1, overrides=FAST, figures=True)
+    for d, row in zip(sorted((tmp_path / "points").iterdir()), res.rows):
+        assert (d / "discrete_paths.csv").is_file() and any((d / "figures").glob("*.png"))
+        data = json.loads((d / "result.json").read_text())
+        assert data["complete"] is True and data["mrf_steps"] == row["mrf_steps"] and "error" not in data
