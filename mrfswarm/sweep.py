@@ -633,6 +633,9 @@ def _sweep(config: Path, grid: dict, seeds: list[int] | None, overrides: list[st
         ordered, columns = table()
         if ordered or complete:
             _write_table(out_dir, ordered, columns, meta | {"complete": complete})
+        if ordered and not complete:  # Ctrl-C, a bug: the finished points are tabulated, which the error line omits
+            log.warning("the sweep stopped after %d of %d runs; their rows are in %s (sweep.json: \"complete\": "
+                        "false)", len(ordered), len(tasks), out_dir / "sweep.csv")
         if earlier is not None:
             if complete:
                 shutil.rmtree(earlier, ignore_errors=True)

@@ -446,3 +446,25 @@ def test_figures_leave_each_point_folder_as_a_run_writes_one(tmp_path):
         assert (d / "discrete_paths.csv").is_file() and any((d / "figures").glob("*.png"))
         data = json.loads((d / "result.json").read_text())
         assert data["complete"] is True and data["mrf_steps"] == row["mrf_steps"] and "error" not in data
+
+
+def test_an_interrupted_sweep_says_where_its_finished_rows_are(tmp_path, monkeypatch, caplog):
+    """Ctrl-C mid-sweep printed "mrfswarm: interrupted" alone, though the finished points' rows were tabulated."""
+    import mrfswarm.pipeline
+
+    real = mrfswarm.pipeline.plan
+    calls = []
+
+    def interrupted(cfg, **kw):
+        calls.append(cfg)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(cfg, **kw)
+
+    monkeypatch.setattr(mrfswarm.pipeline, "plan", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(FREE5, GRID, tmp_path / "out", workers=1, overrides=FAST)
+    meta = json.loads((tmp_path / "out" / "sweep.json").read_text())
+    assert meta["complete"] is False and meta["finished"] == 2 and meta["runs"] == 4
+    said = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert any("2 of 4 runs" in m and str(tmp_path / "out" / "sweep.csv") in m for m in said), said
