@@ -18,6 +18,7 @@ Rows are computed in the workers and written by the caller, so a remote cluster 
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import logging
 import math
@@ -26,20 +27,31 @@ import os
 import re
 import shutil
 import sys
+import threading
 import time
 import uuid
-from collections.abc import Callable, Iterable, Mapping, Sequence
+import warnings
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import solvers.registry
 from mrfswarm.config import Config, current_key, load_config, parse_override
-from mrfswarm.errors import ConfigError, MrfswarmError, PlanError, SolversError
+from mrfswarm.errors import (
+    ConfigError,
+    DeprecatedKeyWarning,
+    MrfswarmError,
+    PlanError,
+    SolversError,
+    UnusedSettingWarning,
+)
 from mrfswarm.pools import process_pool
 
 #: The file that makes a folder a sweep's (what ``--overwrite`` may replace).
 SWEEP_MARKER = "sweep.json"
+#: The toolkit's warnings a point hands to the sweep's process, which says each text once.
+_HANDED = (UnusedSettingWarning, DeprecatedKeyWarning)
 
 log = logging.getLogger(__name__)
 
@@ -267,12 +279,23 @@ def _slug(values: dict[str, Any], seed: int | None, limit: int = 60) -> str:
 
 
 def _run_point(task: _Task) -> dict:
-    """Plan one point in a worker; return ``{"summary", "error", "wall_s"}`` (JSON-able).
+    """Plan one point in a worker; return ``{"summary", "error", "wall_s", "config", "warnings"}``.
 
     An error of the toolkit (:class:`~mrfswarm.errors.SolversError`, the root of every
     one) is the point's result (its message, and what a :class:`PlanError` carries);
-    anything else propagates: it is a bug.
+    anything else propagates: it is a bug. The toolkit's own warnings (a setting the point leaves unused) are
+    ``warnings``, ``(category, text)`` pairs the sweep's process says (:func:`_say`), in a process's main thread;
+    a Dask worker's threads say them where they are (:func:`warnings.catch_warnings` is not for threads).
     """
+    handed: list[tuple[type[Warning], str]] = []
+    if threading.current_thread() is not threading.main_thread():
+        return _plan_point(task) | {"warnings": handed}
+    with _handing(handed):
+        out = _plan_point(task)
+    return out | {"warnings": handed}
+
+
+def _plan_point(task: _Task) -> dict:
     from mrfswarm.pipeline import plan
 
     solvers.registry.restore(task.backends)
@@ -291,6 +314,35 @@ def _run_point(task: _Task) -> dict:
 
             write_outputs(result, Path(task.point_dir), overwrite=True)  # the sweep's own point folder
     return {"summary": summary, "error": error, "wall_s": wall, "config": task.config.to_dict()}
+
+
+@contextlib.contextmanager
+def _handing(handed: list[tuple[type[Warning], str]]) -> Iterator[None]:
+    """Collect the block's warnings of the toolkit (:data:`_HANDED`) into ``handed`` as ``(category, text)``; show
+    any other as it would have been shown. A worker process printed them in Python's format (file, line, source
+    line), once per worker, and the sweep's own process said again what building the points had said."""
+    records: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            for category in _HANDED:
+                warnings.filterwarnings("always", category=category)
+            records = caught
+            yield
+    finally:
+        for w in records:
+            if issubclass(w.category, _HANDED):
+                handed.append((w.category, str(w.message)))
+            else:
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno, w.file, w.line)
+
+
+def _say(handed: Iterable[tuple[type[Warning], str]], said: set[str]) -> None:
+    """Warn each text of ``handed`` not in ``said`` (then in it): once per sweep, in the sweep's process (the CLI
+    writes it as one line)."""
+    for category, text in handed:
+        if text not in said:
+            said.add(text)
+            warnings.warn(text, category, stacklevel=2)
 
 
 def _row(base: dict, out: dict) -> dict:
@@ -537,13 +589,18 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
     tasks: list[_Task] = []
     bases: list[dict] = []
     added = solvers.registry.added()
+    said: set[str] = set()
     for p, values in enumerate(points):
         items = overrides + [f"{k}={toml_literal(v)}" for k, v in values.items()]
+        handed: list[tuple[type[Warning], str]] = []
         try:
-            cfg = resolve_config(load_config(config, items))  # checks the optimizer and backends too
+            with _handing(handed):
+                cfg = resolve_config(load_config(config, items))  # checks the optimizer and backends too
         except SolversError as e:
             where = ", ".join(f"{k}={_cell(v)}" for k, v in values.items())
             raise type(e)(f"sweep point {p} ({where}): {e}") from e
+        finally:
+            _say(handed, said)
         for s in [None] if seeds is None else seeds:
             base = {"point": p, **values} | ({} if s is None else {"seed": s})
             d = out_dir / "points" / f"{p:0{width}d}_{_slug(values, s)}"
@@ -557,7 +614,7 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
     check_output_dir(out_dir, overwrite, marker=SWEEP_MARKER, what="sweep")
     client, owned = (None, False) if scheduler is None else connect(scheduler, connect_timeout)
     try:
-        return _sweep(config, grid, seeds, overrides, out_dir, tasks, bases, keys, client, workers, progress)
+        return _sweep(config, grid, seeds, overrides, out_dir, tasks, bases, keys, client, workers, progress, said)
     finally:
         if owned:
             client.close()
@@ -585,7 +642,8 @@ def _check_shippable(added: dict[str, tuple[solvers.registry.Backend[Any], ...]]
 
 
 def _sweep(config: Path, grid: dict, seeds: list[int] | None, overrides: list[str], out_dir: Path, tasks: list[_Task],
-           bases: list[dict], keys: list[str], client: Any, workers: int | None, progress: bool | None) -> SweepResult:
+           bases: list[dict], keys: list[str], client: Any, workers: int | None, progress: bool | None,
+           said: set[str]) -> SweepResult:
     from tqdm import tqdm
 
     from mrfswarm.outputs import set_aside, write_json
@@ -606,6 +664,7 @@ def _sweep(config: Path, grid: dict, seeds: list[int] | None, overrides: list[st
     bar = tqdm(total=len(tasks), desc="sweep", unit="point", disable=not show, file=sys.stderr)
 
     def done(i: int, out: dict) -> None:
+        _say(out.get("warnings", ()), said)
         write_json(Path(tasks[i].point_dir) / "result.json", _point_json(out))
         rows[i] = _row(bases[i], out)
         if out["error"] is not None:

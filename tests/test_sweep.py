@@ -468,3 +468,17 @@ def test_an_interrupted_sweep_says_where_its_finished_rows_are(tmp_path, monkeyp
     assert meta["complete"] is False and meta["finished"] == 2 and meta["runs"] == 4
     said = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
     assert any("2 of 4 runs" in m and str(tmp_path / "out" / "sweep.csv") in m for m in said), said
+
+
+def test_a_setting_the_points_leave_unused_is_said_once_in_one_line(tmp_path, capfd):
+    """A worker process printed the warning in Python's own format (file, line, source line), once per worker;
+    in the sweep's process each point said again what building the points had said."""
+    rc = main(["sweep", str(FREE5), "--grid", "interaction.k=2,3", "--out", str(tmp_path / "a"), "--workers", "2",
+               "--set", "scenario.downwash=2", *(f"--set={s}" for s in FAST)])
+    err = capfd.readouterr().err.splitlines()
+    assert rc == 0 and err == ["mrfswarm: warning: scenario.downwash = 2 not used: on a 2-D map every robot flies at "
+                               "one altitude"], err
+    rc = main(["sweep", str(EXPERIMENTS / "corridor.toml"), "--grid", "smoothing.nlp=slsqp,lbfgsb", "--out",
+               str(tmp_path / "b"), "--workers", "1", "--set", "simulation.enabled=false", "--set", "mrf.max_steps=3"])
+    err = capfd.readouterr().err.splitlines()
+    assert rc == 0 and len(err) == 2 and all(line.startswith("mrfswarm: warning: smoothing.nlp = ") for line in err), err
