@@ -529,7 +529,7 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
     progress
         Show a progress bar on stderr (default: when stderr is a terminal).
     seeds
-        If given, each point is planned once per seed, ``plan(cfg, seed=s)``: one row per
+        If given (distinct integers >= 0), each point is planned once per seed, ``plan(cfg, seed=s)``: one row per
         (point, seed), seeds varying fastest, with the grid point's index in ``point`` and the
         seed in ``seed``.
     overrides
@@ -576,6 +576,9 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
             if isinstance(s, bool) or not isinstance(s, numbers.Integral) or s < 0:
                 raise ConfigError(f"--seeds: {s!r} is not an integer >= 0")
         seeds = [int(s) for s in seeds]
+        twice = next((s for i, s in enumerate(seeds) if s in seeds[:i]), None)
+        if twice is not None:  # the point's two runs of it would share a folder, the second's result.json kept
+            raise ConfigError(f"--seeds: {twice} is given twice")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ConfigError(f"--workers {workers!r}: must be an integer >= 1")
     if isinstance(connect_timeout, bool) or not isinstance(connect_timeout, numbers.Real) \

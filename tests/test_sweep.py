@@ -256,6 +256,8 @@ BAD = {
                          "sweep point 1 (interaction.k_a=3): interaction.k_a = 3.0: must be > interaction.k_r = 4.0"),
     "unknown method": (["--grid", "mrf.method=icm,nosuch"], "nosuch"),
     "bad seeds": (["--grid", "interaction.k=2", "--seeds", "0,x"], "--seeds"),
+    # two runs of one point and seed shared a folder: the second's result.json replaced the first's
+    "a seed twice": (["--grid", "interaction.k=2", "--seeds", "0,1,0"], "--seeds: 0 is given twice"),
     "empty scheduler address": (["--grid", "interaction.k=2", "--scheduler", " "], "--scheduler: empty address"),
     "zero workers": (["--grid", "interaction.k=2", "--workers", "0"], "--workers 0"),
     "no grid": ([], "--grid"),
