@@ -39,8 +39,9 @@ PROGRESS_RULES = ("static", "energy")
 #: How the goal potential measures the distance to the goal (see :mod:`mrfswarm.discrete.potentials`).
 GOAL_DISTANCES = ("geodesic", "euclidean")
 #: Who gets a cell several robots could move to (see :func:`mrfswarm.discrete.label_sets.label_sets`; ``"auto"``
-#: plans with each of :data:`mrfswarm.discrete.planner.AUTO_RULES` and keeps the plan that flies soonest).
-CONTESTED_RULES = ("auto", "shared", "downhill", "nearest")
+#: plans with each of :data:`mrfswarm.discrete.planner.AUTO_RULES` and keeps the plan that flies soonest; "queue"
+#: has the label sets of "shared").
+CONTESTED_RULES = ("auto", "shared", "queue", "downhill", "nearest")
 
 #: Keys of earlier versions, and what replaced them.
 REMOVED_KEYS = {
@@ -195,10 +196,13 @@ class MrfConfig:
     paper's scenario configs), which can lock a crowd up in a corridor; ``"shared"`` keeps it
     for all of them, the step MRF's hard conflicts deciding who takes it (faster through
     clutter and aisles, slower and not all arrived on big straight crossings;
-    :mod:`mrfswarm.discrete.label_sets`). ``"auto"`` (default) plans with ``"downhill"`` and
-    then ``"shared"`` and keeps the plan with the most robots at the goal, then the one the
+    :mod:`mrfswarm.discrete.label_sets`); ``"queue"`` is ``"shared"`` with the robots that have
+    waited longest in their cells visited first by the step's optimizer, so of two robots that
+    need a cell the one that waited takes it (a robot beside a moving file merges into its gaps
+    instead of waiting for its end). ``"auto"`` (default) plans with ``"downhill"``, ``"shared"``
+    and ``"queue"`` and keeps the plan with the most robots at the goal, then the one the
     time grid's model flies soonest (:func:`mrfswarm.discrete.planner.plan_discrete`); the
-    discrete stage costs about twice as much, a small part of a run with smoothing.
+    discrete stage costs about three times as much, a small part of a run with smoothing.
     ``follow`` (default true) lets a robot take the cell another robot leaves in the
     same step, when their moves keep them one cell apart (a queue moves as a whole);
     false is the paper's rule (cells where robots stand are no candidates), set by the

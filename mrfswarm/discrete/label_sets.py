@@ -43,6 +43,9 @@ after 300 steps; the doorway 1.32 -> 1.36, field3d 15.94 -> 16.51 s. Hence neith
 (:func:`mrfswarm.discrete.planner.plan_discrete`); these label sets take one rule.
 
 - ``"shared"``: no robot is given a contested cell; the MRF decides.
+- ``"queue"``: the label sets of ``"shared"``; the planner has the step's optimizer visit the
+  robots that have waited longest first (:func:`mrfswarm.discrete.planner.step_model`), so
+  the MRF gives a cell two robots need to the one that waited.
 - ``"nearest"``: the lower index. In a crowd this can hand a cell to a robot that has no
   use for it (it lies behind that robot) while the robot beside it, for which it is the
   way forward, loses it: a swarm queued in a 2-cell corridor or doorway can lock up for
@@ -203,7 +206,8 @@ def label_sets(free: np.ndarray, starts: np.ndarray, order: int, goal_cell: np.n
         most of them, as the paper's dot-product rule keeps every square move
         (``mrf.trim_slack``).
     """
-    rules = [r for r in CONTESTED_RULES if r != "auto"]  # "auto" picks one of them per plan (plan_discrete)
+    # "auto" picks a rule per plan, "queue" is "shared" with another visiting order (both: plan_discrete)
+    rules = [r for r in CONTESTED_RULES if r not in ("auto", "queue")]
     if contested not in rules:
         raise ValueError(f"contested = {contested!r}: label sets need one of {', '.join(rules)}")
     if contested == "downhill" and static is None:

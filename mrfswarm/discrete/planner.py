@@ -55,8 +55,12 @@ log = logging.getLogger(__name__)
 
 #: The per-step stages whose times are recorded, in order.
 STAGES = ("graph", "cliques", "labels", "energy", "optimizer")
-#: The contested rules ``contested = "auto"`` plans with, in this order (:func:`plan_discrete`).
-AUTO_RULES = ("downhill", "shared")
+#: The contested rules ``contested = "auto"`` plans with, in this order (:func:`plan_discrete`). "queue" since the
+#: twenty-fifth session (flight_quality bench against b8824f7, where the flight model keeps it): the funnel into one
+#: gap 30.23 -> 28.56 s (0.80 -> 0.50 stops per robot), aisles30 35.88 -> 35.10, clutter40@7 52.95 -> 47.09, but
+#: clutter40 49.07 -> 49.65 and clutter40@3 51.71 -> 54.99 (the model's times are not the flown ones); the seven
+#: clutter maps 348.9 -> 348.3 s in sum, most with fewer stops; the discrete stage costs about 1.5 x.
+AUTO_RULES = ("downhill", "shared", "queue")
 #: With ``"auto"``, a later rule's plan ends after this many times the first plan's steps: it would fly later.
 AUTO_STEP_CAP = 1.1
 
@@ -248,18 +252,21 @@ def graph_weights(positions: np.ndarray, k: int, timings: dict[str, float] | Non
 
 def mrf_step(problem: DiscreteProblem, positions: np.ndarray, method: str = "icm",
              options: mrf_solvers.Options | None = None, weights: CliqueWeights | None = None,
-             graph_timings: dict[str, float] | None = None, trim: np.ndarray | None = None) -> StepOutcome:
+             graph_timings: dict[str, float] | None = None, trim: np.ndarray | None = None,
+             waited: np.ndarray | None = None) -> StepOutcome:
     """Run one MRF step from ``positions`` (N, d) cells.
 
     ``weights`` (with the ``graph_timings`` it took) may be passed when G(positions) is
-    already known; ``trim`` (N,) bool, which robots ``trim_backward`` applies to (None: all).
+    already known; ``trim`` (N,) bool, which robots ``trim_backward`` applies to (None: all);
+    ``waited`` (N,), the steps each robot has stayed in its cell, which ``contested = "queue"``
+    visits first (None: nobody has waited).
     """
     timings: dict[str, float] = {}
     if weights is None:
         weights = graph_weights(positions, problem.k, timings)
     else:
         timings.update(graph_timings or {"graph": 0.0, "cliques": 0.0})
-    labels, model = step_model(problem, positions, weights, timings, trim)
+    labels, model = step_model(problem, positions, weights, timings, trim, waited)
     t0 = time.perf_counter()
     res = mrf_solvers.minimize(model, method=method, options=options)
     timings["optimizer"] = time.perf_counter() - t0
@@ -275,19 +282,24 @@ def mrf_step(problem: DiscreteProblem, positions: np.ndarray, method: str = "icm
 
 
 def step_model(problem: DiscreteProblem, positions: np.ndarray, weights: CliqueWeights,
-               timings: dict[str, float] | None = None,
-               trim: np.ndarray | None = None) -> tuple[LabelSets, PairwiseMRF]:
+               timings: dict[str, float] | None = None, trim: np.ndarray | None = None,
+               waited: np.ndarray | None = None) -> tuple[LabelSets, PairwiseMRF]:
     """The MRF of one step from ``positions`` (N, d) cells on the graph ``weights`` = G(positions).
 
     The label sets X^t (:func:`problem_label_sets`) and the step's pairwise MRF over them
     (:func:`~mrfswarm.discrete.step_mrf.step_mrf`: unary and pairwise terms of the clique
-    energies, hard conflicts, "everybody stays" as the initial labelling). Their build
-    times go into ``timings`` (``"labels"``, ``"energy"``) when it is given.
+    energies, hard conflicts, "everybody stays" as the initial labelling; with ``contested =
+    "queue"`` the robots that have ``waited`` longest visited first). Their build times go into
+    ``timings`` (``"labels"``, ``"energy"``) when it is given.
     """
     t0 = time.perf_counter()
     labels = problem_label_sets(problem, positions, trim)
     t1 = time.perf_counter()
-    model = step_mrf(labels, weights, problem.static, problem.morse, problem.resolution, problem.downwash)
+    priority = None
+    if problem.contested == "queue":
+        priority = np.zeros(len(positions)) if waited is None else np.asarray(waited, dtype=float)
+    model = step_mrf(labels, weights, problem.static, problem.morse, problem.resolution, problem.downwash,
+                     priority)
     if timings is not None:
         timings["labels"] = t1 - t0
         timings["energy"] = time.perf_counter() - t1
@@ -298,8 +310,9 @@ def problem_label_sets(problem: DiscreteProblem, positions: np.ndarray, trim: np
     """X^t for the robots at ``positions`` under the problem's label-set rules (``trim``: the robots
     ``trim_backward`` applies to, None: all)."""
     rule = problem.trim_backward if trim is None or not problem.trim_backward else trim
+    contested = "shared" if problem.contested == "queue" else problem.contested  # its label sets are shared's
     return label_sets(problem.free, positions, problem.order, problem.goal, rule, problem.static,
-                      problem.contested, problem.goal_distance, problem.follow, problem.downwash,
+                      contested, problem.goal_distance, problem.follow, problem.downwash,
                       problem.trim_slack * problem.resolution)
 
 
@@ -536,6 +549,7 @@ def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float
     gt: dict[str, float] = {}
     weights = graph_weights(pos, problem.k, gt)
     base, congested, escalated = problem, 0, 0
+    waited = np.zeros(len(pos), dtype=np.intp)  # the steps each robot has stayed in its cell
     if arrival and _arrived(problem, pos):  # there already: no step (one moved a robot for nothing)
         energy.append(swarm_energy(problem, pos, weights))
         converged, reason, max_steps = True, "arrived", 0
@@ -547,10 +561,10 @@ def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float
             problem = base if new is None else replace(base, static=new[0], goal_distance=new[1])
             congested += new is not None
         trim = trim_mask(problem, paths)
-        out = mrf_step(problem, pos, method, options, weights, gt, trim)
+        out = mrf_step(problem, pos, method, options, weights, gt, trim, waited)
         escalate = problem.escalation
         if escalate is not None and escalate != method and _no_progress(out, tol) and _short_of_goal(problem, pos):
-            joint = mrf_step(problem, pos, escalate, options, weights, gt, trim)
+            joint = mrf_step(problem, pos, escalate, options, weights, gt, trim, waited)
             if joint.moved and joint.energy_after < out.energy_after:
                 out, escalated = joint, escalated + 1
         if t == 1:
@@ -574,6 +588,7 @@ def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float
                 timings[s].pop()
             steps.pop()
             break
+        waited = np.where(np.all(out.positions == pos, axis=1), waited + 1, 0)
         pos = out.positions
         paths.append(pos)
         gt = {}

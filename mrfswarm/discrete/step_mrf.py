@@ -244,10 +244,11 @@ def pairwise_tables(labels: LabelSets, edges: np.ndarray, weights: np.ndarray, m
 
 
 def step_mrf(labels: LabelSets, weights: CliqueWeights, static: np.ndarray, morse: Morse,
-             resolution: float, downwash: float = 1.0) -> PairwiseMRF:
+             resolution: float, downwash: float = 1.0, priority: np.ndarray | None = None) -> PairwiseMRF:
     """The pairwise MRF of one step, with ``initial`` = everybody stays (label 0).
 
-    ``downwash`` = c sets the metric of the hard conflicts (:func:`conflict_tables`).
+    ``downwash`` = c sets the metric of the hard conflicts (:func:`conflict_tables`); ``priority`` (N,), the
+    order sequential optimizers visit the robots in (:attr:`solvers.mrf.PairwiseMRF.priority`).
     """
     cells = labels.cells
     valid = labels.valid
@@ -258,4 +259,4 @@ def step_mrf(labels: LabelSets, weights: CliqueWeights, static: np.ndarray, mors
     pairwise = pairwise_tables(labels, e, weights.edge, morse, resolution)
     pairs, mask = conflict_tables(labels, downwash)
     return PairwiseMRF(unary=unary, edges=e, pairwise=pairwise, conflicts=pairs, conflict_mask=mask,
-                       initial=np.zeros(N, dtype=np.intp))
+                       initial=np.zeros(N, dtype=np.intp), priority=priority)

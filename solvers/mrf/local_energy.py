@@ -48,8 +48,14 @@ def colour_classes(mrf: PairwiseMRF, seed: int = 0) -> list[np.ndarray]:
     priority beats all its uncoloured neighbours takes the smallest colour its coloured
     neighbours do not use. Priority = degree plus a seeded random fraction (largest
     degree first, as Welsh–Powell; the random part keeps the number of rounds
-    logarithmic on paths and grids). At most max degree + 1 colours. Each class is
-    sorted by node index; the classes are ordered by colour.
+    logarithmic on paths and grids). At most max degree + 1 colours. Each class is sorted
+    by node index; the classes are ordered by colour.
+
+    With ``mrf.priority`` a node of higher priority is coloured before its neighbours of
+    lower priority, and each of them takes a colour above its own (the smallest free one
+    above the colours of all its neighbours of higher priority), so a sweep updates it
+    first: the colouring may then need more colours (at most the number of distinct
+    priorities times max degree + 1).
     """
     N = mrf.n_nodes
     indptr, nbr = union_adjacency(mrf)
@@ -58,19 +64,28 @@ def colour_classes(mrf: PairwiseMRF, seed: int = 0) -> list[np.ndarray]:
     deg = np.diff(indptr)
     owner = np.repeat(np.arange(N, dtype=np.intp), deg)
     prio = deg + np.random.default_rng(seed).random(N)
+    rank = np.zeros(N, dtype=np.intp)
+    if mrf.priority is not None:  # its rank first: ranks apart by more than any degree plus the fraction
+        rank = np.unique(mrf.priority, return_inverse=True)[1].reshape(N)
+        prio = prio + rank * float(deg.max() + 2)
     colour = np.full(N, -1, dtype=np.intp)
     # entries (u, v) with v outranking u: u must wait for v while both are open
     wait_u, wait_v = owner[prio[nbr] > prio[owner]], nbr[prio[nbr] > prio[owner]]
-    width = int(deg.max()) + 2
     open_ = np.ones(N, dtype=bool)
     while open_.any():
         blocked = np.zeros(N, dtype=bool)
         blocked[wait_u] = True
         idx = np.flatnonzero(open_ & ~blocked)
-        # colours already taken around each chosen node (its coloured neighbours)
+        # colours already taken around each chosen node (its coloured neighbours), and below its floor: every
+        # colour up to those of its neighbours of higher priority (all coloured by now)
         sub = np.repeat(np.arange(idx.size), deg[idx])
         nb = neighbours(indptr, nbr, idx)
-        used = np.zeros((idx.size, width), dtype=bool)
+        floor = np.zeros(idx.size, dtype=np.intp)
+        above = rank[nb] > rank[idx[sub]]
+        np.maximum.at(floor, sub[above], colour[nb[above]] + 1)
+        # room for every colour taken so far and one beyond each floor's degree, and the spare column
+        width = int(max(colour.max(), floor.max(initial=0) + deg.max())) + 2
+        used = np.arange(width)[None, :] < floor[:, None]
         used[sub, colour[nb]] = True  # colour -1 (open) lands in the spare last column
         used[:, -1] = True
         colour[idx] = np.argmin(used, axis=1)

@@ -43,6 +43,11 @@ class PairwiseMRF:
         (C, L, L) booleans, True where the label pair is forbidden.
     initial
         (N,) a feasible labelling.
+    priority
+        Optional (N,) finite numbers: the order in which sequential methods visit the nodes
+        (those of higher priority first, where they interact). It does not change the
+        energy; where a method's result depends on the order (ICM takes a cell two nodes
+        could move to for the one it visits first), it decides. None: the methods' own order.
     """
 
     unary: np.ndarray
@@ -51,6 +56,7 @@ class PairwiseMRF:
     conflicts: np.ndarray
     conflict_mask: np.ndarray
     initial: np.ndarray
+    priority: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         unary = np.ascontiguousarray(self.unary, dtype=float)
@@ -87,6 +93,12 @@ class PairwiseMRF:
                 raise InvalidProblem(f"{name} contain a repeated pair")
         if initial.shape != (N,):
             raise InvalidProblem(f"initial has shape {initial.shape}, expected ({N},)")
+        if self.priority is not None:
+            priority = np.asarray(self.priority, dtype=float)
+            if priority.shape != (N,) or not np.all(np.isfinite(priority)):
+                raise InvalidProblem(f"priority must be (N,) = ({N},) finite numbers, got shape {priority.shape}"
+                                     + ("" if priority.shape != (N,) else " with non-finite entries"))
+            object.__setattr__(self, "priority", priority)
         for name, val in (("unary", unary), ("edges", edges), ("pairwise", pairwise),
                           ("conflicts", conflicts), ("conflict_mask", cmask), ("initial", initial)):
             object.__setattr__(self, name, val)

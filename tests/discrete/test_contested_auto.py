@@ -13,7 +13,7 @@ import pytest
 import mrfswarm
 from mrfswarm.config import apply_overrides, from_dict, load_config
 from mrfswarm.discrete import planner as planner_mod
-from mrfswarm.discrete.planner import AUTO_RULES, _short_count, flight_time, plan_discrete
+from mrfswarm.discrete.planner import AUTO_RULES, _short_count, _short_way, flight_time, plan_discrete
 from mrfswarm.scenario import build_scenario
 from support.repository import EXPERIMENTS
 
@@ -66,8 +66,8 @@ def test_auto_keeps_the_plan_the_flight_model_flies_soonest(data, expect):
 
 
 def test_a_plan_cut_short_is_not_kept_though_it_flies_sooner(monkeypatch):
-    """After a first plan that arrives, a later rule's plan ends after AUTO_STEP_CAP times its steps. Cut at half
-    (the cap set to 0.5 here), the second plan flies sooner by the model, as it is short, but leaves robots
+    """After a first plan that arrives, every later rule's plan ends after AUTO_STEP_CAP times its steps. Cut at
+    half (the cap set to 0.5 here), the second plan flies sooner by the model, as it is short, but leaves robots
     outside the goal region: the first plan is kept."""
     cfg, problem = problem_of(crossing())
     first = plan(problem, cfg, AUTO_RULES[0])
@@ -75,8 +75,10 @@ def test_a_plan_cut_short_is_not_kept_though_it_flies_sooner(monkeypatch):
     steps: list[int] = []
     auto = plan(problem, cfg, on_step=lambda t, out: steps.append(t))
     cap = math.ceil(0.5 * first.n_steps)
-    restart = steps.index(1, 1)  # the second plan's steps start again from 1
-    assert steps[:restart] == list(range(1, first.n_steps + 1)) and steps[restart:] == list(range(1, cap + 1))
+    starts = [k for k, t in enumerate(steps) if t == 1] + [len(steps)]  # each plan's steps start again from 1
+    plans = [steps[a:b] for a, b in zip(starts, starts[1:])]
+    assert len(plans) == len(AUTO_RULES) and plans[0] == list(range(1, first.n_steps + 1))
+    assert all(later == list(range(1, cap + 1)) for later in plans[1:])
     cut = plan(problem, cfg, AUTO_RULES[1], max_steps=cap)
     assert _short_count(problem, cut.paths[-1]) > 0
     assert flight_time(problem, cut.paths) < flight_time(problem, first.paths)  # the model alone would take it
@@ -102,9 +104,10 @@ def test_with_robots_short_either_way_the_plan_that_brings_them_nearer_is_kept()
     plan of no step was kept before, for flying sooner, and the run then failed with "the swarm cannot move")."""
     cfg, problem = problem_of(bend())
     plans = {rule: plan(problem, cfg, rule) for rule in AUTO_RULES}
-    assert sorted(p.n_steps == 0 for p in plans.values()) == [False, True]
+    assert {p.n_steps == 0 for p in plans.values()} == {False, True}
     assert all(_short_count(problem, p.paths[-1]) == 10 for p in plans.values())
-    moved = next(rule for rule, p in plans.items() if p.n_steps > 0)
+    moved = min((rule for rule, p in plans.items() if p.n_steps > 0),
+                key=lambda rule: _short_way(problem, plans[rule].paths[-1]))
     assert flight_time(problem, plans[moved].paths) > 0  # the flight model alone prefers the plan of no step
     auto = plan(problem, cfg)
     assert auto.contested == moved and np.array_equal(auto.paths, plans[moved].paths)

@@ -393,9 +393,10 @@ def test_trimmed_robots_stuck_in_their_cell_get_their_moves_back():
     sideways moves that make room: 50 robots in rooms_01 (start seed 1) leave one robot stalled behind the
     others. Either guard brings it home: ``mrf.trim_escape`` (default 2: a robot that has stayed in its cell for
     two steps gets its whole label set back), or the default slack (sideways moves kept)."""
-    # congestion 5, the default before the twenty-fourth session: at 8 the robot is not left behind either way
+    # congestion 5, the default before the twenty-fourth session: at 8 the robot is not left behind either way;
+    # the contested rule "auto" kept then ("shared"; "downhill" leaves it behind too, "queue" does not)
     start = ("scenario.start.n_robots=50", "scenario.start.seed=1", "mrf.trim_backward=true",
-             "goal_potential.congestion=5")
+             "goal_potential.congestion=5", "mrf.contested=shared")
     never = run_map("rooms_01", *start, "mrf.trim_escape=0", "mrf.trim_slack=0")
     assert [x.stop_reason for x in never.robots if not x.at_goal] == ["stalled"]
     assert never.discrete.stop_reason == "trapped"
@@ -453,7 +454,7 @@ def test_the_trim_slack_keeps_the_sideways_moves_of_the_papers_rule():
 
 @pytest.mark.parametrize("key, value, match", [
     ("goal_potential.distance", '"manhattan"', "must be one of geodesic, euclidean"),
-    ("mrf.contested", '"random"', "must be one of auto, shared, downhill, nearest"),
+    ("mrf.contested", '"random"', "must be one of auto, shared, queue, downhill, nearest"),
     ("mrf.progress", '"never"', "must be one of static, energy"),
     ("mrf.trim_escape", "-1", "must be >= 0"),
     ("mrf.trim_slack", "-0.5", "must be >= 0"),

@@ -159,3 +159,60 @@ def test_descend_from_a_given_labelling_keeps_it_if_already_optimal():
     opt = mrf.minimize(m, "exact").labels
     x, trace, moves = descend(m, opt, colour_sweep(m), 10, 1e-9)
     assert np.array_equal(x, opt) and moves == [0]
+
+
+@given(seed=st.integers(0, 2**32 - 1), N=st.integers(2, 9), L=st.integers(1, 4), levels=st.integers(1, 4))
+@settings(max_examples=60, deadline=None)
+def test_a_node_of_higher_priority_is_in_an_earlier_class_than_its_neighbours(seed, N, L, levels):
+    rng = np.random.default_rng(seed)
+    m = random_mrf(rng, N, L)
+    m = mrf.PairwiseMRF(m.unary, m.edges, m.pairwise, m.conflicts, m.conflict_mask, m.initial,
+                        priority=rng.integers(0, levels, N).astype(float))
+    classes = colour_classes(m)
+    colour = np.empty(N, int)
+    for c, nodes in enumerate(classes):
+        colour[nodes] = c
+    for pairs in (m.edges, m.conflicts):
+        i, j = pairs[:, 0], pairs[:, 1]
+        assert np.all(colour[i] != colour[j])
+        higher = m.priority[i] > m.priority[j]
+        lower = m.priority[i] < m.priority[j]
+        assert np.all(colour[i][higher] < colour[j][higher]) and np.all(colour[i][lower] > colour[j][lower])
+
+
+def contested_pair(priority=None) -> mrf.PairwiseMRF:
+    """Two nodes that both gain most from label 1, which they cannot both take; node 0 has more neighbours."""
+    unary = np.array([[0.0, -1.0], [0.0, -1.0], [0.0, 0.0], [0.0, 0.0]])
+    edges = np.array([[0, 2], [0, 3]])
+    mask = np.zeros((1, 2, 2), dtype=bool)
+    mask[0, 1, 1] = True
+    return mrf.PairwiseMRF(unary, edges, np.zeros((2, 2, 2)), np.array([[0, 1]]), mask, np.zeros(4, int),
+                           priority=priority)
+
+
+@pytest.mark.parametrize("priority, winner", [(None, 0), ([0.0, 3.0, 0.0, 0.0], 1), ([3.0, 0.0, 0.0, 0.0], 0),
+                                              ([1.0, 2.0, 5.0, 5.0], 1)])
+def test_icm_gives_a_contested_label_to_the_node_it_visits_first(priority, winner):
+    """Without a priority the node of higher degree is visited first; a priority overrides that."""
+    x = mrf.minimize(contested_pair(priority), method="icm").labels
+    assert x[winner] == 1 and x[1 - winner] == 0
+
+
+@pytest.mark.parametrize("priority, why", [([1.0, 2.0], "shape"), ([0.0, np.nan, 0.0, 0.0], "non-finite")])
+def test_a_priority_that_is_not_one_finite_number_per_node_is_refused(priority, why):
+    with pytest.raises(mrf.InvalidProblem, match=why):
+        contested_pair(np.array(priority))
+
+
+def test_a_chain_of_priorities_colours_a_path_in_order():
+    """Priorities falling along a path push each node's colour above its predecessor's: node 5 takes colour 5, and
+    node 6, of node 5's priority and fewer neighbours, is coloured after it next to that high colour (which once
+    overflowed the table of colours taken: an IndexError from ICM on a 200-robot swarm)."""
+    N = 7
+    e = np.stack([np.arange(N - 1), np.arange(1, N)], 1)
+    m = mrf.PairwiseMRF(np.zeros((N, 2)), e, np.zeros((N - 1, 2, 2)), np.zeros((0, 2)), np.zeros((0, 2, 2)),
+                        np.zeros(N, int), priority=np.array([5.0, 4, 3, 2, 1, 0, 0]))
+    colour = np.empty(N, int)
+    for c, nodes in enumerate(colour_classes(m)):
+        colour[nodes] = c
+    assert colour[:6].tolist() == [0, 1, 2, 3, 4, 5] and colour[6] == 0
