@@ -151,6 +151,9 @@ def run(args: argparse.Namespace) -> int:
     if s["simulation"] is not None:
         line += f", flown: max tracking error {s['simulation']['max_tracking_error_m'] * 100:.1f} cm"
     print(f"{line} -> {out}")
+    crazyflie = s.get("crazyflie") or {}
+    if crazyflie.get("advice"):  # a long flight fits no format: said here, not first by the scripts at the radio
+        print(f"mrfswarm: warning: {crazyflie['advice']}", file=sys.stderr)
     for text in flown_warnings(s["simulation"], cfg.scenario.robot_radius):
         print(f"mrfswarm: warning: {text}", file=sys.stderr)
     witness = (s.get("window_attempts") or {}).get("witness", 0)

@@ -292,8 +292,7 @@ def compress(trajectories: Sequence[PiecewisePolynomial], altitude: float, v_max
     if np.any(np.maximum(origin - lo, hi - origin) > reach + 4e-4):
         span = hi - lo
         raise ExportError(f"the flight spans {span[0]:.3f} m x {span[1]:.3f} m (z up to {hi[2]:.3f} m); the "
-                          f"compressed Crazyflie format holds +/-{reach} m around one origin ({2 * reach:.3f} m): "
-                          f"use the raw format or a smaller area")
+                          f"compressed Crazyflie format holds +/-{reach} m around one origin ({2 * reach:.3f} m)")
     knots = []
     for i, tr in enumerate(trs):
         k = np.rint(tr.knots * 1000).astype(np.int64)

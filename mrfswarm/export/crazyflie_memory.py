@@ -3,7 +3,10 @@
 The ``crazyflie`` section of ``result.json`` (:func:`memory_report`): per robot, its pieces
 and their bytes in the raw and the compressed format (packed by ``cflib``,
 :mod:`mrfswarm.export.cflib_`) and whether each fits the 4096-byte memory; for the swarm,
-the largest of those and whether all fit.
+the largest of those and whether all fit; per robot the format that flies it (``flies``: raw where
+its pieces fit, else compressed where those fit and certify, else none) and, where a robot fits
+neither, ``advice``: one line saying why and what to plan instead (:func:`advice`), which ``mrfswarm
+run`` and the flight scripts say too.
 
 The compressed format rounds control points to millimetres and knots to milliseconds,
 so the plan's certificate does not carry over by itself. Here the flight the compressed
@@ -81,8 +84,44 @@ def memory_report(result: Result) -> tuple[dict[str, Any] | None, cflib_.Compres
         out.update({"max_bytes_compressed": max(r["bytes_compressed"] for r in robots),
                     "all_fit_compressed": all(r["fits_compressed"] for r in robots),
                     "compressed": compressed})
+    for r in robots:
+        r["flies"] = "raw" if r["fits_raw"] else \
+            "compressed" if r["fits_compressed"] and r["compressed_certified"] else None
     out["robots"] = robots
+    out["advice"] = advice(out, cfg.smoothing.max_pieces)
     return out, comp
+
+
+def advice(section: dict[str, Any], max_pieces: int) -> str | None:
+    """One line for the robots of a ``crazyflie`` section that no format flies (None if there are none):
+    how much they take raw, why the compressed format does not hold them, and what to plan instead.
+
+    More pieces than 31 do not fit raw, and a longer flight needs more: a run that left the piece limit
+    off (``smoothing.max_pieces`` = 0, or above 31) plans again with it; one that had it flies too long."""
+    robots = [r for r in section["robots"] if r["flies"] is None]
+    if not robots:
+        return None
+    who = [r["robot"] for r in robots]
+    names = f"robot {who[0]}" if len(who) == 1 else \
+        f"robots {', '.join(map(str, who[:8]))}{' ...' if len(who) > 8 else ''} ({len(who)} of {len(section['robots'])})"
+    raw = max(robots, key=lambda r: r["bytes_raw"])
+    compressed = section["compressed"]
+    if "error" in compressed:
+        why = f"the compressed format holds none ({compressed['error']})"
+    elif not all(r["fits_compressed"] for r in robots):
+        why = f"compressed up to {max(r['bytes_compressed'] for r in robots)} bytes"
+    else:
+        why = "their compressed flight is not certified (crazyflie.compressed.not_certified_robots)"
+    raw_pieces = cflib_.MEMORY_BYTES // cflib_.RAW_PIECE_BYTES
+    if max_pieces == 0 or max_pieces > raw_pieces:
+        instead = (f"plan again with smoothing.max_pieces = {raw_pieces} (the default: steps merged into at most "
+                   f"{raw_pieces} pieces where they can be), or a shorter flight")
+    else:
+        instead = ("plan a shorter flight (a nearer goal: a long way flown as legs, each a run that starts where "
+                   "the last one ended)")
+    return (f"{names} fit no Crazyflie trajectory memory ({cflib_.MEMORY_BYTES} bytes): raw up to {raw['pieces']} "
+            f"pieces, {raw['bytes_raw']} bytes (at most {raw_pieces} pieces fit), {why}; fly.py and "
+            f"cflib_upload.py refuse them: {instead}")
 
 
 def _compressed(result: Result, taus: np.ndarray,

@@ -1,7 +1,9 @@
 """crazyswarm2/crazyflies.yaml read as Crazyswarm2 reads it; fly.py against a fake crazyflie_py; cflib_upload.py's
 packing with cflib's real classes (only the radio link is fake)."""
 
+import contextlib
 import importlib.util
+import io
 import json
 import shutil
 import sys
@@ -472,9 +474,134 @@ def test_cflib_upload_refuses_raw_pieces_that_do_not_fit(per_step_dir):
     memory = TrajectoryMemory(id=1, type=MemoryElement.TYPE_TRAJ, size=4096, mem_handler=link)
     cf = types.SimpleNamespace(mem=types.SimpleNamespace(get_mems=lambda kind: [memory]),
                                send_packet=lambda p: None, link_uri="radio://fake")
-    with pytest.raises(SystemExit, match="4356 bytes do not fit.*--compressed"):
+    with pytest.raises(script.UploadError, match="4356 bytes do not fit.*--compressed"):
         script.upload(cf, elements[3], False)
     assert link.data is None  # nothing written
+
+
+def fake_swarm(script, monkeypatch, calls, write_ok=True):
+    """cflib's own ``Swarm`` (its threads, its ``parallel_safe``) over fake links: each robot's memory and
+    high-level commander record what they are asked."""
+    from cflib.crazyflie.swarm import Swarm
+
+    class Memory:
+        size = 4096
+
+        def __init__(self, uri):
+            self.uri, self.trajectory = uri, []
+
+        def write_data_sync(self):
+            calls.append(("write", self.uri))
+            return write_ok
+
+    class Commander:
+        def __init__(self, uri):
+            self.uri = uri
+
+        def __getattr__(self, name):
+            return lambda *a, **k: calls.append((name, self.uri))
+
+    class Factory:
+        def construct(self, uri):
+            memory = Memory(uri)
+            cf = types.SimpleNamespace(link_uri=uri, mem=types.SimpleNamespace(get_mems=lambda kind: [memory]),
+                                       high_level_commander=Commander(uri))
+            return types.SimpleNamespace(cf=cf, open_link=lambda: None, close_link=lambda: None)
+
+    def open_swarm(uris, factory):
+        calls.append(("open",))
+        swarm = Swarm(uris, factory=Factory())
+        swarm.reset_estimators = lambda: calls.append(("reset",))  # reads the robots' logs
+        return swarm
+
+    monkeypatch.setattr(script, "open_swarm", open_swarm)
+    monkeypatch.setattr(script.time, "sleep", lambda s: None)
+
+
+def test_cflib_upload_a_failed_upload_stops_the_script_before_the_flight(run_dir, monkeypatch):
+    """cflib's swarm uploads in threads, where the refusal (a ``SystemExit``) ended its thread without a word: the
+    script took off and started the trajectory, which a robot flies from whatever an earlier upload left."""
+    script = load_script(run_dir / "crazyflie" / "cflib_upload.py", "cflib_upload_failed_write")
+    calls = []
+    fake_swarm(script, monkeypatch, calls, write_ok=False)
+    with pytest.raises(SystemExit) as e:
+        script.run(["--robots", "0,1", "--fly"])
+    msg = str(e.value.code)
+    assert msg.startswith("cflib_upload.py: the upload failed: uploading to radio://") and "\n" not in msg, msg
+    assert [c[0] for c in calls] == ["open", "write", "write"]  # no take-off, no start
+    calls.clear()
+    fake_swarm(script, monkeypatch, calls)  # the same plan uploaded: flown
+    assert script.run(["--robots", "0,1", "--fly"]) == 0
+    assert [c[0] for c in calls if c[0] not in ("write", "define_trajectory")][:4] == ["open", "reset", "takeoff",
+                                                                                        "takeoff"]
+
+
+def test_cflib_upload_refuses_raw_pieces_that_do_not_fit_before_any_link(per_step_dir, monkeypatch):
+    """33 raw pieces: refused before the radio (with one, the refusal came after the links opened), saying that
+    their compressed pieces, which fit and are certified, fly them."""
+    script = load_script(per_step_dir / "crazyflie" / "cflib_upload.py", "cflib_upload_per_step_early")
+    calls = []
+    fake_swarm(script, monkeypatch, calls)
+    with pytest.raises(SystemExit, match=r"robots \[0, 1\] take up to 4356 bytes.*upload them compressed"):
+        script.run(["--robots", "0,1"])
+    assert calls == []
+    assert script.run(["--robots", "0,1", "--compressed"]) == 0 and calls[0] == ("open",)
+
+
+@pytest.fixture(scope="module")
+def too_long_dir(tmp_path_factory):
+    """Two robots crossing 72 m, one piece per step: 72 raw pieces, and wider than the compressed format."""
+    config = tmp_path_factory.mktemp("long") / "long.toml"
+    config.write_text('[scenario]\nmap = { kind = "free", size = [80, 6] }\n'
+                      'start = { positions = [[2, 2], [2, 4]] }\ngoal = [77, 3]\n')
+    out = config.parent / "out"
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(["run", str(config), "--out", str(out), "--set", "simulation.enabled=false",
+                     "--set", "smoothing.max_pieces=0", "--workers", "1"]) == 0
+    return out, err.getvalue()
+
+
+def test_a_flight_no_format_holds_is_said_per_robot_with_what_to_plan(too_long_dir, monkeypatch):
+    """Neither raw (72 pieces) nor compressed (72 m wide) holds it: fly.py sent the user to --compressed, which
+    sent them to the raw pieces, which (at the radio) sent them to --compressed. The run, both scripts and
+    result.json say that no format flies these robots, and what to plan instead."""
+    too_long_dir, stderr = too_long_dir
+    section = json.loads((too_long_dir / "result.json").read_text())["crazyflie"]
+    assert [r["flies"] for r in section["robots"]] == [None, None]
+    advice = section["advice"]
+    assert "robots 0, 1 (2 of 2) fit no Crazyflie trajectory memory" in advice and "72 pieces" in advice
+    assert "spans 72.000 m" in advice and "smoothing.max_pieces = 31" in advice
+    assert "use the raw format" not in advice  # the compressed format's own advice, wrong here
+    assert f"mrfswarm: warning: {advice}" in stderr
+    fly = load_script(too_long_dir / "crazyswarm2" / "fly.py", "fly_too_long")
+    with pytest.raises(SystemExit) as e:
+        fly.main([])
+    assert str(e.value.code) == f"fly.py: cf1's trajectory has 72 pieces; a Crazyflie holds 31 raw pieces: {advice}"
+    script = load_script(too_long_dir / "crazyflie" / "cflib_upload.py", "cflib_upload_too_long")
+    calls = []
+    fake_swarm(script, monkeypatch, calls)
+    with pytest.raises(SystemExit) as e:
+        script.run([])
+    assert str(e.value.code) == f"cflib_upload.py: {advice}" and calls == []
+    with pytest.raises(SystemExit, match="no compressed flight: the flight spans 72.000 m"):
+        script.run(["--compressed"])
+
+
+def test_the_advice_names_what_fails_and_what_to_plan():
+    from mrfswarm.export.crazyflie_memory import advice
+
+    robot = {"robot": 0, "pieces": 160, "bytes_raw": 21120, "fits_raw": False, "bytes_compressed": 4971,
+             "fits_compressed": False, "compressed_certified": True, "flies": None}
+    fits = {**robot, "robot": 1, "pieces": 31, "bytes_raw": 4092, "fits_raw": True, "flies": "raw"}
+    section = {"robots": [robot, fits], "compressed": {"not_certified_robots": []}}
+    text = advice(section, 31)
+    assert text.startswith("robot 0 fit no Crazyflie") and "compressed up to 4971 bytes" in text
+    assert "plan a shorter flight" in text and "max_pieces" not in text  # the piece limit was on: too long a flight
+    assert "smoothing.max_pieces = 31" in advice(section, 0)
+    assert advice({"robots": [fits], "compressed": {}}, 31) is None
+    uncertified = {**robot, "bytes_compressed": 3000, "fits_compressed": True, "compressed_certified": False}
+    assert "not certified" in advice({"robots": [uncertified], "compressed": {}}, 31)
 
 
 # --- 3-D plans ---------------------------------------------------------------------------------------

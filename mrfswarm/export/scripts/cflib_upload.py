@@ -30,6 +30,7 @@ import yaml
 HERE = Path(__file__).resolve().parent
 PLAN = HERE.parent
 TRAJECTORY_ID = 1
+MEMORY_BYTES = 4096  # a Crazyflie's trajectory memory
 SETTLE_S = 1.0
 #: take-off, go-to and landing without crazyswarm2/maneuvers.yaml (a folder written before it)
 DEFAULT_MANEUVERS = {"takeoff_s": 3.0, "goto_s": 3.0, "land_s": 3.0, "land_height_m": 0.04}
@@ -94,6 +95,34 @@ def compressed_plan(plan: Path = PLAN) -> Any:
                              float(d["position_error_bound_m"]))
 
 
+class UploadError(Exception):
+    """A robot's trajectory not written. An exception, not ``SystemExit``: cflib's ``parallel_safe`` runs the
+    upload in a thread, where a ``SystemExit`` ends the thread without a word and the flight went on."""
+
+
+def size_of(elements: list[Any]) -> int:
+    """Bytes ``elements`` take in the trajectory memory (cflib's own packing)."""
+    return len(b"".join(bytes(e.pack()) for e in elements))
+
+
+def refuse_oversized(elements: dict[int, list[Any]], compressed: bool, plan: Path = PLAN) -> None:
+    """Before any radio link: refuse the robots whose trajectory does not fit the memory, in one line saying what
+    flies them (the compressed pieces, or what ``result.json``'s ``crazyflie.advice`` says to plan instead)."""
+    sizes = {i: size_of(e) for i, e in elements.items()}
+    over = sorted(i for i, n in sizes.items() if n > MEMORY_BYTES)
+    if not over:
+        return
+    section: dict = {}
+    if (plan / "result.json").is_file():
+        section = json.loads((plan / "result.json").read_text()).get("crazyflie") or {}
+    flies = {r.get("robot"): r.get("flies", "compressed") for r in section.get("robots") or []}
+    if section.get("advice") and not all(flies.get(i) == "compressed" for i in over):
+        raise SystemExit(f"cflib_upload.py: {section['advice']}")
+    raise SystemExit(f"cflib_upload.py: robots {over} take up to {max(sizes[i] for i in over)} bytes, more than a "
+                     f"Crazyflie's {MEMORY_BYTES}-byte trajectory memory"
+                     + ("" if compressed else "; upload them compressed (--compressed)"))
+
+
 def upload(cf: Any, elements: list[Any], compressed: bool) -> int:
     """Write ``elements`` into ``cf``'s trajectory memory and define trajectory ``TRAJECTORY_ID``; the bytes used."""
     from cflib.crazyflie.high_level_commander import HighLevelCommander
@@ -101,12 +130,12 @@ def upload(cf: Any, elements: list[Any], compressed: bool) -> int:
 
     memory = cf.mem.get_mems(MemoryElement.TYPE_TRAJ)[0]
     memory.trajectory = list(elements)
-    size = len(b"".join(bytes(e.pack()) for e in memory.trajectory))
+    size = size_of(memory.trajectory)
     if size > memory.size:
-        raise SystemExit(f"cflib_upload.py: {size} bytes do not fit the trajectory memory ({memory.size} bytes)"
-                         + ("" if compressed else "; try --compressed"))
+        raise UploadError(f"{size} bytes do not fit the trajectory memory ({memory.size} bytes)"
+                          + ("" if compressed else "; try --compressed"))
     if not memory.write_data_sync():
-        raise SystemExit(f"cflib_upload.py: uploading to {getattr(cf, 'link_uri', cf)} failed")
+        raise UploadError(f"uploading to {getattr(cf, 'link_uri', cf)} failed")
     n = len(elements) - 2 if compressed else len(elements)  # compressed: not the start and end elements
     kind = HighLevelCommander.TRAJECTORY_TYPE_POLY4D_COMPRESSED if compressed else HighLevelCommander.TRAJECTORY_TYPE_POLY4D
     cf.high_level_commander.define_trajectory(TRAJECTORY_ID, 0, n, type=kind)
@@ -158,14 +187,27 @@ def open_swarm(uris: list[str], factory: Any) -> Any:
     try:
         swarm.open_links()
     except Exception as e:
-        root: BaseException = e
-        while (root.__cause__ or root.__context__) is not None:
-            root = root.__cause__ or root.__context__  # type: ignore[assignment]
-        why = (str(root).strip().splitlines() or [type(root).__name__])[0]
-        raise SystemExit(f"cflib_upload.py: cannot open the links to {', '.join(uris)}: {why}") from None
+        raise SystemExit(f"cflib_upload.py: cannot open the links to {', '.join(uris)}: {cause(e)}") from None
     finally:
         quiet.setLevel(level)
     return swarm
+
+
+def cause(e: BaseException) -> str:
+    """The first line of the exception at the root of ``e`` (cflib's swarm raises its own around a thread's)."""
+    root = e
+    while (root.__cause__ or root.__context__) is not None:
+        root = root.__cause__ or root.__context__  # type: ignore[assignment]
+    return (str(root).strip().splitlines() or [type(root).__name__])[0]
+
+
+def together(swarm: Any, what: str, func: Any) -> None:
+    """``func`` on every robot of ``swarm`` at once; a robot that fails stops the script in one line (before any
+    later step: a robot whose upload failed would fly the trajectory an earlier upload left in its memory)."""
+    try:
+        swarm.parallel_safe(func)
+    except Exception as e:
+        raise SystemExit(f"cflib_upload.py: {what} failed: {cause(e)}") from None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -180,6 +222,7 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         raise SystemExit(f"cflib_upload.py: robots {missing} have no enabled entry in crazyswarm2/crazyflies.yaml")
     elements, origin = pieces(robots, args.compressed)
+    refuse_oversized(elements, args.compressed)
     if args.compressed and np.any(origin != 0):
         print(f"compressed positions are relative to {origin.tolist()} m: the positioning system's origin must be there")
 
@@ -190,24 +233,24 @@ def main(argv: list[str] | None = None) -> int:
     by_uri = {addresses[i]: i for i in robots}
     swarm = open_swarm(list(by_uri), CachedCfFactory(rw_cache=str(HERE / "cache")))
     try:
-        swarm.parallel_safe(lambda scf: print(scf.cf.link_uri, upload(scf.cf, elements[by_uri[scf.cf.link_uri]],
-                                                                      args.compressed), "bytes"))
+        together(swarm, "the upload", lambda scf: print(
+            scf.cf.link_uri, upload(scf.cf, elements[by_uri[scf.cf.link_uri]], args.compressed), "bytes"))
         if not args.fly:
             return 0
         swarm.reset_estimators()
         m = maneuvers()
         altitude = takeoff_altitude(elements, args.compressed)
-        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.takeoff(altitude, m["takeoff_s"]))
+        together(swarm, "the take-off", lambda scf: scf.cf.high_level_commander.takeoff(altitude, m["takeoff_s"]))
         time.sleep(m["takeoff_s"] + SETTLE_S)
-        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.go_to(
+        together(swarm, "the go-to", lambda scf: scf.cf.high_level_commander.go_to(
             *start_of(elements[by_uri[scf.cf.link_uri]], args.compressed), 0.0, m["goto_s"]))
         time.sleep(m["goto_s"] + SETTLE_S)
-        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.start_trajectory(
+        together(swarm, "the start", lambda scf: scf.cf.high_level_commander.start_trajectory(
             TRAJECTORY_ID, 1.0, relative_position=False))
         time.sleep(max(duration_of(e, args.compressed) for e in elements.values()) + SETTLE_S)
-        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.land(m["land_height_m"], m["land_s"]))
+        together(swarm, "the landing", lambda scf: scf.cf.high_level_commander.land(m["land_height_m"], m["land_s"]))
         time.sleep(m["land_s"] + SETTLE_S)
-        swarm.parallel_safe(lambda scf: scf.cf.high_level_commander.stop())
+        together(swarm, "the stop", lambda scf: scf.cf.high_level_commander.stop())
     finally:
         swarm.close_links()
     return 0

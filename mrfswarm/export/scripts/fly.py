@@ -6,7 +6,8 @@
 2. ``ros2 launch crazyflie launch.py crazyflies_yaml_file:=$PWD/crazyflies.yaml``
 3. ``python3 fly.py``: loads every enabled robot's trajectory and refuses, before any radio
    link (and before importing Crazyswarm2's package), one that does not fit (raw pieces: at most 31 fit a Crazyflie's memory; for longer
-   plans use ``../crazyflie/cflib_upload.py --compressed``); connects, refuses a server whose
+   plans use ``../crazyflie/cflib_upload.py --compressed``, or, where ``../result.json`` says no format holds
+   them, its ``crazyflie.advice``); connects, refuses a server whose
    robots are not this file's; uploads,
    takes off to the plan's altitude (a 3-D plan's: its highest start), goes to each start
    (a 3-D plan's own height), starts all trajectories at once
@@ -18,6 +19,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -53,6 +55,19 @@ def enabled_robots() -> list[str]:
     return sorted(name for name, entry in robots.items() if entry.get("enabled", True))
 
 
+def instead(robot: int) -> str:
+    """What flies a robot whose raw pieces do not fit, as ``../result.json`` says (its ``crazyflie`` section):
+    the compressed pieces where they fit and are certified, else why no format does and what to plan instead."""
+    try:
+        section = json.loads((HERE.parent / "result.json").read_text()).get("crazyflie") or {}
+    except (OSError, ValueError):
+        section = {}
+    entry: dict = next((r for r in section.get("robots") or [] if r.get("robot") == robot), {})
+    if entry.get("flies", "compressed") == "compressed" or not section.get("advice"):
+        return "fly it compressed with ../crazyflie/cflib_upload.py --compressed --fly"
+    return section["advice"]
+
+
 def crazyflie_py():
     """Crazyswarm2's Python package, or a one-line refusal saying what provides it."""
     try:
@@ -78,7 +93,7 @@ def load(names: list[str]) -> dict:
         pieces = sum(1 for line in path.read_text().splitlines()[1:] if line.strip())
         if pieces > MAX_RAW_PIECES:
             raise SystemExit(f"fly.py: {name}'s trajectory has {pieces} pieces; a Crazyflie holds {MAX_RAW_PIECES} "
-                             "raw pieces: fly it compressed with ../crazyflie/cflib_upload.py --compressed --fly")
+                             f"raw pieces: {instead(robot_index(name))}")
         paths[name] = path
     Trajectory = crazyflie_py().uav_trajectory.Trajectory
 
