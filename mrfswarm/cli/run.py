@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -151,6 +152,14 @@ def run(args: argparse.Namespace) -> int:
     if s["simulation"] is not None:
         line += f", flown: max tracking error {s['simulation']['max_tracking_error_m'] * 100:.1f} cm"
     print(f"{line} -> {out}")
+    over = [r for r in s["robots"] if r["stop_reason"] == "max_steps"]
+    if over:  # a long way: the plan ends where the step budget does, not at the goal (a tour's city map, 0 of 30)
+        left = max(r["goal_distance_m"] for r in over)
+        more = math.ceil(left / result.scenario.grid.resolution)  # a cell a step (a diagonal step goes 1.4)
+        print(f"mrfswarm: warning: the discrete plan ended at mrf.max_steps = {cfg.mrf.max_steps} with {len(over)} "
+              f"robot{'s' * (len(over) > 1)} on the way to the goal, the farthest {left:.1f} m from it (about "
+              f"{more} more steps at a cell a step): raise it, e.g. --set mrf.max_steps="
+              f"{100 * math.ceil((cfg.mrf.max_steps + more) / 100)}", file=sys.stderr)
     crazyflie = s.get("crazyflie") or {}
     if crazyflie.get("advice"):  # a long flight fits no format: said here, not first by the scripts at the radio
         print(f"mrfswarm: warning: {crazyflie['advice']}", file=sys.stderr)

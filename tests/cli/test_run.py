@@ -394,3 +394,17 @@ def test_a_backend_that_fails_many_attempts_without_an_iteration_cap_is_said(tmp
                  "--set", "smoothing.qp_options.max_iter=1"]) == 0
     assert json.loads((out / "result.json").read_text())["solve_failures"]["windows"] > 0
     assert "did not solve" not in capsys.readouterr().err
+
+
+def test_a_plan_cut_by_max_steps_says_which_key_to_raise(tmp_path, capsys):
+    """A long way (a tour's 256 x 256 city: 0 of 30 robots at the goal after the default 300 steps) ended with
+    "max_steps: robots 0, 1, ..." and no word of the key: the run says it, with the way left to go."""
+    cfg = write_config(tmp_path, '[scenario]\nmap = { kind = "free", size = [30, 4] }\n'
+                                 'start = { positions = [[1, 1], [1, 3]] }\ngoal = [28, 2]\n[mrf]\nmax_steps = 5\n')
+    argv = ["run", str(cfg), "--set", "smoothing.enabled=false", "--set", "simulation.enabled=false"]
+    assert main([*argv, "--out", str(tmp_path / "a")]) == 0
+    err = capsys.readouterr().err
+    assert "mrfswarm: warning: the discrete plan ended at mrf.max_steps = 5 with 2 robots on the way" in err, err
+    assert "--set mrf.max_steps=100" in err
+    assert main([*argv, "--set", "mrf.max_steps=100", "--out", str(tmp_path / "b")]) == 0
+    assert "max_steps" not in capsys.readouterr().err  # all at the goal: no word
