@@ -200,9 +200,10 @@ class MrfConfig:
     waited longest in their cells visited first by the step's optimizer, so of two robots that
     need a cell the one that waited takes it (a robot beside a moving file merges into its gaps
     instead of waiting for its end). ``"auto"`` (default) plans with ``"downhill"``, ``"shared"``
-    and ``"queue"`` and keeps the plan with the most robots at the goal, then the one the
-    time grid's model flies soonest (:func:`mrfswarm.discrete.planner.plan_discrete`); the
-    discrete stage costs about three times as much, a small part of a run with smoothing.
+    and, where the robots of the ``"shared"`` plan wait a quarter of a step each or more, ``"queue"``,
+    and keeps the plan with the most robots at the goal, then the one the time grid's model flies
+    soonest (:func:`mrfswarm.discrete.planner.plan_discrete`); the discrete stage costs two to three
+    times as much, a small part of a run with smoothing.
     ``follow`` (default true) lets a robot take the cell another robot leaves in the
     same step, when their moves keep them one cell apart (a queue moves as a whole);
     false is the paper's rule (cells where robots stand are no candidates), set by the

@@ -59,10 +59,17 @@ STAGES = ("graph", "cliques", "labels", "energy", "optimizer")
 #: twenty-fifth session (flight_quality bench against b8824f7, where the flight model keeps it): the funnel into one
 #: gap 30.23 -> 28.56 s (0.80 -> 0.50 stops per robot), aisles30 35.88 -> 35.10, clutter40@7 52.95 -> 47.09, but
 #: clutter40 49.07 -> 49.65 and clutter40@3 51.71 -> 54.99 (the model's times are not the flown ones); the seven
-#: clutter maps 348.9 -> 348.3 s in sum, most with fewer stops; the discrete stage costs about 1.5 x.
+#: clutter maps 348.9 -> 348.3 s in sum, most with fewer stops; big200 152.4 -> 150.0 s (0.95 -> 0.82 stops); the
+#: discrete stage costs about 1.5 x where it is planned (:data:`QUEUE_WAITS`).
 AUTO_RULES = ("downhill", "shared", "queue")
 #: With ``"auto"``, a later rule's plan ends after this many times the first plan's steps: it would fly later.
 AUTO_STEP_CAP = 1.1
+#: With ``"auto"``, "queue" is planned only after a "shared" plan whose robots wait at least this many steps each
+#: on average short of the goal region (:func:`waits_per_robot`): "queue" plans as "shared" until robots wait, and
+#: a swarm that hardly waits has no queue to merge into. The 300-robot crossing waits 0.09 steps per robot (its
+#: "queue" plan flew the same and cost 1.5 x the discrete stage), the open field 0.02, the forest 0.2; aisles30
+#: 0.33 (flew 2 % sooner with "queue"), the clutter maps 1.5-2.4, the halls 4.2, the funnel 6.
+QUEUE_WAITS = 0.25
 
 
 #: A robot whose nearest neighbour is farther than this many d_min is separated from the swarm.
@@ -483,7 +490,8 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     leaves them the shortest way to the goal in sum, then the one the sooner by :func:`flight_time`, then the
     first. Without the second rule a plan that stopped at its start (0 steps, no flight) beat one whose
     robots had come most of the way but not all (a bend of 1-cell corridor with the paper's patience rule).
-    When the first plan has every robot at the goal, a
+    "queue" is planned only when the "shared" plan's robots wait :data:`QUEUE_WAITS` steps each or more. When the
+    first plan has every robot at the goal, a
     later rule's plan ends after :data:`AUTO_STEP_CAP` times its steps (cut there, it has robots
     short of the goal, or flies later by the model). ``on_step`` sees each plan's steps from 1.
 
@@ -502,8 +510,15 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     best: DiscretePlan | None = None
     best_key: tuple[int, float, float] = (0, 0.0, 0.0)
     cap = max_steps
+    waits = np.inf  # per robot in the "shared" plan (AUTO_RULES has it before "queue")
     for rule in AUTO_RULES:
+        if rule == "queue" and waits < QUEUE_WAITS:
+            log.info('discrete stage, contested = "queue" not planned: the "shared" plan waits %.2f steps per robot '
+                     "(fewer than %g)", waits, QUEUE_WAITS)
+            continue
         plan = one(replace(problem, contested=rule), cap)
+        if rule == "shared":
+            waits = waits_per_robot(problem, plan.paths)
         key = (_short_count(problem, plan.paths[-1]), _short_way(problem, plan.paths[-1]),
                flight_time(problem, plan.paths))
         log.info("discrete stage, contested = %r: %d steps, %d robots short of the goal (%.1f cells of way left), "
@@ -519,6 +534,18 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
             cap = min(max_steps, int(np.ceil(AUTO_STEP_CAP * max(plan.n_steps, 1))))
     assert best is not None
     return best
+
+
+def waits_per_robot(problem: DiscreteProblem, paths: np.ndarray) -> float:
+    """The steps (T + 1, N, d) ``paths`` keep robots in their cells short of the goal region, per robot (every stay
+    counts without a goal)."""
+    paths = np.asarray(paths)
+    if len(paths) < 2:
+        return 0.0
+    stay = np.all(paths[1:] == paths[:-1], axis=2)
+    if problem.goal_path is not None:
+        stay &= ~(cell_values(problem.goal_path, paths[1:]) <= problem.goal_region_radius)
+    return float(stay.sum()) / paths.shape[1]
 
 
 def flight_time(problem: DiscreteProblem, paths: np.ndarray) -> float:

@@ -148,3 +148,32 @@ def test_the_run_records_the_rule_it_planned_with():
     assert mrfswarm.plan(from_dict(data), progress=False).summary()["contested"] == "downhill"
     paper = load_config(EXPERIMENTS / "corridor.toml", ["smoothing.enabled=false", "simulation.enabled=false"])
     assert mrfswarm.plan(paper, progress=False).summary()["contested"] == "nearest"  # the paper's rule, pinned
+
+
+def test_queue_is_planned_only_after_a_shared_plan_whose_robots_wait(monkeypatch):
+    """The crossing's robots hardly wait in the "shared" plan, so "auto" plans no "queue" (it plans as "shared"
+    until robots wait); with the threshold at 0 it does, and keeps the same plan as before here."""
+    cfg, problem = problem_of(crossing())
+    shared = plan(problem, cfg, "shared")
+    assert planner_mod.waits_per_robot(problem, shared.paths) < planner_mod.QUEUE_WAITS
+
+    def plans_made() -> tuple[int, object]:
+        steps: list[int] = []
+        auto = plan(problem, cfg, on_step=lambda t, out: steps.append(t))
+        return steps.count(1), auto
+
+    made, auto = plans_made()
+    assert made == len(AUTO_RULES) - 1
+    monkeypatch.setattr(planner_mod, "QUEUE_WAITS", 0.0)
+    made_all, auto_all = plans_made()
+    assert made_all == len(AUTO_RULES)
+    assert auto_all.contested == auto.contested and np.array_equal(auto_all.paths, auto.paths)
+
+
+def test_waits_per_robot_counts_stays_short_of_the_goal_region():
+    cfg, problem = problem_of(crossing())
+    goal = np.asarray(problem.goal)
+    far = goal - [30, 0]
+    paths = np.array([[far, goal], [far, goal], [far + [1, 0], goal], [far + [1, 0], goal]])
+    assert planner_mod.waits_per_robot(problem, paths) == pytest.approx(2 / 2)  # robot 0 twice; robot 1 at the goal
+    assert planner_mod.waits_per_robot(problem, paths[:1]) == 0.0
