@@ -77,7 +77,7 @@ def test_a_plan_cut_short_is_not_kept_though_it_flies_sooner(monkeypatch):
     cap = math.ceil(0.5 * first.n_steps)
     starts = [k for k, t in enumerate(steps) if t == 1] + [len(steps)]  # each plan's steps start again from 1
     plans = [steps[a:b] for a, b in zip(starts, starts[1:])]
-    assert len(plans) == len(AUTO_RULES) and plans[0] == list(range(1, first.n_steps + 1))
+    assert len(plans) >= 2 and plans[0] == list(range(1, first.n_steps + 1))  # "queue" only where robots wait
     assert all(later == list(range(1, cap + 1)) for later in plans[1:])
     cut = plan(problem, cfg, AUTO_RULES[1], max_steps=cap)
     assert _short_count(problem, cut.paths[-1]) > 0
