@@ -194,6 +194,33 @@ def test_the_refinement_starts_from_the_accepted_qp_without_solving_it_again(mon
     np.testing.assert_allclose(g0, again.gradient + alloc.weight, rtol=1e-4, atol=1e-6 * np.abs(g0).max())
 
 
+@pytest.mark.parametrize("shorter, refined", [(0.0, False), (1e-6, True)], ids=["rounding", "a microsecond"])
+def test_the_qps_durations_but_for_rounding_are_no_refinement(monkeypatch, shorter, refined):
+    """The scaling's cap at the QP's sum can leave a point whose steps differ from the QP's by rounding alone
+    (6e-17 s on the refined arena's third window), where the QP solved again is lower by its tolerance: that is
+    the QP's own durations, kept as they were and not counted in ``refined_windows``. Steps a microsecond shorter
+    are a refinement."""
+    import mrfswarm.continuous.receding_horizon as rh_mod
+
+    rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(time_refinement=True, speed=1.25), 0.25, workers=1)
+    a, c, b, start, rec = first_window(rh)
+    sol, _ = rh._solve(a, b, start, rh.nominal[a:b], rec, gradient=True)
+    assert sol is not None and sol.gradient is not None and rh._shortens_flown(sol, rec)
+    point = sol.durations.copy()
+    point[1:-1] = np.nextafter(point[1:-1] - shorter, 0.0)  # one ulp shorter still: what the cap's rounding leaves
+    # the QP there: the same trajectories, lower by a solver's tolerance
+    monkeypatch.setattr(rh, "_solve", lambda a, b, start, T, rec, **kw: (
+        rh_mod._Solution(sol.Y, sol.B, np.array(T), sol.cost * (1 - 1e-8), sol.gradient), ""))
+
+    def scaling(problem, weight, derivative, total=None):
+        return ScalingResult(point, problem.fun(point), 1, 2, "converged")
+
+    monkeypatch.setattr(rh_mod, "scale_durations", scaling)
+    out = rh._refine(sol, a, start, rec)
+    assert rec.refined is refined and (out is not sol) is refined
+    assert (rh.unrefined is not None) is refined  # nothing for the next window's undo to take back
+
+
 def test_a_backend_without_multipliers_still_solves_the_window(monkeypatch):
     """The attempts ask for the gradient when time_refinement is on; a QP backend that gives no multipliers must
     still fly the window (its solution has no gradient, and the refinement then keeps it)."""

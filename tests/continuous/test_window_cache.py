@@ -60,8 +60,9 @@ def test_a_cached_window_solves_exactly_as_a_fresh_one(monkeypatch, backend):
     calls = _refined_first_window(monkeypatch, backend)
     hits = WINDOWS.hits
     assert hits >= len(calls) / 3, (hits, len(calls))  # the trial points share the best point's rows
-    # piqp's prepared solver updated in place; osqp's never kept
-    assert (len(updates) >= 2) if backend == "piqp" else not updates
+    # piqp's prepared solver updated in place (once: a second update came from the undo of a first window "refined"
+    # by rounding alone, 2e-16 s, no longer a refinement); osqp's never kept
+    assert updates if backend == "piqp" else not updates
     for spec, durations, options, gradient, out in calls:
         WINDOWS.clear()
         fresh = solve_window(spec, durations, backend, options, gradient)
