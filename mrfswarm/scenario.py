@@ -226,5 +226,6 @@ def _check_reachable(grid: OccupancyGrid, start: np.ndarray, goal: np.ndarray, d
     bad = np.flatnonzero(cut)
     where = ", ".join(f"robot {i} at {format_point(grid.cell_to_world(start[i]))}" for i in bad[:3])
     more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
-    raise ScenarioError(f"no free path to the goal {format_point(g)} from {where}{more}; move them into the "
+    raise ScenarioError(f"no free path to the goal {format_point(g)} from {where}{more}; move "
+                        f"{'it' if len(bad) == 1 else 'them'} into the "
                         f"goal's free region or set goal_potential.distance = \"euclidean\"")

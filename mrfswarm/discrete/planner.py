@@ -46,7 +46,7 @@ from mrfswarm.discrete.potentials import Morse
 from mrfswarm.discrete.safety import discrete_violations
 from mrfswarm.discrete.step_mrf import step_mrf
 from mrfswarm.discrete.straighten import straighten
-from mrfswarm.errors import ScenarioError
+from mrfswarm.errors import ScenarioError, SolversError
 from mrfswarm.geometry import norm
 from solvers import mrf as mrf_solvers
 from solvers.mrf import PairwiseMRF
@@ -588,12 +588,16 @@ def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float
             problem = base if new is None else replace(base, static=new[0], goal_distance=new[1])
             congested += new is not None
         trim = trim_mask(problem, paths)
-        out = mrf_step(problem, pos, method, options, weights, gt, trim, waited)
-        escalate = problem.escalation
-        if escalate is not None and escalate != method and _no_progress(out, tol) and _short_of_goal(problem, pos):
-            joint = mrf_step(problem, pos, escalate, options, weights, gt, trim, waited)
-            if joint.moved and joint.energy_after < out.energy_after:
-                out, escalated = joint, escalated + 1
+        try:
+            out = mrf_step(problem, pos, method, options, weights, gt, trim, waited)
+            escalate = problem.escalation
+            if escalate is not None and escalate != method and _no_progress(out, tol) and _short_of_goal(problem, pos):
+                joint = mrf_step(problem, pos, escalate, options, weights, gt, trim, waited)
+                if joint.moved and joint.energy_after < out.energy_after:
+                    out, escalated = joint, escalated + 1
+        except SolversError as e:  # which step: an exact method refused the 28th step of a plan after 27 s, unsaid
+            e.args = (f"MRF step {t} (contested = {problem.contested!r}): {e}", *e.args[1:])
+            raise
         if t == 1:
             energy.append(out.energy_before)
             watch.best = out.energy_before

@@ -318,7 +318,7 @@ def test_a_robot_without_a_path_to_the_goal_is_named(tmp_path):
     cfg = tmp_path / "c.toml"
     cfg.write_text(f"[scenario]\n{POCKET}start = {{ positions = [[2, 2], [5, 0], [6, 1]] }}\ngoal = [9, 4]\n"
                    "[interaction]\nk = 1\n")
-    with pytest.raises(ScenarioError, match=r"no free path to the goal \(9, 4\) from robot 0 at \(2, 2\)"):
+    with pytest.raises(ScenarioError, match=r"no free path to the goal \(9, 4\) from robot 0 at \(2, 2\); move it "):
         plan(load_config(cfg, DISCRETE))
     # the paper's field plans anyway and says which robot could not get there
     r = plan(load_config(cfg, [*DISCRETE, *EUCLIDEAN]), progress=False)

@@ -119,3 +119,20 @@ def test_mrf_step_uses_the_registry():
                               morse=Morse(), k=1)
     with pytest.raises(SolverNotFound, match="unknown MRF method 'nope'"):
         mrf_step(problem, problem.start, "nope")
+
+
+def test_an_optimizer_that_refuses_a_step_is_said_with_the_step():
+    """A method over its own limit (exact: 5e6 labellings) refuses one step; the error says which step of which
+    plan (a tour's refusal came after 27 s of planning without it)."""
+    from mrfswarm.discrete.goal_distance import goal_distance
+    from solvers.mrf import InvalidProblem
+
+    free = np.ones((12, 12), dtype=bool)
+    goal = np.array([11, 11])
+    d = goal_distance(free, goal)
+    static = 3.0 * np.exp(d.path / 20.0)
+    start = np.array([[2 * i, 0] for i in range(6)] + [[2 * i, 2] for i in range(6)])  # 12 robots, 9 labels each
+    problem = DiscreteProblem(free=free, static=static, start=start, goal=goal, morse=Morse(), k=3, order=2,
+                              contested="shared", goal_distance=d.path, goal_path=d.path, goal_region_radius=3.0)
+    with pytest.raises(InvalidProblem, match=r"^MRF step 1 \(contested = 'shared'\): exact: \d+ labellings exceed"):
+        plan_discrete(problem, method="exact", max_steps=5)

@@ -48,3 +48,4 @@ def test_both_robots_reach_the_goal_safely(contested):
     plan = plan_discrete(problem, max_steps=30, arrival=True)
     assert plan.stop_reason == "arrived" and plan.contested == contested
     assert discrete_violations(plan.paths, problem.free) == []
+
