@@ -492,8 +492,9 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     robots had come most of the way but not all (a bend of 1-cell corridor with the paper's patience rule).
     "queue" is planned only when the "shared" plan's robots wait :data:`QUEUE_WAITS` steps each or more. When the
     first plan has every robot at the goal, a
-    later rule's plan ends after :data:`AUTO_STEP_CAP` times its steps (cut there, it has robots
-    short of the goal, or flies later by the model). ``on_step`` sees each plan's steps from 1.
+    later rule's plan ends after :data:`AUTO_STEP_CAP` times its steps, and a plan cut there is not kept (with
+    ``arrival`` it has robots short of the goal; without, its swarm had not settled, though it may fly sooner by
+    the model). ``on_step`` sees each plan's steps from 1.
 
     Raises
     ------
@@ -525,10 +526,11 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
                  "%s", rule, plan.n_steps, key[0], key[1],
                  f"{key[2]:.2f} s by the flight model" if problem.flight is not None
                  else f"{key[2]:.1f} cells of longest moves (no flight model: smoothing.speed is set)")
-        if plan.stop_reason == "max_steps" and cap < max_steps:
-            log.info("discrete stage, contested = %r: cut at %d steps, %g x the first rule's (not mrf.max_steps = %d)",
-                     rule, cap, AUTO_STEP_CAP, max_steps)
-        if best is None or key < best_key:
+        cut = plan.stop_reason == "max_steps" and cap < max_steps
+        if cut:
+            log.info("discrete stage, contested = %r: cut at %d steps, %g x the first rule's (not mrf.max_steps = %d): "
+                     "not kept", rule, cap, AUTO_STEP_CAP, max_steps)
+        if not cut and (best is None or key < best_key):
             best, best_key = plan, key
         if rule == AUTO_RULES[0] and key[0] == 0:  # arrived: a plan of many more steps would fly later
             cap = min(max_steps, int(np.ceil(AUTO_STEP_CAP * max(plan.n_steps, 1))))

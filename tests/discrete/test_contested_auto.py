@@ -177,3 +177,18 @@ def test_waits_per_robot_counts_stays_short_of_the_goal_region():
     paths = np.array([[far, goal], [far, goal], [far + [1, 0], goal], [far + [1, 0], goal]])
     assert planner_mod.waits_per_robot(problem, paths) == pytest.approx(2 / 2)  # robot 0 twice; robot 1 at the goal
     assert planner_mod.waits_per_robot(problem, paths[:1]) == 0.0
+
+
+def test_without_arrival_a_plan_cut_at_the_cap_is_not_kept():
+    """With ``mrf.arrival = false`` the first plan settles with every robot in the goal region, and a later rule's
+    plan cut at AUTO_STEP_CAP times its steps can have them there too and fly sooner, unsettled. It was kept,
+    reported stopped by "max_steps" at 10 steps under mrf.max_steps = 300 (20 robots packed in an 8 x 8 room;
+    stress tour). A plan cut by the cap is never kept."""
+    data = {"scenario": {"map": {"kind": "free", "size": [8, 8]}, "goal": [7, 7],
+                         "start": {"center": [2, 2], "n_robots": 20, "sigma": 1.5, "seed": 3}},
+            "mrf": {"arrival": False}}
+    cfg, problem = problem_of(data)
+    first = plan(problem, cfg, AUTO_RULES[0])
+    assert first.stop_reason != "max_steps" and _short_count(problem, first.paths[-1]) == 0
+    auto = plan(problem, cfg)
+    assert auto.stop_reason != "max_steps" and auto.n_steps < cfg.mrf.max_steps
