@@ -16,6 +16,7 @@ from mrfswarm.discrete.planner import DiscreteProblem
 from mrfswarm.discrete.potentials import Morse, goal_distances, obstacle_field, static_field
 from mrfswarm.discrete.robot_outcomes import goal_region_radius
 from mrfswarm.discrete.start import format_point, map_box, say_snapped, start_cells
+from mrfswarm.discrete.step_mrf import check_order
 from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.maps import OccupancyGrid, load_map
 from mrfswarm.maps.spec import AXES
@@ -139,9 +140,10 @@ def build_scenario(cfg: Config, seed: int | None = None) -> Scenario:
     ------
     ConfigError, ScenarioError
         Bad parameters, a robot or the goal off the map or in an obstacle, two robots in
-        one cell, k out of range.
+        one cell, k out of range, a search order too large for the map's dimension.
     """
     grid = load_map(cfg.scenario.map, cfg.base_dir)
+    check_order(cfg.mrf.order, grid.ndim, cfg.scenario.downwash)
     morse = Morse.from_config(cfg.interaction, grid.resolution)  # k_a, k_r in cells (potentials module)
     if cfg.smoothing.enabled and not cfg.scenario.robot_radius < 0.5 * grid.resolution:
         # the discrete stage keeps robots one cell apart and half a cell off walls: a robot as

@@ -32,6 +32,7 @@ from mrfswarm.discrete.motion import (
     stencil,
 )
 from mrfswarm.discrete.potentials import Morse
+from mrfswarm.errors import ConfigError
 from mrfswarm.geometry import downwash_scale
 from solvers.mrf import PairwiseMRF
 
@@ -50,6 +51,34 @@ def _offset_index(d0: np.ndarray, radii: np.ndarray) -> np.ndarray:
     return np.ravel_multi_index(tuple(np.moveaxis(d0 + radii, -1, 0)), tuple(2 * radii + 1))
 
 
+#: Offset-move pairs whose distances :func:`collision_table` computes at once (a few MB of temporaries each).
+_CHUNK = 1 << 18
+#: Most entries (bytes) of a :func:`collision_table`: 2 ** 30 holds order 20 on voxels, 16 at downwash 3.
+MAX_TABLE = 1 << 30
+
+
+def check_order(order: int, ndim: int, downwash: float) -> None:
+    """Refuse a search order whose collision table would not fit in :data:`MAX_TABLE` bytes.
+
+    mrf.order's range (1..32) suits a 2-D map; on voxels the table grows with the cube of the
+    stencil and with the downwash: order 32 on voxels needs 8.8 GB, 26 GB at downwash 3.
+
+    Raises
+    ------
+    ConfigError
+        Naming mrf.order and the largest order that fits.
+    """
+    def size(n: int) -> int:
+        return int(np.prod(2 * _offset_radii(n, ndim, downwash) + 1)) * len(stencil(n, ndim)) ** 2
+
+    if size(order) <= MAX_TABLE:
+        return
+    fits = max((n for n in range(1, order) if size(n) <= MAX_TABLE), default=1)
+    where = "a 3-D map" if ndim == 3 else "a 2-D map"
+    raise ConfigError(f"mrf.order = {order}: on {where} at scenario.downwash = {downwash:g} a step's collision table "
+                      f"would take {size(order) / 1e9:.1f} GB; give at most {fits}")
+
+
 @lru_cache(maxsize=16)
 def collision_table(order: int, ndim: int = 2, downwash: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Which pairs of stencil moves collide, for every integer start offset in range.
@@ -64,13 +93,22 @@ def collision_table(order: int, ndim: int = 2, downwash: float = 1.0) -> tuple[n
         (d,) offsets d0 with |d_k| <= R[k] are tabulated, in row-major order:
         g = :func:`_offset_index` (d0, R) (in 2-D, (dx + R) (2R + 1) + (dy + R)).
     """
-    off = stencil(order, ndim).astype(float)
+    check_order(order, ndim, downwash)
+    off = stencil(order, ndim)
+    S = len(off)
     R = _offset_radii(order, ndim, downwash)
     axes = np.meshgrid(*(np.arange(-r, r + 1) for r in R), indexing="ij")
     d0 = np.stack([x.ravel() for x in axes], axis=1).astype(float)  # (G, d)
-    v = off[:, None, :] - off[None, :, :]  # (S, S, d)
-    dist = min_distance_during_move(scaled(d0, downwash)[:, None, None, :], scaled(v, downwash)[None])
-    table = dist < MIN_SEPARATION - 1e-9
+    # the distance depends on the relative move a - b only: each distinct one once (S² pairs, far fewer moves),
+    # in chunks of offsets (all at once, order 16 on voxels took 24 GB of temporaries)
+    v, pair = np.unique((off[:, None, :] - off[None, :, :]).reshape(-1, ndim), axis=0, return_inverse=True)
+    pair = pair.reshape(S, S)
+    v = scaled(v, downwash)[None]
+    table = np.empty((len(d0), S, S), dtype=bool)
+    chunk = max(1, _CHUNK // len(v[0]))
+    for a in range(0, len(d0), chunk):
+        dist = min_distance_during_move(scaled(d0[a:a + chunk], downwash)[:, None, :], v)
+        table[a:a + chunk] = (dist < MIN_SEPARATION - 1e-9)[:, pair]
     table[(d0 ** 2).sum(axis=1) == 0] = False  # two robots never share a start cell
     table.setflags(write=False)
     R.setflags(write=False)

@@ -6,13 +6,14 @@ for), pruning, and a whole plan through a window in a wall.
 """
 
 import itertools
+import tracemalloc
 
 import networkx as nx
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
+from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig, from_dict
 from mrfswarm.discrete.goal_distance import goal_distance, graph_moves
 from mrfswarm.discrete.interaction_graph import knn_edges, maximal_cliques
 from mrfswarm.discrete.label_sets import LabelSets, label_sets, shadow_offsets
@@ -23,8 +24,9 @@ from mrfswarm.discrete.pruning import prune_paths, prune_paths_brute_force
 from mrfswarm.discrete.robot_outcomes import descent_ends, goal_region_radius
 from mrfswarm.discrete.safety import discrete_violations, discrete_violations_brute_force
 from mrfswarm.discrete.step_mrf import collision_table, conflict_tables
-from mrfswarm.errors import ScenarioError
+from mrfswarm.errors import ConfigError, ScenarioError
 from mrfswarm.geometry import downwash_scale, segment_clear
+from mrfswarm.scenario import build_scenario
 
 SAMPLES = 1001
 
@@ -200,6 +202,33 @@ def test_moving_under_a_robot_is_a_conflict_with_downwash():
         assert bool(m.get((0, 1), np.zeros((S, S), bool))[a, 0]) is conflict, c
     table, R = collision_table(2, 3, 2.0)
     assert R.tolist() == [3, 3, 7]  # offsets up to c x the radius in z
+
+
+def test_the_collision_table_takes_little_more_memory_than_itself():
+    """Each distinct relative move's distance once, in chunks of start offsets. All (offset, move, move) distances
+    at once took 56 times the table at order 8 on voxels, 24 GB at order 16 (killed; stress tour)."""
+    tracemalloc.start()
+    try:
+        table, _ = collision_table.__wrapped__(8, 3, 1.0)  # not the cached one
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 2 * table.nbytes
+
+
+@pytest.mark.parametrize("order, downwash, fits", [(32, 1.0, 20), (16, 3.0, 15)])
+def test_an_order_whose_collision_table_does_not_fit_is_refused_on_voxels(order, downwash, fits):
+    """mrf.order takes 1..32, which the plane holds; on voxels the table grows with the cube of the stencil and with
+    the downwash (order 32: 8.8 GB, ran out of memory in the first step). The scenario refuses it, naming the
+    largest order that fits, and takes that one."""
+    data = {"scenario": {"map": {"kind": "free", "size": [6, 6, 4]}, "start": {"positions": [[1, 1, 1], [3, 3, 1]]},
+                         "goal": [5, 5, 1], "downwash": downwash}, "mrf": {"order": order}}
+    with pytest.raises(ConfigError, match=rf"mrf.order = {order}: .* give at most {fits}$"):
+        build_scenario(from_dict(data))
+    build_scenario(from_dict({**data, "mrf": {"order": fits}}))
+    planar = {"scenario": {"map": {"kind": "free", "size": [6, 6]}, "start": {"positions": [[1, 1], [3, 3]]},
+                           "goal": [5, 5]}, "mrf": {"order": 32}}
+    build_scenario(from_dict(planar))
 
 
 # ------------------------------------------------------------------ goal field on voxels
