@@ -83,7 +83,7 @@ def test_run_with_the_old_key_warns_in_one_line_and_writes_the_new_one(tmp_path,
     out = tmp_path / "o"
     rc = main(["run", str(EXPERIMENTS / "corridor.toml"), "--out", str(out), "--set", "mrf.optimizer=gibbs",
                *[a for s in QUICK for a in ("--set", s)]])
-    err = capsys.readouterr().err.strip().splitlines()
+    err = [line for line in capsys.readouterr().err.splitlines() if "optimizer" in line]  # (QUICK: max_steps said)
     assert rc == 0
     assert err == ["mrfswarm: warning: config key mrf.optimizer is now mrf.method; mrf.optimizer still loads, as "
                    "mrf.method"]
