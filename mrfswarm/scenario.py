@@ -118,6 +118,7 @@ class Scenario:
             # with the continuous stage off too: a discrete-only run (scoping a big swarm, a sweep) plans what the
             # full run flies (without the model its merges and the "auto" rule were judged by cells instead)
             flight=flight_model(c.smoothing, self.grid.resolution, c.scenario.robot_radius),
+            pick=flight_model(c.smoothing, self.grid.resolution, c.scenario.robot_radius, "fast"),
         )
 
     def congestion_field(self) -> CongestionField | None:

@@ -233,16 +233,18 @@ def drift_room(resolution: float, radius: float) -> float:
     return DRIFT * max(0.0, resolution - 2 * radius - 2 * export_slack(resolution, radius))
 
 
-def flight_model(cfg: SmoothingConfig, resolution: float, radius: float) -> FlightModel | None:
-    """The moderate profile of the default time grid as a :class:`FlightModel` (None with a cruise ``speed`` set).
+def flight_model(cfg: SmoothingConfig, resolution: float, radius: float, profile: str = "moderate") -> FlightModel | None:
+    """A profile of the default time grid (:data:`PROFILES`) as a :class:`FlightModel` (None with a cruise ``speed``
+    set).
 
-    Merged waits are judged by it (:mod:`mrfswarm.discrete.merge_waits`): in clutter most windows fly it, and
-    judged by the bold one clutter40 kept fewer merges and flew 2.53 x the bound instead of 2.45 (doorway,
-    rooms, aisles, arena alike).
+    Merged waits are judged by the moderate one (:mod:`mrfswarm.discrete.merge_waits`): in clutter most windows fly
+    it, and judged by the bold one clutter40 kept fewer merges and flew 2.53 x the bound instead of 2.45 (doorway,
+    rooms, aisles, arena alike). ``contested = "auto"`` picks its plan by the fast one
+    (:attr:`mrfswarm.discrete.planner.DiscreteProblem.pick`).
     """
     if cfg.speed is not None:
         return None
-    name, cruise, acc = next(p for p in PROFILES if p[0] == "moderate")
+    name, cruise, acc = next(p for p in PROFILES if p[0] == profile)
     return FlightModel(resolution, cruise * cfg.v_max, motion_acceleration(cfg.v_max, cfg.a_max, cfg.j_max, acc),
                        drift_room(resolution, radius))
 

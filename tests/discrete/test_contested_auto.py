@@ -192,3 +192,20 @@ def test_without_arrival_a_plan_cut_at_the_cap_is_not_kept():
     assert first.stop_reason != "max_steps" and _short_count(problem, first.paths[-1]) == 0
     auto = plan(problem, cfg)
     assert auto.stop_reason != "max_steps" and auto.n_steps < cfg.mrf.max_steps
+
+
+def test_auto_picks_by_the_fast_profile_and_merges_by_the_moderate_one():
+    """The scenario's problem carries two flight models: ``pick`` (the time grid's fast profile, the attempt every
+    window tries first) for the choice of "auto", ``flight`` (the moderate one) for the merged waits."""
+    from mrfswarm.continuous.receding_horizon import PROFILES, motion_acceleration
+
+    cfg, problem = problem_of(crossing())
+    s = cfg.smoothing
+    for model, name in ((problem.pick, "fast"), (problem.flight, "moderate")):
+        _, cruise, acc = next(p for p in PROFILES if p[0] == name)
+        assert model.v_max == pytest.approx(cruise * s.v_max)
+        assert model.acceleration == pytest.approx(motion_acceleration(s.v_max, s.a_max, s.j_max, acc))
+    paths = plan(problem, cfg, "downhill").paths
+    fast = flight_time(problem, paths)
+    assert fast == pytest.approx(flight_time(replace(problem, flight=None), paths))  # the pick decides
+    assert fast < flight_time(replace(problem, pick=None), paths)  # the moderate profile flies it later
