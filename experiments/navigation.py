@@ -7,13 +7,15 @@ seeds 1-8 of each class, the first four of each being ``experiments/maps/``), ea
 continuous stage follows the discrete paths). Variants:
 
 ``default``
-    The default config: geodesic goal field, contested cells to the robot they lower
-    most among the nearest, patience on the static field sum too.
+    The default config (the README's defaults beyond the paper: geodesic goal field, Gamma = 2,
+    trimmed label sets, ``mrf.contested = "auto"``, following, the end on arrival, the escalation,
+    patience on the static field sum too).
 ``euclidean``
     The default with the paper's straight-line goal field.
 ``paper``
-    The paper's rules throughout, as the paper's scenario configs set them
-    (``euclidean``, ``mrf.contested = "nearest"``, ``mrf.progress = "energy"``, Gamma = 5, no trimming).
+    The paper's rules throughout, as the paper's scenario configs set them (``euclidean``,
+    Gamma = 5, ``mrf.contested = "nearest"``, ``mrf.progress = "energy"``, no trimming, no
+    following, no end on arrival, no escalation, the paths as the MRF made them).
 ``geodesic+nearest``, ``geodesic+energy``
     The default with one of its two other rules set back to the paper's: what each
     contributes.
@@ -60,7 +62,9 @@ ICM_VARIANTS: dict[str, tuple[tuple[str, ...], str]] = {
     "default": ((), "icm"),
     "euclidean": (('goal_potential.distance="euclidean"',), "icm"),
     "paper": (('goal_potential.distance="euclidean"', 'mrf.contested="nearest"', 'mrf.progress="energy"',
-               "obstacle_potential.gamma=5", "mrf.trim_backward=false"), "icm"),
+               "obstacle_potential.gamma=5", "mrf.trim_backward=false", "mrf.follow=false", "mrf.arrival=false",
+               "mrf.merge_waits=false", "mrf.drop_loops=false", "mrf.straighten=false", 'mrf.escalation="none"'),
+              "icm"),
     "geodesic+nearest": (('mrf.contested="nearest"',), "icm"),
     "geodesic+energy": (('mrf.progress="energy"',), "icm"),
 }
