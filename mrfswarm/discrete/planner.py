@@ -56,10 +56,10 @@ log = logging.getLogger(__name__)
 #: The per-step stages whose times are recorded, in order.
 STAGES = ("graph", "cliques", "labels", "energy", "optimizer")
 #: The contested rules ``contested = "auto"`` plans with, in this order (:func:`plan_discrete`). "queue" since the
-#: twenty-fifth session (flight_quality bench against b8824f7, where the flight model keeps it): the funnel into one
-#: gap 30.23 -> 28.56 s (0.80 -> 0.50 stops per robot), aisles30 35.88 -> 35.10, clutter40@7 52.95 -> 47.09, but
-#: clutter40 49.07 -> 49.65 and clutter40@3 51.71 -> 54.99 (the model's times are not the flown ones); the seven
-#: clutter maps 348.9 -> 348.3 s in sum, most with fewer stops; big200 152.4 -> 150.0 s (0.95 -> 0.82 stops); the
+#: twenty-fifth session (flight_quality bench against b8824f7, picked by the fast profile's model, where it keeps
+#: it): the funnel into one gap 30.23 -> 28.56 s (0.80 -> 0.50 stops per robot), aisles30 35.88 -> 35.10,
+#: clutter40@7 52.95 -> 47.09, but clutter40 49.07 -> 49.65 and @4 49.06 -> 49.74 (the model's times are not the
+#: flown ones); the seven clutter maps 348.9 -> 344.3 s in sum; big200 152.4 -> 150.0 s (0.95 -> 0.82 stops); the
 #: discrete stage costs about 1.5 x where it is planned (:data:`QUEUE_WAITS`).
 AUTO_RULES = ("downhill", "shared", "queue")
 #: With ``"auto"``, a later rule's plan ends after this many times the first plan's steps: it would fly later.
@@ -543,8 +543,8 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
 
 
 def waits_per_robot(problem: DiscreteProblem, paths: np.ndarray) -> float:
-    """The steps (T + 1, N, d) ``paths`` keep robots in their cells short of the goal region, per robot (every stay
-    counts without a goal)."""
+    """The steps robots stay in their cells short of the goal region along ``paths`` (T + 1, N, d), per robot (every
+    stay counts without a goal)."""
     paths = np.asarray(paths)
     if len(paths) < 2:
         return 0.0
@@ -607,7 +607,7 @@ def _plan_rule(problem: DiscreteProblem, method: str, max_steps: int, tol: float
                 joint = mrf_step(problem, pos, escalate, options, weights, gt, trim, waited)
                 if joint.moved and joint.energy_after < out.energy_after:
                     out, escalated = joint, escalated + 1
-        except SolversError as e:  # which step: an exact method refused the 28th step of a plan after 27 s, unsaid
+        except SolversError as e:  # which step and plan: exact's refusal after 27 s of planning said neither
             e.args = (f"MRF step {t} (contested = {problem.contested!r}): {e}", *e.args[1:])
             raise
         if t == 1:
