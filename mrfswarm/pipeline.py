@@ -512,8 +512,8 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     try:
         if plan_d.n_steps == 0 and plan_d.stop_reason != "arrived" and metrics.reached_goal is False:
             raise ScenarioError(
-                f"the swarm cannot move: no robot has a free move that lowers the swarm energy from the start "
-                f"(goal {metrics.final_goal_distance:.1f} m away)")
+                f"the swarm cannot move: {cfg.mrf.method} found no move from the start that lowers the swarm energy "
+                f"(goal {metrics.final_goal_distance:.1f} m away)")  # what the method found (BP said none where ICM moved)
         if cfg.smoothing.enabled:
             _continuous(result, show, workers)
         if cfg.smoothing.enabled and cfg.simulation.enabled:

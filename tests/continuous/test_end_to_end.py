@@ -192,7 +192,7 @@ def test_a_swarm_that_cannot_move(tmp_path, capsys):
     out = tmp_path / "o"
     rc = main(["run", str(cfg), "--out", str(out)])
     err = capsys.readouterr().err.strip().splitlines()
-    assert rc == 2 and len(err) == 1 and "the swarm cannot move" in err[0]
+    assert rc == 2 and len(err) == 1 and "the swarm cannot move: icm found no move" in err[0]  # the method's finding
     assert json.loads((out / "result.json").read_text())["mrf_steps"] == 0
 
 
