@@ -1520,6 +1520,15 @@ class RecedingHorizon:
         return bool(np.any(trial[:flown] < T[:flown]))
 
     # ------------------------------------------------------------------ run
+    @property
+    def retimes(self) -> bool:
+        """Whether the flight is re-timed as a whole once its windows are planned (:meth:`_retime`): at most
+        :data:`RETIME_HORIZONS` horizons of steps in more than one window, on the default time grid (not with a
+        cruise ``speed``, whose durations are the user's pace) and without rest-to-rest seams."""
+        cfg = self.cfg
+        return (cfg.speed is None and cfg.seam != "rest" and 1 < len(self.windows())
+                and self.T <= RETIME_HORIZONS * self.horizon)
+
     def run(self, on_window: Callable[[WindowRecord], None] | None = None) -> ContinuousPlan:
         """Plan every window; returns the assembled, certified trajectories."""
         if not (self.workers > 1 and self.N >= PARALLEL_ROBOTS):
@@ -1589,8 +1598,7 @@ class RecedingHorizon:
                 on_window(rec)
         sizes = [g for rec in records for g in rec.piece_steps]
         retimed = None
-        # not with a cruise `speed`: its durations are the user's pace
-        if cfg.speed is None and cfg.seam != "rest" and 1 < len(windows) and T <= RETIME_HORIZONS * self.horizon:
+        if self.retimes:
             retimed = self._retime(Y, B, durations, records, np.array(sizes))
         trajectories = [hermite_trajectory(Y[:, i], B[:, i], durations, cfg.degree, q) for i in range(N)]
         knots = np.concatenate([[0.0], np.cumsum(durations)])

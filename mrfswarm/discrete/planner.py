@@ -220,6 +220,11 @@ class DiscretePlan:
         Steps solved by ``problem.escalation`` after the plan's method left them without progress.
     contested
         The contested rule the plan was made with (the one ``"auto"`` picked).
+    alternatives
+        With ``contested = "auto"``: the rules' other plans that leave as few robots short of the goal region and
+        as little way as this one (its paths differ), sooner by :func:`flight_time` first. The pipeline flies them
+        too where a flight is short enough to be re-timed as a whole, which the flight model does not know
+        (:func:`mrfswarm.pipeline.plan`), and keeps the one flown soonest.
     """
 
     paths: np.ndarray
@@ -234,6 +239,7 @@ class DiscretePlan:
     congested_fields: int = 0
     contested: str = ""
     escalated: int = 0
+    alternatives: tuple[DiscretePlan, ...] = ()
 
     @property
     def n_steps(self) -> int:
@@ -498,7 +504,8 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     first plan has every robot at the goal, a
     later rule's plan ends after :data:`AUTO_STEP_CAP` times its steps, and a plan cut there is not kept (with
     ``arrival`` it has robots short of the goal; without, its swarm had not settled, though it may fly sooner by
-    the model). ``on_step`` sees each plan's steps from 1.
+    the model). The other plans tied with the kept one on the first two keys are its ``alternatives``
+    (:attr:`DiscretePlan.alternatives`). ``on_step`` sees each plan's steps from 1.
 
     Raises
     ------
@@ -512,8 +519,7 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
 
     if problem.contested != "auto":
         return one(problem, max_steps)
-    best: DiscretePlan | None = None
-    best_key: tuple[int, float, float] = (0, 0.0, 0.0)
+    kept: list[tuple[tuple[int, float, float], DiscretePlan]] = []
     cap = max_steps
     waits = np.inf  # per robot in the "shared" plan (AUTO_RULES has it before "queue")
     for rule in AUTO_RULES:
@@ -534,11 +540,16 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
         if cut:
             log.info("discrete stage, contested = %r: cut at %d steps, %g x the first rule's (not mrf.max_steps = %d): "
                      "not kept", rule, cap, AUTO_STEP_CAP, max_steps)
-        if not cut and (best is None or key < best_key):
-            best, best_key = plan, key
+        if not cut:
+            kept.append((key, plan))
         if rule == AUTO_RULES[0] and key[0] == 0:  # arrived: a plan of many more steps would fly later
             cap = min(max_steps, int(np.ceil(AUTO_STEP_CAP * max(plan.n_steps, 1))))
-    assert best is not None
+    kept.sort(key=lambda kp: kp[0])  # stable: the first rule wins a tie
+    (best_key, best), others = kept[0], list[DiscretePlan]()
+    for key, plan in kept[1:]:
+        if key[:2] == best_key[:2] and not any(np.array_equal(plan.paths, p.paths) for p in (best, *others)):
+            others.append(plan)
+    best.alternatives = tuple(others)
     return best
 
 

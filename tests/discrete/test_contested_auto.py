@@ -209,3 +209,45 @@ def test_auto_picks_by_the_fast_profile_and_merges_by_the_moderate_one():
     fast = flight_time(problem, paths)
     assert fast == pytest.approx(flight_time(replace(problem, flight=None), paths))  # the pick decides
     assert fast < flight_time(replace(problem, pick=None), paths)  # the moderate profile flies it later
+
+
+def arena() -> dict:
+    """The flight-quality bench's arena: 8 robots past two pillars in 6 x 3.5 m of 0.25 m cells, v_max 1 m/s."""
+    sys.path.insert(0, str(EXPERIMENTS / "bench"))
+    import flight_quality as fq
+
+    data, _ = fq.case_config("arena8")
+    return data
+
+
+def test_a_short_flight_s_plans_are_flown_and_the_soonest_kept():
+    """The arena's flight (16 steps) is re-timed as a whole, which the flight model does not know: it puts the
+    "downhill" plan sooner, and the "shared" plan flies sooner. Each plan is flown, and the run keeps the plan
+    and flight of the soonest, with its metrics; the others' planning is counted in the run's timings."""
+    data = apply_overrides(arena(), ["simulation.enabled=false"])
+    cfg, problem = problem_of(data)
+    plans = {rule: plan(problem, cfg, rule) for rule in AUTO_RULES[:2]}
+    modelled = {rule: flight_time(problem, p.paths) for rule, p in plans.items()}
+    assert modelled["downhill"] < modelled["shared"]  # the model alone keeps "downhill"
+    auto = plan(problem, cfg)
+    assert auto.contested == "downhill" and [a.contested for a in auto.alternatives] == ["shared"]
+    flown = {rule: mrfswarm.plan(from_dict(apply_overrides(data, [f"mrf.contested={rule}"])), progress=False)
+             for rule in plans}
+    assert all(r.smoothed().retimed is not None for r in flown.values())  # the flights were re-timed
+    assert flown["shared"].smoothed().makespan_s < 0.97 * flown["downhill"].smoothed().makespan_s
+    r = mrfswarm.plan(cfg, progress=False)
+    assert r.discrete.contested == "shared" and r.discrete.alternatives == ()  # dropped once compared
+    assert r.smoothed().makespan_s == pytest.approx(flown["shared"].smoothed().makespan_s, rel=1e-9)
+    np.testing.assert_array_equal(r.discrete.paths, plans["shared"].paths)
+    np.testing.assert_array_equal(r.metrics.mean_distance, flown["shared"].metrics.mean_distance)
+    assert r.metrics.final_goal_distance == flown["shared"].metrics.final_goal_distance
+    assert r.timings_s["smoothing_alternatives"] > 0
+
+
+def test_a_long_flight_s_plan_is_picked_by_the_model_alone():
+    """A flight of more than RETIME_HORIZONS horizons is not re-timed: its alternatives are not flown."""
+    data = apply_overrides(arena(), ["simulation.enabled=false", "smoothing.horizon=4"])
+    cfg, problem = problem_of(data)
+    r = mrfswarm.plan(cfg, progress=False)
+    assert r.discrete.contested == "downhill" and r.smoothed().retimed is None
+    assert "smoothing_alternatives" not in r.timings_s
