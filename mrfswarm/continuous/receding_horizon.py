@@ -148,8 +148,8 @@ MARGIN = 1e-6
 #: rows, amplified by the block (up to 2.4e-6 m measured on a slow 8-step window), which MARGIN did not cover.
 MERGED_MARGIN = 1e-5
 #: The time unit of a window with pieces spanning several steps, as a share of the geometric-mean nominal step
-#: (the unit of a window whose pieces are its steps), in a flight whose windows were lengthened to brake in
-#: (:func:`braking_horizon`: fine cells), whose merge rows are then also scaled to unit norm
+#: (the unit of a window whose pieces are its steps), on fine cells (more than :data:`FINE_BRAKING_STEPS` cells to
+#: brake in, where :func:`braking_horizon` lengthens the default windows), whose merge rows are then also scaled to unit norm
 #: (``WindowSpec.unit_merge_rows``). Its merge rows (formulation: Taylor coefficients q..D equal at a merged knot)
 #: in the usual unit, where a step lasts about 1, left piqp's interior point stalling on feasible windows (dual
 #: residual stuck near 1e-4, MAX_ITER_REACHED; clarabel: InsufficientProgress; a helper's analysis, 2026-11-29):
@@ -160,6 +160,12 @@ MERGED_MARGIN = 1e-5
 #: clutter40 1.28 -> 1.39 x by default (refined 1.19 -> 1.22), the aisles 1.29 -> 1.28 (flight_quality.py
 #: --baseline 2ce447c); gated, those maps fly the same.
 MERGED_TIME_UNIT = 0.1
+#: Cells of braking (:func:`braking_steps`) above which the cells count as fine: merged windows get
+#: :data:`MERGED_TIME_UNIT`. The default windows of 8 steps, half of them flown, brake in 4. The unit was given
+#: only where the windows were lengthened, so a user's own long windows on fine cells went without it: the 5 m
+#: crossing above in one window of 48 steps (``smoothing.horizon = 48``) failed every profile and flew 37.5 s
+#: (4.8 s in the lengthened windows of 36; 5.0 s with the unit).
+FINE_BRAKING_STEPS = 4
 #: With a cruise ``speed`` given, the nominal time grid speeds up and slows down at this fraction of a_max.
 NOMINAL_ACCELERATION = 0.25
 #: Without one (the default), each robot's speed profile cruises at this fraction of v_max (the rest is the
@@ -264,9 +270,15 @@ def braking_horizon(cfg: SmoothingConfig, speed: float, resolution: float) -> in
     """
     if cfg.seam == "rest" or cfg.execution >= 1:
         return cfg.horizon
+    return max(cfg.horizon, math.ceil(braking_steps(cfg, speed, resolution) / (1 - cfg.execution)))
+
+
+def braking_steps(cfg: SmoothingConfig, speed: float, resolution: float) -> int:
+    """Cells a window's tail brakes from ``speed`` to rest in: :data:`BRAKING_ROOM` times the distance of the
+    jerk-limited braking at the bold profile's acceleration (2 on 1 m cells at 2 m/s, 3 on the arena's 0.25 m cells
+    at 1 m/s, 18 on 0.1 m cells at 2 m/s)."""
     acc = motion_acceleration(speed, cfg.a_max, cfg.j_max, ACCELERATION)
-    tail = math.ceil(BRAKING_ROOM * braking_distance(speed, acc, cfg.j_max) / resolution)
-    return max(cfg.horizon, math.ceil(tail / (1 - cfg.execution)))
+    return math.ceil(BRAKING_ROOM * braking_distance(speed, acc, cfg.j_max) / resolution)
 
 
 def motion_acceleration(v_max: float, a_max: float, j_max: float, fraction: float = ACCELERATION) -> float:
@@ -749,8 +761,9 @@ class RecedingHorizon:
                 self.creep = CREEP_SPEED * way
             self._exit = next_moves(moves)  # a run's rows go in a window that holds its way out
             self.horizon = braking_horizon(cfg, change, grid.resolution)
-            if self.horizon > cfg.horizon:
+            if braking_steps(cfg, change, grid.resolution) > FINE_BRAKING_STEPS:
                 self.merged_unit = MERGED_TIME_UNIT
+            if self.horizon > cfg.horizon:
                 log.info("windows of %d steps instead of smoothing.horizon = %d: their unflown steps brake from %.2f "
                          "m/s on %g m cells", self.horizon, cfg.horizon, change, grid.resolution)
         elif cfg.speed is None:

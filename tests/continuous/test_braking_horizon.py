@@ -66,3 +66,18 @@ def test_fine_cells_with_merged_pieces_fly_near_the_limits(tmp_path, monkeypatch
     monkeypatch.setattr(rhm, "MERGED_TIME_UNIT", 1.0)
     assert plan(load_config(tmp_path / "long.toml", ["simulation.enabled=false"]), progress=False).continuous.makespan_s \
         > 2 * c.makespan_s
+
+
+def test_a_user_s_own_long_windows_on_fine_cells_get_the_merged_time_unit(tmp_path):
+    """The merged windows' time unit went only to windows the planner lengthened: the 5 m crossing in the user's own
+    windows of 48 steps (``smoothing.horizon = 48``, enough to brake in) failed every profile and flew 37.5 s. The
+    unit goes by the cells (FINE_BRAKING_STEPS): 5.0 s."""
+    (tmp_path / "long.toml").write_text(FINE_LONG)
+    r = plan(load_config(tmp_path / "long.toml", ["simulation.enabled=false", "smoothing.horizon=48"]), progress=False)
+    c = r.continuous
+    assert c.certificate.ok and max(c.pieces_per_robot) <= 31 and c.horizon == 48
+    assert any(len(w.piece_steps) < w.c - w.a for w in c.windows)  # merged pieces flown
+    assert c.makespan_s < 6.0
+    cfg = SmoothingConfig()
+    assert rhm.braking_steps(cfg, 2.0, 0.1) > rhm.FINE_BRAKING_STEPS >= rhm.braking_steps(cfg, 2.0, 1.0)
+    assert rhm.FINE_BRAKING_STEPS >= rhm.braking_steps(cfg, 1.0, 0.25)  # the arena's cells are not fine
