@@ -484,6 +484,9 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         raise ConfigError(f"workers = {workers!r}: must be a whole number >= 1")
     # a NumPy integer as a Python one: in the config it reached result.json, which json could not write
     seed, workers = (None if v is None else int(v) for v in (seed, workers))
+    # a backend's warnings are said once per run ("reduced accuracy"), not once per process: a sweep's worker plans
+    # several points, and said nothing of the second point's
+    solvers.qp.base.forget_warned()
     cfg = with_seed(resolve_config(config, mrf=mrf, qp=qp, nlp=nlp), seed)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()

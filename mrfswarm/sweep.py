@@ -52,6 +52,10 @@ from mrfswarm.pools import process_pool
 SWEEP_MARKER = "sweep.json"
 #: The toolkit's warnings a point hands to the sweep's process, which says each text once.
 _HANDED = (UnusedSettingWarning, DeprecatedKeyWarning)
+#: The loggers whose warnings a point hands to the sweep's process, which says each text once, naming the point: the
+#: numerical layer's (a QP backend's "reduced accuracy"). A spawned worker printed them bare, once per worker process,
+#: with no point named (a tour's osqp sweep of 3 points on 2 workers: two unprefixed lines).
+_HANDED_LOGS = ("solvers",)
 
 log = logging.getLogger(__name__)
 
@@ -284,15 +288,18 @@ def _run_point(task: _Task) -> dict:
     An error of the toolkit (:class:`~mrfswarm.errors.SolversError`, the root of every
     one) is the point's result (its message, and what a :class:`PlanError` carries);
     anything else propagates: it is a bug. The toolkit's own warnings (a setting the point leaves unused) are
-    ``warnings``, ``(category, text)`` pairs the sweep's process says (:func:`_say`), in a process's main thread;
-    a Dask worker's threads say them where they are (:func:`warnings.catch_warnings` is not for threads).
+    ``warnings``, ``(category, text)`` pairs the sweep's process says (:func:`_say`), and the numerical layer's
+    logged warnings (:data:`_HANDED_LOGS`) are ``logged``, texts it says naming the point (:func:`_tell`), in a
+    process's main thread; a Dask worker's threads say them where they are (:func:`warnings.catch_warnings` is not
+    for threads, nor a logger's handlers).
     """
     handed: list[tuple[type[Warning], str]] = []
+    logged: list[str] = []
     if threading.current_thread() is not threading.main_thread():
-        return _plan_point(task) | {"warnings": handed}
-    with _handing(handed):
+        return _plan_point(task) | {"warnings": handed, "logged": logged}
+    with _handing(handed), _logging_into(logged):
         out = _plan_point(task)
-    return out | {"warnings": handed}
+    return out | {"warnings": handed, "logged": logged}
 
 
 def _plan_point(task: _Task) -> dict:
@@ -334,6 +341,66 @@ def _handing(handed: list[tuple[type[Warning], str]]) -> Iterator[None]:
                 handed.append((w.category, str(w.message)))
             else:
                 warnings.showwarning(w.message, w.category, w.filename, w.lineno, w.file, w.line)
+
+
+class _Into(logging.Handler):
+    """A handler that keeps the text of each warning (and worse) logged in this process in a list; passes anything
+    else on to the root logger's handlers, as the logger's propagation would have (``--verbose``'s progress), and so
+    a process forked while it is on (the window chunks' workers), whose list no one reads."""
+
+    def __init__(self, into: list[str]) -> None:
+        super().__init__()
+        self.into, self.pid = into, os.getpid()
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.levelno >= logging.WARNING and os.getpid() == self.pid:
+            self.into.append(record.getMessage())
+        else:
+            logging.getLogger().handle(record)
+
+
+@contextlib.contextmanager
+def _logging_into(logged: list[str]) -> Iterator[None]:
+    """Collect the block's warnings of the loggers :data:`_HANDED_LOGS` into ``logged`` (texts), instead of letting
+    them reach the root logger's handlers (in a spawned worker, Python's last resort: a bare line)."""
+    loggers = [logging.getLogger(name) for name in _HANDED_LOGS]
+    handler = _Into(logged)
+    before = [lg.propagate for lg in loggers]
+    for lg in loggers:
+        lg.addHandler(handler)
+        lg.propagate = False
+    try:
+        yield
+    finally:
+        for lg, propagate in zip(loggers, before):
+            lg.removeHandler(handler)
+            lg.propagate = propagate
+
+
+def _point_name(p: int, values: Mapping[str, Any], seed: int | None = None) -> str:
+    """``sweep point 1 (interaction.k_a=14, seed 3)``: how the sweep's lines name a point."""
+    where = ", ".join([f"{k}={_cell(v)}" for k, v in values.items()] + ([] if seed is None else [f"seed {seed}"]))
+    return f"sweep point {p} ({where})"
+
+
+def _tell(name: str, logged: Iterable[str], told: dict[str, list[str]]) -> None:
+    """Warn each text of ``logged`` that no point has said yet, as ``name: text``, and keep the names of the points
+    that said it again in ``told`` (text -> names), for :func:`_tell_others`: once per sweep, each naming its point."""
+    for text in logged:
+        if text in told:
+            if name not in told[text]:
+                told[text].append(name)
+        else:
+            told[text] = []
+            log.warning("%s: %s", name, text)
+
+
+def _tell_others(told: Mapping[str, list[str]]) -> None:
+    """One line per text of :func:`_tell` that later points said too, naming them (the first said it alone)."""
+    for text, names in told.items():
+        if names:
+            points = ", ".join(n.removeprefix("sweep point ") for n in names[:8]) + (" ..." if len(names) > 8 else "")
+            log.warning("%s: also in sweep point%s %s", text, "s" * (len(names) > 1), points)
 
 
 def _say(handed: Iterable[tuple[type[Warning], str]], said: set[str]) -> None:
@@ -600,8 +667,7 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
             with _handing(handed):
                 cfg = resolve_config(load_config(config, items))  # checks the optimizer and backends too
         except SolversError as e:
-            where = ", ".join(f"{k}={_cell(v)}" for k, v in values.items())
-            raise type(e)(f"sweep point {p} ({where}): {e}") from e
+            raise type(e)(f"{_point_name(p, values)}: {e}") from e
         finally:
             _say(handed, said)
         for s in [None] if seeds is None else seeds:
@@ -666,8 +732,12 @@ def _sweep(config: Path, grid: dict, seeds: list[int] | None, overrides: list[st
     show = sys.stderr.isatty() if progress is None else progress
     bar = tqdm(total=len(tasks), desc="sweep", unit="point", disable=not show, file=sys.stderr)
 
+    told: dict[str, list[str]] = {}
+
     def done(i: int, out: dict) -> None:
         _say(out.get("warnings", ()), said)
+        values = {k: bases[i][k] for k in keys}
+        _tell(_point_name(bases[i]["point"], values, bases[i].get("seed")), out.get("logged", ()), told)
         write_json(Path(tasks[i].point_dir) / "result.json", _point_json(out))
         rows[i] = _row(bases[i], out)
         if out["error"] is not None:
@@ -692,6 +762,7 @@ def _sweep(config: Path, grid: dict, seeds: list[int] | None, overrides: list[st
         complete = True
     finally:
         bar.close()
+        _tell_others(told)
         ordered, columns = table()
         if ordered or complete:
             _write_table(out_dir, ordered, columns, meta | {"complete": complete})

@@ -484,3 +484,22 @@ def test_a_setting_the_points_leave_unused_is_said_once_in_one_line(tmp_path, ca
                str(tmp_path / "b"), "--workers", "1", "--set", "simulation.enabled=false", "--set", "mrf.max_steps=3"])
     err = capfd.readouterr().err.splitlines()
     assert rc == 0 and len(err) == 2 and all(line.startswith("mrfswarm: warning: smoothing.nlp = ") for line in err), err
+
+
+@pytest.mark.parametrize("workers", [2, 1])
+def test_a_backends_warning_names_the_point_it_came_from_once(workers, tmp_path, capfd, caplog):
+    """A spawned worker printed the QP backend's warning bare, once per worker process (a tour's osqp sweep: two
+    unprefixed "reduced accuracy" lines for 3 points), and in one process once per sweep, no point named."""
+    rc = main(["sweep", str(EXPERIMENTS / "corridor.toml"), "--grid", "smoothing.v_max=2.0,1.5", "--out",
+               str(tmp_path / "out"), "--workers", str(workers), "--set", "simulation.enabled=false",
+               "--set", "mrf.max_steps=3", "--set", "smoothing.qp_options.time_limit=30"])
+    text = "piqp has no time limit; Options.time_limit=30.0 is ignored"
+    bare = [line for line in capfd.readouterr().err.splitlines() if text in line]
+    said = [r.getMessage() for r in caplog.records if r.levelname == "WARNING" and text in r.getMessage()]
+    names = ["sweep point 0 (smoothing.v_max=2.0)", "sweep point 1 (smoothing.v_max=1.5)"]
+    first = next((n for n in names if said and said[0] == f"{n}: {text}"), None)
+    assert rc == 0 and not bare and first is not None and len(said) == 2, (bare, said)
+    other = next(n for n in names if n != first).removeprefix("sweep ")
+    assert said[1] == f"{text}: also in sweep {other}", said
+    if workers == 1:  # in point order
+        assert first == names[0], said

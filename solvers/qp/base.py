@@ -33,12 +33,18 @@ _warned: set[tuple[str, str]] = set()
 
 
 def warn_once(logger: logging.Logger, message: str) -> None:
-    """``message`` as a warning of ``logger``, once per process: an option a backend ignores is set once and
-    solved with many times (a window's every QP), and one line says it."""
+    """``message`` as a warning of ``logger``, once per process (or since :func:`forget_warned`): an option a backend
+    ignores is set once and solved with many times (a window's every QP), and one line says it."""
     key = (logger.name, message)
     if key not in _warned:
         _warned.add(key)
         logger.warning("%s", message)
+
+
+def forget_warned() -> None:
+    """Let :func:`warn_once` say each message again: a run starts, and one process may plan many (a sweep's points,
+    each of which says its own)."""
+    _warned.clear()
 
 
 def set_attributes(target: object, values: dict) -> None:

@@ -602,7 +602,7 @@ def test_an_ignored_time_limit_is_said_once_however_many_solves(name, caplog):
 
     from solvers.qp import base
 
-    base._warned.clear()
+    base.forget_warned()
     P, q = sp.csc_matrix(np.eye(2)), np.array([-1.0, -1.0])
     A = sp.csc_matrix(np.eye(2))
     problem = qp.QPProblem(P=P, q=q, A=A, l=np.zeros(2), u=np.full(2, 0.5))
