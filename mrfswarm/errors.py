@@ -34,6 +34,19 @@ class ExportError(MrfswarmError, ValueError):
     that must not be written into; the message says which value and why."""
 
 
+class OutputExistsError(ExportError):
+    """An output folder that already holds a run (or a sweep), and no overwrite asked. The message names both ways to
+    replace it (``--overwrite``, ``overwrite=True``); ``command_line`` is the one the ``mrfswarm`` command says, with
+    the flag only."""
+
+    def __init__(self, message: str, command_line: str) -> None:
+        super().__init__(message)
+        self.command_line = command_line
+
+    def __reduce__(self) -> tuple:  # both texts through a process boundary (a sweep's worker)
+        return type(self), (str(self), self.command_line)
+
+
 class DeprecatedKeyWarning(FutureWarning):
     """A config key under the name it had in an earlier version: it still loads, as its new name.
 

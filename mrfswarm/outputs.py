@@ -26,7 +26,7 @@ import numpy as np
 
 from mrfswarm import plots
 from mrfswarm.atomic import atomic_write, not_writable, umask
-from mrfswarm.errors import ExportError, UnusedSettingWarning
+from mrfswarm.errors import ExportError, OutputExistsError, UnusedSettingWarning
 from mrfswarm.pipeline import Result
 
 log = logging.getLogger(__name__)
@@ -99,8 +99,9 @@ def check_output_dir(out: Path, overwrite: bool = False, marker: str = RUN_MARKE
         raise ExportError(f"output folder {str(out)!r} holds files that are not an mrfswarm {what}'s ({listed}: no "
                           f"{marker}); choose another --out")
     if not overwrite:
-        raise ExportError(f"output folder {str(out)!r} already holds a {what} ({listed}); give --overwrite "
-                          f"(in Python: overwrite=True) to replace it, or another --out")
+        held = f"output folder {str(out)!r} already holds a {what} ({listed}); give --overwrite"
+        raise OutputExistsError(f"{held} (in Python: overwrite=True) to replace it, or another --out",
+                                f"{held} to replace it, or another --out")
 
 
 def set_aside(out: Path) -> Path | None:

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from mrfswarm.cli import main
 from mrfswarm.config import load_config
-from mrfswarm.errors import ConfigError
+from mrfswarm.errors import ConfigError, ExportError
 from mrfswarm.pipeline import plan
 from mrfswarm.sweep import SchedulerError, is_timing_column, parse_grid, run_sweep, toml_literal
 from support.added_backends import registered
@@ -220,6 +220,9 @@ def test_a_folder_holding_a_sweep_is_refused_or_replaced_with_overwrite(tmp_path
     assert main([*args, "--grid", "interaction.k=2"]) == 2  # refused before planning
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "already holds a sweep" in err and "--overwrite" in err
+    assert "in Python" not in err and "overwrite=True" not in err, err  # the command's way only
+    with pytest.raises(ExportError, match=r"already holds a sweep .*\(in Python: overwrite=True\)"):
+        run_sweep(FREE5, {"interaction.k": [2]}, out, workers=1)
     assert sorted(p.name for p in (out / "points").iterdir()) == first
     assert main([*args, "--grid", "interaction.k=4", "--overwrite"]) == 0
     assert [p.name for p in (out / "points").iterdir()] == ["000_k=4"]

@@ -21,7 +21,7 @@ import threading
 import warnings
 from typing import Any, NoReturn
 
-from mrfswarm.errors import DeprecatedKeyWarning, SolversError, UnusedSettingWarning
+from mrfswarm.errors import DeprecatedKeyWarning, OutputExistsError, SolversError, UnusedSettingWarning
 
 
 class _Parser(argparse.ArgumentParser):
@@ -64,7 +64,9 @@ def main(argv: list[str] | None = None) -> int:
             warnings.showwarning = _one_line(warnings.showwarning)
             rc = args.func(args)
     except SolversError as e:  # MrfswarmError and the solvers layer's errors
-        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        # an error whose message also speaks to Python callers has the command's own words (OutputExistsError)
+        text = e.command_line if isinstance(e, OutputExistsError) else str(e)
+        msg = text.splitlines()[0] if text else type(e).__name__
         print(f"mrfswarm: error: {msg}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

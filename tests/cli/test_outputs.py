@@ -39,6 +39,7 @@ def test_six_then_five_robots_refused_then_overwritten(tmp_path, capsys):
     assert run(tmp_path, 5, out) == 2  # refused before planning
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "already holds a run" in err and "--overwrite" in err and str(out) in err
+    assert "in Python" not in err and "overwrite=True" not in err, err  # the command's way only
     assert snapshot(out) == first  # intact
     assert run(tmp_path, 5, out, "--overwrite") == 0
     second = snapshot(out)
@@ -267,7 +268,7 @@ def test_check_output_dir_guards(tmp_path):
     run_dir.mkdir()
     (run_dir / "result.json").write_text("{}")
     outputs.check_output_dir(run_dir, overwrite=True)
-    with pytest.raises(ExportError, match="already holds a run"):
+    with pytest.raises(ExportError, match=r"already holds a run .*\(in Python: overwrite=True\)"):
         outputs.check_output_dir(run_dir)
     outputs.check_output_dir(tmp_path / "nowhere")
 
