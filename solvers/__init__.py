@@ -7,6 +7,25 @@ This package never imports ``mrfswarm``; its errors derive from :class:`SolversE
 """
 
 from solvers import mrf, nlp, qp
-from solvers.errors import InfeasibleError, InvalidOptions, InvalidProblem, SolverError, SolverNotFound, SolversError
+from solvers.errors import (
+    InfeasibleError,
+    InvalidOptions,
+    InvalidProblem,
+    SolveFailedError,
+    SolverError,
+    SolverNotFound,
+    SolversError,
+)
 
-__all__ = ["InfeasibleError", "InvalidOptions", "InvalidProblem", "SolverError", "SolverNotFound", "SolversError", "mrf", "nlp", "qp"]
+__all__ = [
+    "InfeasibleError",
+    "InvalidOptions",
+    "InvalidProblem",
+    "SolveFailedError",
+    "SolverError",
+    "SolverNotFound",
+    "SolversError",
+    "mrf",
+    "nlp",
+    "qp",
+]

@@ -37,6 +37,12 @@ class InfeasibleError(SolverError):
     """The backend proved (or reported) the problem infeasible."""
 
 
+class SolveFailedError(SolverError):
+    """The backend ended with a status neither optimal nor infeasible (an iteration or time limit, an inaccurate or
+    dual infeasible end), or without a point; ``status`` is its own text. A caller that counts such ends reads it
+    here, not from the message."""
+
+
 def check_argument(value: object, cls: type, what: str, error: type[SolversError], public: str) -> None:
     """Raise ``error`` naming ``what`` unless ``value`` is a ``cls`` (``public``: its name for the user). A dict
     of options or a tuple as a problem ended in an AttributeError that blamed the backend ("piqp failed:

@@ -134,7 +134,7 @@ from mrfswarm.trajectory import PiecewisePolynomial
 from mrfswarm.trajectory.bernstein import control_point_matrix
 from mrfswarm.trajectory.piece_stack import map_coefficients
 from mrfswarm.trajectory.retiming import max_derivative_norm_all
-from solvers.errors import SolverError
+from solvers.errors import SolveFailedError, SolverError
 from solvers.nlp import NLPProblem
 from solvers.nlp import Options as NLPOptions
 from solvers.qp import Options as QPOptions
@@ -444,6 +444,21 @@ RETIME_HORIZONS = 2
 RETIME_FACTORS = (0.98, 0.96, 0.94, 0.92, 0.90)
 
 
+class Rejection(str):
+    """Why a chunk's QP has no solution: the text (what :attr:`WindowRecord.failed` keeps), and ``status``, the QP
+    backend's own status where it ended without a solution it did not prove infeasible
+    (:class:`~solvers.errors.SolveFailedError`; None otherwise), which ``result.json``'s ``solve_failures`` counts.
+    A ``str``, so that it reads as the reason did before; the count read the status back from the text with a regex.
+    """
+
+    status: str | None
+
+    def __new__(cls, text: str, status: str | None = None) -> Rejection:
+        self = super().__new__(cls, text)
+        self.status = status
+        return self
+
+
 @dataclass
 class WindowRecord:
     """One planning window: steps a..b planned, a..c flown.
@@ -455,6 +470,9 @@ class WindowRecord:
         the overlap), ``"slower xF"`` or ``"witness"``.
     failed
         Why the attempts before it were rejected.
+    unsolved
+        The QP backend's status for each attempt of ``failed`` it ended without a solution for, not proved
+        infeasible (:class:`Rejection`'s ``status``), in order.
     rounds
         QP solves of the lazy constraint generation (over all attempts).
     active_pairs
@@ -489,6 +507,7 @@ class WindowRecord:
     b: int
     attempt: str = ""
     failed: list[str] = field(default_factory=list)
+    unsolved: list[str] = field(default_factory=list)
     rounds: int = 0
     active_pairs: int = 0
     refined: bool = False
@@ -501,6 +520,12 @@ class WindowRecord:
     solve_s: float = 0.0
     durations: np.ndarray | None = None
     piece_steps: list[int] = field(default_factory=list)
+
+    def note_unsolved(self, why: str) -> None:
+        """Keep the QP backend's status in :attr:`unsolved` where ``why``, an attempt's reason just put in
+        :attr:`failed`, is a :class:`Rejection` that carries one."""
+        if isinstance(why, Rejection) and why.status is not None:
+            self.unsolved.append(why.status)
 
     @property
     def pieces(self) -> int:
@@ -1029,6 +1054,7 @@ class RecedingHorizon:
             self.limit_rows[a:b] = saved
         if sol is None or sol.cps is None:
             rec.failed.append(f"stretch: {why}")
+            rec.note_unsolved(why)
             return []
         faces, inner = limit_polytope(self.dim)
         stretch = np.ones(len(bold))
@@ -1068,7 +1094,9 @@ class RecedingHorizon:
         if failed:
             self._hard[:] = False
             self._hard[chunks[failed[0]]] = True
-            return results, f"{len(chunks[failed[0]])} robots: {results[failed[0]]}"
+            why = results[failed[0]]
+            return results, Rejection(f"{len(chunks[failed[0]])} robots: {why}",
+                                      why.status if isinstance(why, Rejection) else None)
         return results, ""
 
     def _map(self, fn: Callable, args: list[tuple]) -> list:
@@ -1322,6 +1350,7 @@ class RecedingHorizon:
                         why = "; ".join(cert.problems[:2])
                     what = name + (" with creep rows" if creep is not None else "") + (" with holds" if hold else "")
                     rec.failed.append(f"{label}{what}: {why}")
+                    rec.note_unsolved(why)
                     log.info("window %d..%d, %s%s durations rejected: %s", a, b, label, what, why)
                 if chosen is not None:
                     break
@@ -1723,7 +1752,8 @@ class RecedingHorizon:
 def solve_window(spec: WindowSpec, durations: np.ndarray, backend: str, options: QPOptions,
                  gradient: bool = False) -> tuple | str:
     """Solve one chunk's QP: its robots' knot derivatives, bubbles, snap integrals and (if asked, and
-    the backend gives multipliers) each robot's share of the gradient in the durations; or why it failed.
+    the backend gives multipliers) each robot's share of the gradient in the durations; or why it failed (a
+    :class:`Rejection`, with the backend's status where it ended without a solution).
 
     A plain function of picklable data, so chunks can be solved in worker processes (or,
     later, on a cluster). The process's :data:`~mrfswarm.continuous.window_cache.WINDOWS`
@@ -1733,7 +1763,7 @@ def solve_window(spec: WindowSpec, durations: np.ndarray, backend: str, options:
     try:
         form, sol = WINDOWS.solve(spec, durations, backend, options)
     except SolverError as e:
-        return str(e)
+        return Rejection(str(e), e.status if isinstance(e, SolveFailedError) else None)
     x = form.exact_ends(sol.x)
     Y, B = form.unpack(x)
     if spec.merged is not None:  # the merge rows are met to the solver's tolerance: make them exact

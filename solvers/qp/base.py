@@ -15,7 +15,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from solvers.errors import InfeasibleError, InvalidProblem, SolverError
+from solvers.errors import InfeasibleError, InvalidProblem, SolveFailedError, SolverError
 from solvers.qp.problem import QPProblem
 from solvers.qp.row_split import RowSplit, split_rows
 from solvers.qp.solution import Options, Solution, Status
@@ -105,8 +105,10 @@ class PreparedQP(ABC):
             A ``warm_start`` of the wrong shape or not finite.
         InfeasibleError
             When the backend reports infeasibility.
+        SolveFailedError
+            For any other status than optimal (or no point), with the backend's status text.
         SolverError
-            For any other status than optimal, with the backend's status text.
+            A point that is not a solution (not finite, of the wrong size, missing a row), whatever its label.
         """
         if warm_start is not None:
             warm_start = np.asarray(warm_start, dtype=float)
@@ -124,7 +126,7 @@ class PreparedQP(ABC):
         if status is Status.INFEASIBLE:
             raise InfeasibleError(f"{self.name}: problem infeasible (status {raw!r})", backend=self.name, status=raw)
         if not status.ok or x is None:
-            raise SolverError(f"{self.name}: solve failed (status {raw!r})", backend=self.name, status=raw)
+            raise SolveFailedError(f"{self.name}: solve failed (status {raw!r})", backend=self.name, status=raw)
         x = np.array(x, dtype=float).reshape(-1)  # a copy: piqp and proxsuite return views of their buffers
         if x.size != self.problem.n:
             raise SolverError(f"{self.name}: returned x of {x.size} entries for {self.problem.n} variables (status "
