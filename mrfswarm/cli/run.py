@@ -85,6 +85,34 @@ def flown_warnings(flown: dict | None, radius: float) -> list[str]:
     return out
 
 
+#: Why a robot (``result.json``'s ``robots[].stop_reason``) did not reach the goal, as the run's last line says it.
+WHY_SHORT = {
+    "trapped": "trapped (the goal field leads them to a local minimum short of the goal, or they queue behind one)",
+    "stalled": "stalled (held where they are by the robots around them)",
+    "unreachable": "unreachable (no free path to the goal)",
+    "max_steps": "on their way at mrf.max_steps",
+}
+
+
+def short_of_goal(robots: list[dict], distance: str) -> str | None:
+    """The run's last line when robots did not reach the goal for another reason than the step budget (whose line
+    says which key to raise): how many, and why. A crowd behind a one-cell door under the paper's rules ended with
+    0 of 20 at the goal, said only inside the summary line's parentheses, and exit code 0 as any plan written."""
+    why: dict[str, int] = {}
+    for r in robots:
+        if r["stop_reason"] is not None:
+            why[r["stop_reason"]] = why.get(r["stop_reason"], 0) + 1
+    if set(why) <= {"max_steps"}:
+        return None
+    short = sum(why.values())
+    line = (f"{short} of {len(robots)} robot{'s' * (len(robots) > 1)} did not reach the goal: "
+            + ", ".join(f"{why[k]} {WHY_SHORT.get(k, k)}" for k in [*(k for k in WHY_SHORT if k in why),
+                                                                      *(k for k in why if k not in WHY_SHORT)]))
+    if "trapped" in why and distance == "euclidean":
+        line += '; goal_potential.distance = "geodesic" (the default) leads around walls'
+    return line + "; the plan is written as any other (see result.json's robots)"
+
+
 #: A failed run given --overwrite over a complete run is written to ``DIR`` + this, the complete run kept.
 FAILED_SUFFIX = ".failed"
 
@@ -187,4 +215,7 @@ def run(args: argparse.Namespace) -> int:
         more = f" ({len(errors) - 1} other errors in result.json's refinement_errors)" if len(errors) > 1 else ""
         print(f"mrfswarm: warning: the time refinement's NLP backend raised: {errors[0]}{more}; those windows fly "
               "their QP's durations or the best point it had evaluated", file=sys.stderr)
+    home = short_of_goal(s["robots"], result.config.goal_potential.distance)
+    if home:  # last: what a user reads first of a run that did not bring the swarm home
+        print(f"mrfswarm: warning: {home}", file=sys.stderr)
     return 0

@@ -406,5 +406,29 @@ def test_a_plan_cut_by_max_steps_says_which_key_to_raise(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "mrfswarm: warning: the discrete plan ended at mrf.max_steps = 5 with 2 robots on the way" in err, err
     assert "--set mrf.max_steps=100" in err
+    assert "did not reach the goal" not in err  # the line above says it, with the key to raise
     assert main([*argv, "--set", "mrf.max_steps=100", "--out", str(tmp_path / "b")]) == 0
     assert "max_steps" not in capsys.readouterr().err  # all at the goal: no word
+
+
+def test_a_crowd_trapped_behind_a_door_is_said_last(tmp_path, capsys):
+    """20 robots behind a one-cell door under the paper's field and rules: 0 of 20 at the goal, said only inside the
+    summary line's parentheses. The plan is written as any other (exit 0, as a plan cut by mrf.max_steps): the last
+    line says how many did not reach the goal, and why."""
+    rows = ",".join('"' + ("." * 12 + ("." if y == 10 else "#") + "." * 17) + '"' for y in range(21))
+    starts = ", ".join(f"[{x}, {y}]" for x in range(2, 7) for y in range(6, 14, 2))
+    cfg = write_config(tmp_path, f'[scenario]\nmap = {{ kind = "ascii", rows = [{rows}] }}\n'
+                                 f'start = {{ positions = [{starts}] }}\ngoal = [24, 10]\n'
+                                 '[goal_potential]\ndistance = "euclidean"\n[obstacle_potential]\ngamma = 5.0\n'
+                                 '[mrf]\ncontested = "nearest"\nfollow = false\narrival = false\nmerge_waits = false\n'
+                                 'drop_loops = false\nstraighten = false\nescalation = "none"\nprogress = "energy"\n'
+                                 'trim_backward = false\n')
+    assert main(["run", str(cfg), "--out", str(tmp_path / "out"), "--set", "smoothing.enabled=false"]) == 0
+    out, err = capsys.readouterr()
+    res = json.loads((tmp_path / "out" / "result.json").read_text())
+    assert res["robots_at_goal"] == 0 and {r["stop_reason"] for r in res["robots"]} == {"trapped"}
+    assert "robots at goal: 0/20 (trapped: robots 0, 1," in out
+    assert err.splitlines()[-1] == (
+        "mrfswarm: warning: 20 of 20 robots did not reach the goal: 20 trapped (the goal field leads them to a local "
+        'minimum short of the goal, or they queue behind one); goal_potential.distance = "geodesic" (the default) '
+        "leads around walls; the plan is written as any other (see result.json's robots)"), err
