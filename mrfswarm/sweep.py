@@ -613,7 +613,9 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
     Returns
     -------
     SweepResult
-        The rows, in the order of the points. A point that failed with a
+        The rows, in the order of the points. The times of the first point a process plans include that process's
+        warm-up (imports, first-call work): 0.2-0.5 s on the paper corridor (docs/contracts.md, ``mrfswarm sweep``'s
+        output), so compare small points' times from the second row a process planned on. A point that failed with a
         :class:`MrfswarmError` (a scenario the planner rejects, e.g. ``k >= N``, a goal in an
         obstacle) is a row with ``error`` set and whatever the run computed before failing.
         A point whose config is invalid (Morse parameters with ``k_a <= k_r`` included)
