@@ -167,8 +167,10 @@ def run(args: argparse.Namespace) -> int:
                                  for k, v in why.items()) + ")"
     if s["robots_separated"]:
         goal += f", {s['robots_separated']} separated from the swarm"
+    # the map says whether the run is 3-D, not the goal: a formation flight has none
+    scaled = s["downwash"] != 1 and result.scenario.grid.ndim == 3
     line = (f"{s['n_robots']} robots, {s['mrf_steps']} MRF steps ({s['mrf']}, {s['stop_reason']}{goal}), "
-            f"min separation{' (downwash-scaled)' if s['downwash'] != 1 and len(s['goal']) == 3 else ''} "
+            f"min separation{' (downwash-scaled)' if scaled else ''} "
             f"{s['min_separation_discrete']:.2f} m discrete")
     if s["min_separation_continuous"] is not None:
         # the NLP backend too where one refined the durations (a solver tour saw only the QP's named)

@@ -406,3 +406,14 @@ def test_the_command_interrupted_ignores_a_second_ctrl_c_on_its_way_out(tmp_path
         assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGINT, before)
+
+
+def test_a_3d_formation_runs_summary_line_without_a_goal(tmp_path, capsys):
+    """A 3-D formation flight (no goal) with downwash ended in a TypeError traceback after writing its run: the
+    summary line took the run's dimension from the goal's length."""
+    cfg = tmp_path / "formation.toml"
+    cfg.write_text("[scenario]\nmap = { kind = \"free\", size = [6, 6, 4], origin = [0, 0, 0.5] }\ndownwash = 2.0\n"
+                   "start = { positions = [[1, 1, 1.5], [3, 1, 1.5], [1, 3, 1.5], [3, 3, 1.5]] }\n"
+                   "[mrf]\nmax_steps = 3\n[smoothing]\nenabled = false\n")
+    assert main(["run", str(cfg), "--out", str(tmp_path / "out")]) == 0
+    assert "min separation (downwash-scaled) " in capsys.readouterr().out
