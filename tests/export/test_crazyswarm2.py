@@ -722,3 +722,28 @@ def test_a_piece_written_in_two_halves_is_the_same_polynomial(run_dir, tmp_path)
             assert np.polynomial.polynomial.polyval(tt, h[1 + 8 * k:9 + 8 * k]) == pytest.approx(
                 np.polynomial.polynomial.polyval(t, row[1 + 8 * k:9 + 8 * k]), abs=1e-9)
     assert fly.loadable(run_dir / "trajectories" / "robot_0.csv") == run_dir / "trajectories" / "robot_0.csv"
+
+
+def test_cflib_upload_help_says_how_many_compressed_pieces_fit_in_2d_and_3d(monkeypatch, capsys):
+    """The help said "fit 131 instead of 31" for every plan, but a 3-D plan's pieces store z too (45 bytes, not
+    31): 90 fit. The counts are cflib's own packing into the 4096-byte memory."""
+    from cflib.crazyflie.mem import CompressedSegment, CompressedStart
+
+    from mrfswarm.export.cflib_ import MEMORY_BYTES
+    from mrfswarm.export.crazyswarm2 import SCRIPTS
+
+    def most(dim):
+        axes = [[0.001] * 7] * dim + [[]] * (3 - dim)
+        n = 0
+        while len(b"".join(bytes(e.pack()) for e in [CompressedStart(0.0, 0.0, 1.0, 0.0)]
+                           + [CompressedSegment(0.5, *axes, [])] * (n + 1) + [CompressedSegment(0.0, [], [], [], [])])) \
+                <= MEMORY_BYTES:
+            n += 1
+        return n
+
+    script = load_script(SCRIPTS / "cflib_upload.py", "cflib_upload_help")
+    with pytest.raises(SystemExit) as e:
+        script.main(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert e.value.code == 0
+    assert f"fit {most(2)} instead of 31" in text and f"{most(3)} in a 3-D plan" in text, text

@@ -212,7 +212,7 @@ def together(swarm: Any, what: str, func: Any) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--compressed", action="store_true", help="compressed pieces (fit 131 instead of 31)")
+    ap.add_argument("--compressed", action="store_true", help="compressed pieces (fit 131 instead of 31; 90 in a 3-D plan, whose z is stored too)")
     ap.add_argument("--fly", action="store_true", help="after uploading, take off, fly and land")
     ap.add_argument("--robots", default=None, help="comma-separated robot indices (default: all in the yaml)")
     args = ap.parse_args(argv)
