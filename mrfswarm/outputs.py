@@ -254,7 +254,7 @@ def write_crazyflie_outputs(result: Result, out: Path) -> list[Path]:
     ends = np.array([tr.evaluate(tr.duration) for tr in c.trajectories])
     radius = result.config.scenario.robot_radius
     sm = result.config.smoothing
-    lowest = columns = None
+    lowest = columns = floor = None
     if starts.shape[-1] == 3:
         start_z, end_z = starts[:, 2], ends[:, 2]
     else:  # a 2-D plan flies at its altitude
@@ -264,12 +264,13 @@ def write_crazyflie_outputs(result: Result, out: Path) -> list[Path]:
         lowest = lowest_points(c.trajectories)
         grid = result.scenario.grid
         origin = np.asarray(grid.origin, dtype=float)
+        floor = float(origin[2] - grid.resolution / 2)
         # the scripts take off to the highest start and land from each end
         columns = (blocked_columns(grid.occupied, origin, grid.resolution, starts[:, :2],
                                    np.full(len(starts), starts[:, 2].max()), radius),
                    blocked_columns(grid.occupied, origin, grid.resolution, ends[:, :2], ends[:, 2], radius))
     altitude = None if starts.shape[-1] == 3 else result.config.scenario.altitude
-    written = write_crazyswarm2(starts, out, radius, lowest, columns, ends, maneuver, altitude)
+    written = write_crazyswarm2(starts, out, radius, lowest, columns, ends, maneuver, altitude, floor)
     _, comp = result._crazyflie_export()
     if comp is not None:
         written.append(write_json(out / "crazyflie" / "compressed.json", compressed_json(comp)))

@@ -160,7 +160,7 @@ def blocked_columns(occupied: np.ndarray, origin: np.ndarray, resolution: float,
 def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0,
                       lowest: np.ndarray | None = None, columns: tuple[np.ndarray, np.ndarray] | None = None,
                       ends: np.ndarray | None = None, maneuver: dict | None = None,
-                      altitude: float | None = None) -> list[Path]:
+                      altitude: float | None = None, floor: float | None = None) -> list[Path]:
     """``out/crazyswarm2/crazyflies.yaml``, ``out/crazyswarm2/fly.py``, ``out/crazyflie/cflib_upload.py`` and, given
     ``maneuver`` (:func:`maneuvers`), ``out/crazyswarm2/maneuvers.yaml``, the scripts' take-off, go-to and landing
     durations (without it the scripts fly each in :data:`MANEUVER_MIN_S`).
@@ -172,7 +172,10 @@ def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0,
     from, z = 0 (:func:`below_ground`): a 3-D map's floor is at ``origin[2] - resolution / 2``, by default
     below 0, and flown as planned they would go into the floor of the room. ``columns``: the robots whose
     take-off and whose landing columns are blocked (:func:`blocked_columns`), named in a warning too. ``altitude``:
-    a 2-D plan's flight altitude, said in a warning when it is below ``radius`` (the robots would touch the ground)."""
+    a 2-D plan's flight altitude, said in a warning when it is below ``radius`` (the robots would touch the ground).
+    ``floor``: a 3-D map's floor, ``origin[2] - resolution / 2``, said in a warning when it is above the landing
+    height: the robots sit on the ground at z = 0, below the map, and take off and land through what the plan
+    counts as a wall (off the map)."""
     from mrfswarm.atomic import atomic_write
 
     header = "# Crazyswarm2 robots of this mrfswarm run: cf<k> flies trajectories/robot_<k-1>.csv (see fly.py)\n"
@@ -200,6 +203,11 @@ def write_crazyswarm2(starts: np.ndarray, out: Path, radius: float = 0.0,
     if altitude is not None and altitude < radius:
         texts.append(f"the plan flies at scenario.altitude = {altitude:g} m, nearer than the robot radius ({radius:g} m) "
                      f"to the ground that crazyflies.yaml takes off from: raise scenario.altitude before flying it")
+    if floor is not None and floor > LAND_HEIGHT_M:
+        texts.append(f"the map's floor is at z = {floor:g} m, above the ground at z = 0 that crazyflies.yaml places the "
+                     f"robots on: fly.py and cflib_upload.py take off from there and land to z = {LAND_HEIGHT_M:g} m "
+                     f"through the space below the map, which the plan counts as a wall; put the map's floor at z = 0 "
+                     f"(origin[2] = resolution / 2, the space below it in the map) and plan again before flying it")
     for robots, what in zip(columns or (), ("take off straight up through", "land straight down through")):
         if len(robots):
             names = ", ".join(robot_name(int(i)) for i in robots[:6]) + (f" and {len(robots) - 6} more"

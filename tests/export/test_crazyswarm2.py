@@ -747,3 +747,26 @@ def test_cflib_upload_help_says_how_many_compressed_pieces_fit_in_2d_and_3d(monk
     text = " ".join(capsys.readouterr().out.split())
     assert e.value.code == 0
     assert f"fit {most(2)} instead of 31" in text and f"{most(3)} in a 3-D plan" in text, text
+
+
+@pytest.mark.parametrize("origin_z, warned", [(0.25, False), (1.25, True)])
+def test_a_map_whose_floor_is_above_the_ground_is_a_warning_of_the_run(tmp_path, caplog, origin_z, warned):
+    """A voxel map with its floor at z = 1 m (origin z 1.25, 0.5 m voxels) was exported without a word: the robots
+    sit on the ground at z = 0, as crazyflies.yaml says, and the scripts take off from there and land to 4 cm through
+    the space below the map, which the plan counts as a wall (a 3-D tour). The floor at z = 0 says nothing."""
+    toml = tmp_path / "raised.toml"
+    z = origin_z + 0.5
+    toml.write_text(f"""
+[scenario]
+map = {{ kind = "free", size = [6, 4, 3], resolution = 0.5, origin = [0.25, 0.25, {origin_z}] }}
+start = {{ positions = [[0.25, 0.25, {z}], [0.25, 1.25, {z}]] }}
+goal = [2.25, 0.75, {z}]
+robot_radius = 0.2
+[simulation]
+enabled = false
+""")
+    with caplog.at_level("WARNING"):
+        assert main(["run", str(toml), "--out", str(tmp_path / "run")]) == 0
+    said = f"the map's floor is at z = {origin_z - 0.25:g} m, above the ground at z = 0"
+    assert (said in caplog.text) == warned, caplog.text
+    assert (said in (tmp_path / "run" / "crazyswarm2" / "crazyflies.yaml").read_text()) == warned
