@@ -103,7 +103,7 @@ def view_figure(grid: OccupancyGrid, width: float = 6.0, dpi: int = 110):
         return fig, [(ax, (0, 1))]
     span = _layout_span(grid)
     w = 1.25 * width
-    h = w * (span[1] + span[2]) / (span[0] + span[2]) + 1.0  # room for titles and labels
+    h = w * (span[1] + span[2]) / (span[0] + span[2]) + 1.0  # room for titles and labels (:func:`fit_inside`)
     fig = plt.figure(figsize=(w, h), dpi=dpi)
     gs = fig.add_gridspec(2, 2, width_ratios=[span[0], span[2]], height_ratios=[span[1], span[2]])
     top = fig.add_subplot(gs[0, 0])
@@ -114,6 +114,25 @@ def view_figure(grid: OccupancyGrid, width: float = 6.0, dpi: int = 110):
 
 
 _LEGEND = "legend cell"
+
+
+def fit_inside(fig, margin: float = 0.05, rounds: int = 3) -> None:
+    """``tight_layout``, then the figure grown by what it draws nearer than ``margin`` (inches) to its edges or past
+    them, until nothing is.
+
+    The panels of a 3-D figure keep their aspect, so ``tight_layout`` cannot always make room for the labels: on a
+    flat map (50 x 6 x 4 m) the x-z view's "x [m]" fell below the figure and the z-y view's "z [m], drawn x2.5" past
+    its right edge, in the PNGs and in every frame of the GIF (which cannot be cropped to its ink).
+    """
+    for _ in range(rounds):
+        fig.tight_layout()
+        box = fig.get_tightbbox()  # inches
+        w, h = fig.get_size_inches()
+        grow = np.array([max(0.0, margin - box.x0) + max(0.0, box.x1 - w + margin),
+                         max(0.0, margin - box.y0) + max(0.0, box.y1 - h + margin)])
+        if not (grow > 1e-3).any():
+            return
+        fig.set_size_inches(w + grow[0], h + grow[1])
 
 #: The side views of a 3-D figure are at least this share of the map's larger horizontal extent high: a flatter
 #: map's heights are drawn stretched (a map one voxel high got side panels a few pixels thick, their ticks overlapping).
@@ -162,7 +181,9 @@ def draw_map(ax, grid: OccupancyGrid, view: View = (0, 1)) -> None:
     label = {k: f"{AXES[k]} [m]" for k in view}
     if stretch > 1:
         label[2] = f"z [m], drawn x{stretch:.3g}"
-    ax.set_xlabel(label[a])
+    # the z-y view is the right column, narrow on a flat map: its longer z label ends at its right edge, not past
+    # the figure's (a GIF's frame cut it to "drawn x2.")
+    ax.set_xlabel(label[a], loc="right" if a == 2 and stretch > 1 else "center")
     ax.set_ylabel(label[b])
 
 
@@ -290,7 +311,7 @@ def plot_paths(path: Path, grid: OccupancyGrid, paths_world: Sequence[np.ndarray
         handles, labels = panels[0][0].get_legend_handles_labels()
         legend_axes(fig, panels).legend(handles, labels, loc="center", fontsize=8, framealpha=0.9)
         fig.suptitle(title, **size)
-    fig.tight_layout()
+    fig.tight_layout() if len(panels) == 1 else fit_inside(fig)
     return save_figure(fig, path, dpi=110)
 
 
@@ -459,7 +480,7 @@ def animate(path: Path, grid: OccupancyGrid, t: np.ndarray, positions: np.ndarra
         drawn.append((p, dots, trails))
     title = panels[0][0].set_title("") if len(panels) == 1 else fig.suptitle("")
     if len(panels) > 1:
-        fig.tight_layout()
+        fit_inside(fig)
     span = max(1, int(round(trail_s * fps)))
 
     def frame(k: int):

@@ -421,3 +421,22 @@ def test_figures_per_mrf_step_tick_whole_steps(tmp_path, monkeypatch, steps):
         assert ticks and all(float(v).is_integer() for v in ticks), ticks
         assert all(line.get_marker() not in (None, "None", "") for line in ax.get_lines()[:2]) if steps == 0 else True
         plots._plt().close(fig)
+
+
+@pytest.mark.parametrize("size", [(50, 6, 4), (32, 16, 8)], ids=["flat", "field"])
+def test_3d_figures_and_animation_frames_keep_their_labels_inside(tmp_path, size):
+    """A flat voxel map's GIF (50 x 6 x 4 m, heights drawn x2.5) cut its z-y view's label to "z [m], drawn x2." at
+    the frame's right edge and the x-z view's "x [m]" at its bottom (its paths figure too), and field3d's size of map
+    touched the frame's left edge with "z [m]": nothing drawn may touch a picture's edges."""
+    from PIL import Image
+
+    grid = OccupancyGrid(np.zeros(size), 1.0, (0.0, 0.0, 0.5))
+    t = np.array([0.0, 0.2])
+    pos = np.array([[[1.0, 2.0, 1.5], [3.0, 4.0, 2.5]], [[1.5, 2.0, 1.5], [3.5, 4.0, 2.5]]])
+    goal = np.array([size[0] - 3.0, 3.0, 1.5])
+    plots.animate(tmp_path / "a.gif", grid, t, pos, goal)
+    plots.plot_paths(tmp_path / "p.png", grid, [pos[:, i] for i in range(2)], goal, "smoothed")
+    for picture in ("a.gif", "p.png"):
+        ink = np.asarray(Image.open(tmp_path / picture).convert("L")).astype(int) < 128
+        edges = {"left": ink[:, :2], "right": ink[:, -2:], "top": ink[:2], "bottom": ink[-2:]}
+        assert not any(e.any() for e in edges.values()), (picture, {k: int(e.sum()) for k, e in edges.items()})
