@@ -574,12 +574,19 @@ def _continuous(result: Result, show: bool, workers: int | None, problem: Discre
         return RecedingHorizon(d.paths, result.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
                                cfg.smoothing.backend, qp_options(cfg), workers=workers, downwash=cfg.scenario.downwash)
 
-    rhs = [horizon(plans[0])]
-    if len(plans) > 1 and rhs[0].retimes:
-        rhs += [rh for rh in map(horizon, plans[1:]) if rh.retimes]
-    windows = sum(len(rh.windows()) for rh in rhs)
+    pairs = [(plans[0], horizon(plans[0]))]  # (discrete plan, its smoothing) of every plan flown
+    if len(plans) > 1 and pairs[0][1].retimes:
+        for d in plans[1:]:
+            try:
+                rh = horizon(d)
+            except SolversError as e:  # the kept plan's failure is the run's; another's only leaves it out
+                log.info("smoothing: the plan of contested = %r not flown: %s", d.contested, e)
+                continue
+            if rh.retimes:
+                pairs.append((d, rh))
+    windows = sum(len(rh.windows()) for _, rh in pairs)
     log.info("continuous stage: %d robots, %d steps in %d windows", result.scenario.n_robots,
-             result.discrete.n_steps, len(rhs[0].windows()))
+             result.discrete.n_steps, len(pairs[0][1].windows()))
     done = [0]
     t0 = time.perf_counter()
 
@@ -594,30 +601,30 @@ def _continuous(result: Result, show: bool, workers: int | None, problem: Discre
     flown: list[tuple[float, int, ContinuousPlan]] = []
     error: SolversError | None = None
     with tqdm(total=windows, desc="smoothing", unit="window", disable=not show, leave=False) as bar:
-        for k, rh in enumerate(rhs):
+        for k, (d, rh) in enumerate(pairs):
             try:
                 c = rh.run(on_window=on_window)
             except SolversError as e:
-                if k == 0 and len(rhs) == 1:
+                if len(pairs) == 1:
                     raise
-                log.info("smoothing: the plan of contested = %r not flown: %s", plans[k].contested, e)
-                error = e
+                log.info("smoothing: the plan of contested = %r not flown: %s", d.contested, e)
+                error = error or e  # the model's pick's error first
                 continue
             flown.append((c.makespan_s, k, c))
     if not flown:
         assert error is not None
         raise error
     _, k, plan = min(flown, key=lambda f: f[:2])
-    if len(rhs) > 1:
+    if len(pairs) > 1:
         log.info("contested = \"auto\": the short flights of its plans flown (the flight model does not know their "
-                 "re-timing): %s; kept %r", ", ".join(f"{plans[j].contested!r} {s:.2f} s" for s, j, _ in flown),
-                 plans[k].contested)
+                 "re-timing): %s; kept %r", ", ".join(f"{pairs[j][0].contested!r} {s:.2f} s" for s, j, _ in flown),
+                 pairs[k][0].contested)
     if k:
-        result.discrete = plans[k]
-        result.metrics = _discrete_metrics(cfg, result.scenario, problem, plans[k])
+        result.discrete = pairs[k][0]
+        result.metrics = _discrete_metrics(cfg, result.scenario, problem, pairs[k][0])
     result.continuous = plan
     result.timings_s.update(plan.timings)
-    if len(rhs) > 1:  # the other flights' planning is the run's too
+    if len(pairs) > 1:  # the other flights' planning is the run's too
         result.timings_s["smoothing_alternatives"] = sum(sum(c.timings.values()) for _, j, c in flown if j != k)
 
 

@@ -251,3 +251,28 @@ def test_a_long_flight_s_plan_is_picked_by_the_model_alone():
     r = mrfswarm.plan(cfg, progress=False)
     assert r.discrete.contested == "downhill" and r.smoothed().retimed is None
     assert "smoothing_alternatives" not in r.timings_s
+
+
+def test_a_short_flight_s_plan_that_fails_to_smooth_leaves_the_others(monkeypatch):
+    """Where the model's pick has no flight (its smoothing raised), a tied plan that flies is kept; where none flies,
+    the run fails with the pick's error, as a run of one plan does."""
+    from mrfswarm.continuous import RecedingHorizon
+    from mrfswarm.errors import PlanError
+    from solvers.errors import SolverError
+
+    data = apply_overrides(arena(), ["simulation.enabled=false"])
+    cfg, problem = problem_of(data)
+    failing = {"downhill": plan(problem, cfg, "downhill").paths}
+    run = RecedingHorizon.run
+
+    def fails(self, on_window=None):
+        if any(np.array_equal(self.paths, p) for p in failing.values()):
+            raise SolverError("injected: no solution")
+        return run(self, on_window)
+
+    monkeypatch.setattr(RecedingHorizon, "run", fails)
+    r = mrfswarm.plan(cfg, progress=False)
+    assert r.discrete.contested == "shared" and r.continuous is not None and r.continuous.certificate.ok
+    failing["shared"] = plan(problem, cfg, "shared").paths
+    with pytest.raises(PlanError, match="injected"):
+        mrfswarm.plan(cfg, progress=False)
