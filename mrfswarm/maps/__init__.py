@@ -9,6 +9,7 @@ grid from the config table ``scenario.map``; one loader per ``kind``:
 ``free``      ``{kind="free", size=[W, H]}`` or ``size=[W, H, D]`` (voxels)
 ``boxes``     ``{kind="boxes", size=[W, H], boxes=[{center=[x, y], size=[lx, ly]}, ...]}``;
               with ``size=[W, H, D]``, boxes of ``center=[x, y, z]``, ``size=[lx, ly, lz]``
+              (a box takes the cells whose centres it holds; ``fill="overlap"``: every cell it overlaps)
 ``ascii``     ``{kind="ascii", rows=["..#.", ...]}``
 ``movingai``  ``{kind="movingai", path="map.map"}`` (MovingAI benchmark ``.map``)
 ``ros``       ``{kind="ros", path="map.yaml"}`` (ROS map_server YAML + PGM/PNG)

@@ -30,8 +30,16 @@ _ASCII_TABLE = characters.lookup_table(ASCII_FREE, ASCII_OCCUPIED)
 # size L covers exactly L / res cells whatever its alignment (the blocks scenario's edges
 # fall on cell centres, the corridor's on cell edges). A cell centre within this many
 # metres (relative to the box's coordinates) of an edge counts as on it, so that such
-# edges are not decided by floating-point rounding of res * i.
+# edges are not decided by floating-point rounding of res * i; with ``fill = "overlap"``,
+# a box face within it of a cell face touches that cell along the face only.
 _BOX_TOL = 1e-9
+
+#: ``fill`` of a boxes map: a box takes the cells whose centres it holds (the default), or
+#: every cell it overlaps (with positive length on every axis).
+FILLS = ("centres", "overlap")
+#: A box (under ``fill = "centres"``) that reaches more than this many metres past the
+#: cells it fills is a warning: robots may fly in the part of it the map does not hold.
+REACH_TOL = 1e-3
 
 
 def load_free(spec: dict, base_dir: Path) -> OccupancyGrid:
@@ -47,11 +55,18 @@ def load_boxes(spec: dict, base_dir: Path) -> OccupancyGrid:
 
     A box (world metres) occupies every cell whose centre lies inside it, the box taken
     half-open like a cell: centre c is inside when ``center - size/2 <= c < center + size/2``
-    on every axis, so a box of size L covers L / resolution cells. Boxes may extend past
-    the map; the part outside is dropped. A map of ``size = [W, H, D]`` takes boxes of
-    ``center = [x, y, z]`` and ``size = [lx, ly, lz]``: the same rule, one axis more.
+    on every axis, so a box of size L covers L / resolution cells. A box whose faces are
+    not on cell faces then reaches past its cells (a 1.8 m cube centred on a 1 m voxel
+    fills that voxel alone, and sticks out 0.4 m on every side): each such box, by more
+    than :data:`REACH_TOL`, is a warning naming it and how far it reaches. With
+    ``fill = "overlap"`` a box occupies every cell it overlaps with positive length on
+    every axis (the open box meets the open cell), so no point of it is in a free cell;
+    a box whose faces are on cell faces fills the same cells under both rules. Boxes may
+    extend past the map; the part outside is dropped (a box that overlaps no cell of the
+    map is a warning). A map of ``size = [W, H, D]`` takes boxes of ``center = [x, y, z]``
+    and ``size = [lx, ly, lz]``: the same rules, one axis more.
     """
-    check_keys(spec, ("kind", "size", "boxes", *_PLACEMENT), PREFIX, required=("size", "boxes"))
+    check_keys(spec, ("kind", "size", "boxes", "fill", *_PLACEMENT), PREFIX, required=("size", "boxes"))
     shape = size_cells(spec["size"], f"{PREFIX}.size")
     d = len(shape)
     res, origin = placement(spec, d)
@@ -59,7 +74,11 @@ def load_boxes(spec: dict, base_dir: Path) -> OccupancyGrid:
     table = "{center=[x, y], size=[lx, ly]}" if d == 2 else "{center=[x, y, z], size=[lx, ly, lz]}"
     if not isinstance(boxes, (list, tuple)):
         raise ConfigError(f"{PREFIX}.boxes = {boxes!r}: must be a list of tables {table}")
+    fill = spec.get("fill", FILLS[0])
+    if not isinstance(fill, str) or fill not in FILLS:
+        raise ConfigError(f"{PREFIX}.fill = {fill!r}: must be one of {', '.join(FILLS)}")
     centres = [o + res * np.arange(n) for o, n in zip(origin, shape)]  # cell centres along each axis
+    where_map = " x ".join(map(str, shape))
     occ = np.zeros(shape, dtype=bool)
     for k, box in enumerate(boxes):
         where = f"{PREFIX}.boxes[{k}]"
@@ -68,14 +87,30 @@ def load_boxes(spec: dict, base_dir: Path) -> OccupancyGrid:
         check_keys(box, ("center", "size"), where, required=("center", "size"))
         center = point(box["center"], f"{where}.center", d)
         size = lengths(box["size"], f"{where}.size", d)
-        inside = []
+        rows, touched, reach = [], True, 0.0
         for xs, c, length in zip(centres, center, size):
             tol = _BOX_TOL * max(1.0, abs(c), length)
-            inside.append((xs >= c - length / 2 - tol) & (xs < c + length / 2 - tol))
-        if not all(m.any() for m in inside):
-            log.warning("%s (center %s, size %s) contains no cell centre of the %s map", where,
-                        box["center"], box["size"], " x ".join(map(str, shape)))
-        occ[np.ix_(*inside)] = True  # the box's cells: the product of its rows along each axis
+            lo, hi = c - length / 2, c + length / 2
+            touch = (xs + res / 2 > lo + tol) & (xs - res / 2 < hi - tol)  # the cells the open box meets
+            held = (xs >= lo - tol) & (xs < hi - tol)  # the cells whose centres it holds
+            rows.append(touch if fill == "overlap" else held)
+            touched = touched and bool(touch.any())
+            if rows[-1].any():  # how far the box, on the map, reaches past its cells' faces
+                taken = xs[rows[-1]]
+                lo, hi = max(lo, xs[0] - res / 2), min(hi, xs[-1] + res / 2)
+                reach = max(reach, taken[0] - res / 2 - lo, hi - (taken[-1] + res / 2))
+        if not touched:
+            log.warning("%s (center %s, size %s) overlaps no cell of the %s map", where, box["center"], box["size"],
+                        where_map)
+        elif not all(m.any() for m in rows):
+            log.warning("%s (center %s, size %s) holds no cell centre of the %s map, so it fills no cell and robots "
+                        "may fly through it: align its faces with the cells' or set %s.fill = \"overlap\"", where,
+                        box["center"], box["size"], where_map, PREFIX)
+        elif reach > REACH_TOL:
+            log.warning("%s (center %s, size %s) reaches %.3g m past the cells it fills, where robots may fly: align "
+                        "its faces with the cells' (at origin + resolution * (i +- 1/2)) or set %s.fill = \"overlap\"",
+                        where, box["center"], box["size"], reach, PREFIX)
+        occ[np.ix_(*rows)] = True  # the box's cells: the product of its rows along each axis
     return OccupancyGrid.from_occupied(occ, resolution=res, origin=origin)
 
 

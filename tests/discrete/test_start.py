@@ -13,7 +13,7 @@ from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import OccupancyGrid, load_map
 from mrfswarm.scenario import goal_cell
 
-ROOM = {"kind": "boxes", "size": [10, 8, 5], "boxes": [{"center": [5, 4, 2], "size": [2, 2, 2]}]}  # voxels 4-5, 3-4, 1-2
+ROOM = {"kind": "boxes", "size": [10, 8, 5], "boxes": [{"center": [4.5, 3.5, 1.5], "size": [2, 2, 2]}]}  # voxels 4-5, 3-4, 1-2
 
 
 def room() -> OccupancyGrid:

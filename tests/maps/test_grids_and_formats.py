@@ -259,7 +259,93 @@ def test_box_edges_on_cell_centres_are_inside(res):
 def test_box_outside_map_warns(caplog):
     g = load_map({"kind": "boxes", "size": [5, 5], "boxes": [{"center": [50, 50], "size": [2, 2]}]}, ".")
     assert not g.occupied.any()
-    assert "boxes[0]" in caplog.text
+    assert "boxes[0] (center [50, 50], size [2, 2]) overlaps no cell of the 5 x 5 map" in caplog.text
+
+
+def box_warnings(caplog) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.name == "mrfswarm.maps.inline"]
+
+
+def test_a_box_reaching_past_its_cells_is_a_warning_naming_it(caplog):
+    """Under the default fill (cell centres) a box off the cell faces reaches past its cells: one line per box."""
+    spec = {"kind": "boxes", "size": [8, 8], "boxes": [
+        {"center": [2, 2], "size": [1.8, 1.8]},  # [1.1, 2.9): cell 2 alone, 0.4 m past it on every side
+        {"center": [5.5, 5.5], "size": [2, 2]},  # [4.5, 6.5): cells 5, 6 exactly, no warning
+        {"center": [5, 1.5], "size": [2, 2]},  # x [4, 6) on cell centres: cells 4, 5, reaching 0.5 m past x = 5.5
+        {"center": [7.5, 7.5], "size": [2, 2]}]}  # cells 7, past the map's edge: dropped, not a warning
+    g = load_map(spec, ".")
+    assert cells(g.occupied) == {(2, 2), (5, 5), (5, 6), (6, 5), (6, 6), (4, 1), (4, 2), (5, 1), (5, 2), (7, 7)}
+    lines = box_warnings(caplog)
+    assert len(lines) == 2, lines
+    assert lines[0].startswith("scenario.map.boxes[0] (center [2, 2], size [1.8, 1.8]) reaches 0.4 m past the cells "
+                               "it fills")
+    assert lines[1].startswith("scenario.map.boxes[2] (center [5, 1.5], size [2, 2]) reaches 0.5 m past")
+    assert all('align its faces with the cells\'' in t and 'scenario.map.fill = "overlap"' in t for t in lines)
+    caplog.clear()
+    load_map({**spec, "fill": "overlap"}, ".")
+    assert not box_warnings(caplog)
+
+
+def test_a_box_holding_no_cell_centre_is_a_warning(caplog):
+    """A 0.8 m box between four cell centres fills no cell: the obstacle is gone from the map."""
+    g = load_map({"kind": "boxes", "size": [5, 5], "boxes": [{"center": [2.5, 2.5], "size": [0.8, 0.8]}]}, ".")
+    assert not g.occupied.any()
+    (line,) = box_warnings(caplog)
+    assert line.startswith("scenario.map.boxes[0] (center [2.5, 2.5], size [0.8, 0.8]) holds no cell centre of the "
+                           "5 x 5 map, so it fills no cell")
+    g = load_map({"kind": "boxes", "size": [5, 5], "fill": "overlap",
+                  "boxes": [{"center": [2.5, 2.5], "size": [0.8, 0.8]}]}, ".")
+    assert cells(g.occupied) == {(2, 2), (2, 3), (3, 2), (3, 3)}
+
+
+def test_fill_overlap_takes_every_cell_a_box_overlaps():
+    """[1.1, 2.9) x [0.2, 3.6) meets cells 1..3 along x (faces 0.5, 1.5, 2.5, 3.5) and 0..4 along y."""
+    g = load_map({"kind": "boxes", "size": [6, 6], "fill": "overlap",
+                  "boxes": [{"center": [2, 1.9], "size": [1.8, 3.4]}]}, ".")
+    assert cells(g.occupied) == {(i, j) for i in (1, 2, 3) for j in range(5)}
+    centres = load_map({"kind": "boxes", "size": [6, 6], "boxes": [{"center": [2, 1.9], "size": [1.8, 3.4]}]}, ".")
+    assert cells(centres.occupied) == {(2, j) for j in (1, 2, 3)}
+
+
+@pytest.mark.parametrize("res", [0.1, 0.3, 0.05, 0.7, 1.0])
+def test_fill_overlap_of_boxes_on_cell_faces_is_the_centres_fill(res):
+    """Faces on cell faces ((a - 1/2) res, (b - 1/2) res): cells a..b-1 under both fills, L / res of them, whatever
+    the rounding; the cells a - 1 and b, which the box touches along a face only, stay free."""
+    for a, b in [(1, 3), (5, 7), (3, 11), (7, 8), (10, 19)]:
+        for ay, by in [(a, b), (b, 2 * b - a)]:
+            box = {"center": [(a + b - 1) / 2 * res, (ay + by - 1) / 2 * res],
+                   "size": [(b - a) * res, (by - ay) * res]}
+            expected = np.zeros((40, 40), dtype=bool)
+            expected[a:b, ay:by] = True
+            for fill in ("centres", "overlap"):
+                g = load_map({"kind": "boxes", "size": [40, 40], "resolution": res, "fill": fill, "boxes": [box]}, ".")
+                assert np.array_equal(g.occupied, expected), (fill, a, b, ay, by)
+
+
+@settings(max_examples=80, deadline=None)
+@given(shape=st.tuples(st.integers(1, 12), st.integers(1, 12)),
+       res=st.sampled_from([1.0, 0.5, 0.3, 0.25, 0.1]),
+       origin=st.tuples(*[st.sampled_from([0.0, 0.125, -1.0, 2.5, 0.05])] * 2),
+       raw=st.lists(st.tuples(st.tuples(*[st.floats(-1, 5)] * 2), st.tuples(*[st.floats(0.01, 3)] * 2)),
+                    min_size=1, max_size=5),
+       seed=st.integers(0, 2**32 - 1))
+def test_fill_overlap_leaves_no_point_of_a_box_in_a_free_cell(shape, res, origin, raw, seed):
+    """Independent of the loader: random points of every box land in occupied cells (or off the map), and every
+    occupied cell's open square meets some box's open one (interval arithmetic: a face-on-face touch is no overlap)."""
+    boxes = [{"center": list(c), "size": list(s)} for c, s in raw]
+    g = load_map({"kind": "boxes", "size": list(shape), "resolution": res, "origin": list(origin), "fill": "overlap",
+                  "boxes": boxes}, ".")
+    rng = np.random.default_rng(seed)
+    lo = np.array([b["center"] for b in boxes]) - np.array([b["size"] for b in boxes]) / 2
+    hi = lo + np.array([b["size"] for b in boxes])
+    pts = rng.uniform(lo[:, None, :], hi[:, None, :], size=(len(boxes), 200, 2)).reshape(-1, 2)
+    pts = np.concatenate([pts, lo + 1e-6 * res, hi - 1e-6 * res, (lo + hi) / 2])  # corners just inside, centres
+    ij = np.floor((pts - np.array(origin)) / res + 0.5).astype(int)
+    on = (ij >= 0).all(axis=1) & (ij < np.array(shape)).all(axis=1)
+    assert g.occupied[ij[on, 0], ij[on, 1]].all()
+    for i, j in np.argwhere(g.occupied):
+        c_lo = np.array(origin) + res * np.array([i, j]) - res / 2
+        assert ((c_lo + res > lo) & (c_lo < hi)).all(axis=1).any(), (i, j)
 
 
 # -- ascii ------------------------------------------------------------------------------
@@ -486,6 +572,8 @@ def one_line(excinfo) -> str:
     ({"kind": "boxes", "size": [3, 3], "boxes": [{"center": [1, 1], "size": [1, 1], "h": 2}]},
      r"unknown key scenario\.map\.boxes\[0\]\.h"),
     ({"kind": "boxes", "size": [3, 3], "boxes": [{"center": [1, 1], "size": [1, -2]}]}, r"boxes\[0\]\.size\[1\] = -2"),
+    ({"kind": "boxes", "size": [3, 3], "boxes": [], "fill": "center"},
+     r"scenario\.map\.fill = 'center': must be one of centres, overlap$"),
     ({"kind": "ascii", "rows": []}, r"rows = \[\]"),
     ({"kind": "ascii", "rows": "..#"}, r"rows = '\.\.#'"),
     ({"kind": "ascii", "rows": ["...", "..", "..."]}, r"rows\[1\] has 2 characters, expected 3"),

@@ -87,6 +87,57 @@ def test_boxes_match_brute_force_in_3d(shape, res, origin, raw):
     assert np.array_equal(g.occupied, brute_force_boxes(shape, res, origin, boxes))
 
 
+def test_a_cube_off_the_voxel_faces_warns_or_with_fill_overlap_fills_every_voxel_it_overlaps(caplog):
+    """A 1.8 m cube centred on voxel (2, 2, 2) of 1 m voxels: by centres that voxel alone, the cube 0.4 m past it on
+    every side (a warning naming it); with fill = "overlap" the 27 voxels it overlaps, no warning."""
+    cube = [{"center": [2, 2, 2], "size": [1.8, 1.8, 1.8]}]
+    g = boxes3d([5, 5, 5], cube)
+    assert {tuple(map(int, c)) for c in np.argwhere(g.occupied)} == {(2, 2, 2)}
+    (line,) = [r.getMessage() for r in caplog.records if r.name == "mrfswarm.maps.inline"]
+    assert line.startswith("scenario.map.boxes[0] (center [2, 2, 2], size [1.8, 1.8, 1.8]) reaches 0.4 m past the "
+                           "cells it fills")
+    assert 'scenario.map.fill = "overlap"' in line
+    caplog.clear()
+    g = boxes3d([5, 5, 5], cube, fill="overlap")
+    assert {tuple(map(int, c)) for c in np.argwhere(g.occupied)} == {
+        (i, j, k) for i in (1, 2, 3) for j in (1, 2, 3) for k in (1, 2, 3)}
+    assert not caplog.records
+    # a box on the voxel faces fills L / res voxels a side under both fills; the voxels it touches along a face
+    # (z layer 3 above [0.5, 2.5), x 0 and 3 beside [0.5, 2.5)) stay free
+    for fill in ("centres", "overlap"):
+        g = boxes3d([6, 5, 4], [{"center": [1.5, 1.5, 1.5], "size": [2, 2, 2]}], fill=fill, resolution=1.0)
+        assert {tuple(map(int, c)) for c in np.argwhere(g.occupied)} == {
+            (i, j, k) for i in (1, 2) for j in (1, 2) for k in (1, 2)}, fill
+        g = boxes3d([12, 10, 8], [{"center": [0.75, 0.75, 0.5], "size": [1.0, 1.0, 0.5]}], fill=fill, resolution=0.25,
+                    origin=[0.125, 0.125, 0.125])  # [0.25, 1.25) x [0.25, 1.25) x [0.25, 0.75): cells 1..4, 1..4, 1..2
+        assert g.occupied.sum() == 4 * 4 * 2 and g.occupied[1:5, 1:5, 1:3].all(), fill
+    assert not caplog.records
+
+
+@settings(max_examples=60, deadline=None)
+@given(shape=st.tuples(st.integers(1, 6), st.integers(1, 5), st.integers(1, 4)),
+       res=st.sampled_from([1.0, 0.5, 0.25, 0.3]),
+       origin=st.tuples(*[st.sampled_from([0.0, 0.125, -1.0, 2.5])] * 3),
+       raw=st.lists(st.tuples(st.tuples(*[st.floats(-1, 6)] * 3), st.tuples(*[st.floats(0.01, 4)] * 3)),
+                    min_size=1, max_size=4),
+       seed=st.integers(0, 2**32 - 1))
+def test_fill_overlap_leaves_no_point_of_a_box_in_a_free_voxel(shape, res, origin, raw, seed):
+    """Independent of the loader: random points of every box land in occupied voxels (or off the map), and every
+    occupied voxel's open cube meets some box's (interval arithmetic)."""
+    boxes = [{"center": list(c), "size": list(s)} for c, s in raw]
+    g = boxes3d(shape, boxes, resolution=res, origin=list(origin), fill="overlap")
+    lo = np.array([b["center"] for b in boxes]) - np.array([b["size"] for b in boxes]) / 2
+    hi = lo + np.array([b["size"] for b in boxes])
+    pts = np.random.default_rng(seed).uniform(lo[:, None, :], hi[:, None, :], size=(len(boxes), 200, 3)).reshape(-1, 3)
+    pts = np.concatenate([pts, lo + 1e-6 * res, hi - 1e-6 * res, (lo + hi) / 2])  # corners just inside, centres
+    ijk = np.floor((pts - np.array(origin)) / res + 0.5).astype(int)
+    on = (ijk >= 0).all(axis=1) & (ijk < np.array(shape)).all(axis=1)
+    assert g.occupied[tuple(ijk[on].T)].all()
+    for ijk_occ in np.argwhere(g.occupied):
+        c_lo = np.array(origin) + res * ijk_occ - res / 2
+        assert ((c_lo + res > lo) & (c_lo < hi)).all(axis=1).any(), ijk_occ
+
+
 def test_full_height_boxes_are_the_plan_extruded():
     plan = {"kind": "boxes", "size": [8, 6], "boxes": [{"center": [2.5, 2, ], "size": [2, 3]},
                                                        {"center": [6, 4.5], "size": [1, 3]}]}
@@ -125,7 +176,7 @@ def test_bad_3d_tables_are_one_line_config_errors(spec, match):
 
 def test_box_outside_a_voxel_map_warns(caplog):
     boxes3d([4, 4, 2], [{"center": [1, 1, 9], "size": [1, 1, 1]}])
-    assert "contains no cell centre of the 4 x 4 x 2 map" in caplog.text
+    assert "boxes[0] (center [1, 1, 9], size [1, 1, 1]) overlaps no cell of the 4 x 4 x 2 map" in caplog.text
 
 
 # -- extrusion ---------------------------------------------------------------------------
