@@ -53,9 +53,10 @@ SWEEP_MARKER = "sweep.json"
 #: The toolkit's warnings a point hands to the sweep's process, which says each text once.
 _HANDED = (UnusedSettingWarning, DeprecatedKeyWarning)
 #: The loggers whose warnings a point hands to the sweep's process, which says each text once, naming the point: the
-#: numerical layer's (a QP backend's "reduced accuracy"). A spawned worker printed them bare, once per worker process,
-#: with no point named (a tour's osqp sweep of 3 points on 2 workers: two unprefixed lines).
-_HANDED_LOGS = ("solvers",)
+#: numerical layer's (a QP backend's "reduced accuracy") and the maps' (a box reaching past its cells). A spawned
+#: worker printed them bare, once per worker process, with no point named (a tour's osqp sweep of 3 points on 2
+#: workers: two unprefixed lines; a blocks sweep of 3 points: each of its 3 boxes' lines 3 times, bare).
+_HANDED_LOGS = ("solvers", "mrfswarm.maps")
 
 log = logging.getLogger(__name__)
 

@@ -490,6 +490,21 @@ def test_a_setting_the_points_leave_unused_is_said_once_in_one_line(tmp_path, ca
 
 
 @pytest.mark.parametrize("workers", [2, 1])
+def test_a_maps_warning_names_the_point_it_came_from_once(workers, tmp_path, capfd, caplog):
+    """A box reaching past its cells is said once per sweep, naming the point (it was said bare by every point)."""
+    cfg = tmp_path / "blocks5.toml"
+    cfg.write_text(BLOCKS5)
+    rc = main(["sweep", str(cfg), "--grid", "interaction.k=2,3", "--out", str(tmp_path / "out"),
+               "--workers", str(workers), "--set", "smoothing.enabled=false", "--set", "mrf.max_steps=3"])
+    text = "scenario.map.boxes[0] (center [12.5, 12.5], size [5, 5]) reaches 0.5 m past the cells it fills"
+    bare = [line for line in capfd.readouterr().err.splitlines() if text in line]
+    said = [r.getMessage() for r in caplog.records if r.levelname == "WARNING" and text in r.getMessage()]
+    assert rc == 0 and not bare and len(said) == 2, (bare, said)
+    assert said[0].startswith(("sweep point 0 (interaction.k=2): ", "sweep point 1 (interaction.k=3): ")), said
+    assert said[1].endswith(("also in sweep point 1 (interaction.k=3)", "also in sweep point 0 (interaction.k=2)"))
+
+
+@pytest.mark.parametrize("workers", [2, 1])
 def test_a_backends_warning_names_the_point_it_came_from_once(workers, tmp_path, capfd, caplog):
     """A spawned worker printed the QP backend's warning bare, once per worker process (a tour's osqp sweep: two
     unprefixed "reduced accuracy" lines for 3 points), and in one process once per sweep, no point named."""
