@@ -58,7 +58,8 @@ def load_boxes(spec: dict, base_dir: Path) -> OccupancyGrid:
     on every axis, so a box of size L covers L / resolution cells. A box whose faces are
     not on cell faces then reaches past its cells (a 1.8 m cube centred on a 1 m voxel
     fills that voxel alone, and sticks out 0.4 m on every side): each such box, by more
-    than :data:`REACH_TOL`, is a warning naming it and how far it reaches. With
+    than :data:`REACH_TOL`, is a warning naming it and how far it reaches, unless the map gives
+    ``fill = "centres"`` itself (the paper's blocks, whose faces are on cell centres). With
     ``fill = "overlap"`` a box occupies every cell it overlaps with positive length on
     every axis (the open box meets the open cell), so no point of it is in a free cell;
     a box whose faces are on cell faces fills the same cells under both rules. Boxes may
@@ -106,7 +107,7 @@ def load_boxes(spec: dict, base_dir: Path) -> OccupancyGrid:
             log.warning("%s (center %s, size %s) holds no cell centre of the %s map, so it fills no cell and robots "
                         "may fly through it: align its faces with the cells' or set %s.fill = \"overlap\"", where,
                         box["center"], box["size"], where_map, PREFIX)
-        elif reach > REACH_TOL:
+        elif reach > REACH_TOL and "fill" not in spec:  # fill = "centres" given: the rule is the user's choice
             log.warning("%s (center %s, size %s) reaches %.3g m past the cells it fills, where robots may fly: align "
                         "its faces with the cells' (at origin + resolution * (i +- 1/2)) or set %s.fill = \"overlap\"",
                         where, box["center"], box["size"], reach, PREFIX)

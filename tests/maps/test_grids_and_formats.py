@@ -284,6 +284,8 @@ def test_a_box_reaching_past_its_cells_is_a_warning_naming_it(caplog):
     caplog.clear()
     load_map({**spec, "fill": "overlap"}, ".")
     assert not box_warnings(caplog)
+    load_map({**spec, "fill": "centres"}, ".")  # the rule chosen in the map: the same cells, no warning
+    assert not box_warnings(caplog)
 
 
 def test_a_box_holding_no_cell_centre_is_a_warning(caplog):
