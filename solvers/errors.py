@@ -7,6 +7,8 @@ A package built on it derives its own root from this one, so that one
 
 from __future__ import annotations
 
+import numpy as np
+
 
 class SolversError(Exception):
     """Root of every error raised on purpose by the numerical layer (and, below it, the domain's)."""
@@ -49,3 +51,27 @@ def check_argument(value: object, cls: type, what: str, error: type[SolversError
     AttributeError: 'dict' object has no attribute 'time_limit'")."""
     if not isinstance(value, cls):
         raise error(f"{what} must be a {public}, got {type(value).__name__}")
+
+
+def real_array(value: object, name: str) -> np.ndarray:
+    """``value`` as a float array, or :class:`InvalidProblem` naming ``name`` and the value unless it holds
+    real numbers (bool, integer or float; any shape). Strings and None as a problem's array ended in NumPy's own
+    ``ValueError: could not convert string to float: 'a'``, naming no argument, or (None, read as NaN) in a shape
+    error about another argument; complex entries lost their imaginary parts with only a ``ComplexWarning``
+    (a library tour)."""
+    def wrong(why: str) -> InvalidProblem:
+        shown = " ".join(repr(value).split())  # an array's repr on one line
+        return InvalidProblem(f"{name} = {shown:.60}: must be an array of real numbers{why}")
+
+    try:
+        a = np.asarray(value)
+    except ValueError as e:  # a ragged list
+        raise wrong(f" ({e})") from None
+    if a.dtype.kind == "O" and any(v is None for v in a.flat):
+        raise wrong(", not None")
+    if a.dtype.kind not in "biufO":
+        raise wrong(f", got dtype {a.dtype}")
+    try:
+        return a.astype(float, copy=False)
+    except (TypeError, ValueError) as e:  # an object array of other things than numbers
+        raise wrong(f" ({e})") from None

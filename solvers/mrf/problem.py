@@ -21,7 +21,7 @@ from functools import cached_property
 
 import numpy as np
 
-from solvers.errors import InvalidProblem
+from solvers.errors import InvalidProblem, real_array
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,7 +59,7 @@ class PairwiseMRF:
     priority: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        unary = np.ascontiguousarray(self.unary, dtype=float)
+        unary = np.ascontiguousarray(real_array(self.unary, "unary"))
         if unary.ndim != 2 or unary.shape[0] < 1 or unary.shape[1] < 1:
             raise InvalidProblem(f"unary must be (N, L) with N, L >= 1, got shape {unary.shape}")
         N, L = unary.shape
@@ -172,13 +172,12 @@ def repair(mrf: PairwiseMRF, labels: np.ndarray) -> tuple[np.ndarray, int]:
 def _rows(name: str, value: object, tail: tuple[int, ...], dtype: type) -> np.ndarray:
     """``value`` as an (m, *tail) array of ``dtype`` (empty: m = 0), or InvalidProblem naming its shape; integer
     arrays must hold whole numbers (0.7 as a label was read as 0)."""
-    a = np.asarray(value)
+    a = np.asarray(value) if isinstance(value, np.ndarray) and value.dtype.kind in "biu" else real_array(value, name)
     if a.size == 0:
         return np.zeros((0, *tail), dtype=dtype)
     if a.ndim != 1 + len(tail) or a.shape[1:] != tail:
         want = ", ".join(["m", *map(str, tail)])
         raise InvalidProblem(f"{name} must have shape ({want}), got {a.shape}")
-    if dtype is np.intp and a.dtype.kind not in "iu":
-        if a.dtype.kind not in "fb" or not np.all(np.isfinite(a)) or np.any(a != np.round(a)):
-            raise InvalidProblem(f"{name} must hold whole numbers")
+    if dtype is np.intp and a.dtype.kind == "f" and (not np.all(np.isfinite(a)) or np.any(a != np.round(a))):
+        raise InvalidProblem(f"{name} must hold whole numbers")
     return np.ascontiguousarray(a, dtype=dtype)

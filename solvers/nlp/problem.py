@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from solvers.errors import InvalidProblem
+from solvers.errors import InvalidProblem, real_array
 
 #: Slack, relative to the bound's size, within which the start point counts as inside its bounds.
 START_SLACK = 1e-12
@@ -61,13 +61,13 @@ class NLPProblem:
     def __post_init__(self) -> None:
         if not (callable(self.fun) and callable(self.grad)):
             raise InvalidProblem("fun and grad must be callables")
-        x0 = np.array(self.x0, dtype=float).reshape(-1)
+        x0 = real_array(self.x0, "x0").reshape(-1)
         n = x0.size
         if n == 0:
             raise InvalidProblem("the problem has no variables (x0 is empty)")
         lower = _vector("lower", self.lower, n)
         upper = _vector("upper", self.upper, n)
-        A = np.zeros((0, n)) if self.A is None else np.array(self.A, dtype=float)
+        A = np.zeros((0, n)) if self.A is None else real_array(self.A, "A")
         if A.ndim != 2 or A.shape[1] != n:
             raise InvalidProblem(f"A has shape {A.shape}, expected (m, {n})")
         if not np.all(np.isfinite(A)):
@@ -131,8 +131,8 @@ class NLPProblem:
 
 
 def _vector(name: str, value, size: int) -> np.ndarray:
-    v = np.array(np.broadcast_to(np.asarray(value, dtype=float), (size,)) if np.ndim(value) == 0 else value,
-                 dtype=float).reshape(-1)
+    v = real_array(value, name)
+    v = np.array(np.broadcast_to(v, (size,)) if v.ndim == 0 else v).reshape(-1)
     if v.size != size:
         raise InvalidProblem(f"{name} has {v.size} entries, expected {size}")
     if np.any(np.isnan(v)):

@@ -18,11 +18,25 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
-from solvers.errors import InvalidProblem
+from solvers.errors import InvalidProblem, real_array
 
 
 def _is_csc_float(M) -> bool:
     return sp.issparse(M) and M.format == "csc" and M.dtype == np.float64
+
+
+def _csc(M, name: str) -> sp.csc_matrix:
+    """``M`` (sparse, or dense of at most two axes) as a float CSC matrix, or InvalidProblem naming ``name``."""
+    if _is_csc_float(M):
+        return M
+    if sp.issparse(M):
+        if M.dtype.kind not in "biuf":
+            raise InvalidProblem(f"{name} must hold real numbers, got a sparse matrix of dtype {M.dtype}")
+        return sp.csc_matrix(M, dtype=float)
+    a = real_array(M, name)
+    if a.ndim > 2:  # scipy's own words: "CSR arrays don't yet support 3D"
+        raise InvalidProblem(f"{name} has shape {a.shape}: must be a matrix")
+    return sp.csc_matrix(a)
 
 
 def _sorted(M: sp.csc_matrix) -> sp.csc_matrix:
@@ -93,18 +107,15 @@ class QPProblem:
     u: np.ndarray
 
     def __post_init__(self) -> None:
-        P = self.P if _is_csc_float(self.P) else sp.csc_matrix(self.P, dtype=float)
-        q = np.asarray(self.q, dtype=float).reshape(-1)
+        P = _csc(self.P, "P")
+        q = real_array(self.q, "q").reshape(-1)
         n = q.size
-        if self.A is None:
-            A = sp.csc_matrix((0, n))
-        else:
-            A = self.A if _is_csc_float(self.A) else sp.csc_matrix(self.A, dtype=float)
+        A = sp.csc_matrix((0, n)) if self.A is None else _csc(self.A, "A")
         # no rows: l and u may be None too (np.asarray(None, dtype=float) is one NaN: "got (1,) and (1,)", a tour)
         if A.shape[0] and (self.l is None or self.u is None):
             raise InvalidProblem(f"l and u are needed with A's {A.shape[0]} rows (-inf / inf for a free side)")
-        l = np.zeros(0) if self.l is None and A.shape[0] == 0 else np.asarray(self.l, dtype=float).reshape(-1)
-        u = np.zeros(0) if self.u is None and A.shape[0] == 0 else np.asarray(self.u, dtype=float).reshape(-1)
+        l = np.zeros(0) if self.l is None and A.shape[0] == 0 else real_array(self.l, "l").reshape(-1)
+        u = np.zeros(0) if self.u is None and A.shape[0] == 0 else real_array(self.u, "u").reshape(-1)
         if P.shape != (n, n):
             raise InvalidProblem(f"P has shape {P.shape}, expected ({n}, {n}) from q")
         if A.shape[1] != n:
