@@ -22,8 +22,24 @@ from __future__ import annotations
 
 import numpy as np
 
-from solvers.errors import InvalidProblem
+from solvers.errors import InvalidProblem, real_array
 from solvers.nlp.problem import NLPProblem
+
+
+def _number(value: object) -> float:
+    """``f``'s value as a float: one real number (a NumPy scalar or an array of one element too), else
+    InvalidProblem naming it (an array of two values ended in NumPy's "only 0-dimensional arrays can be converted
+    to Python scalars", a string in "could not convert string to float", naming no callable; a library tour)."""
+    if isinstance(value, (float, int)):
+        return float(value)
+    try:
+        a = real_array(value, "fun's value")
+    except InvalidProblem:
+        a = None
+    if a is None or a.size != 1:
+        shown = " ".join(repr(value).split())
+        raise InvalidProblem(f"fun returned {shown:.60}: must be one real number")
+    return float(a.reshape(()))
 
 
 class Evaluations:
@@ -57,7 +73,7 @@ class Evaluations:
         self.fun_calls += 1
         x = np.array(x, dtype=float).reshape(-1)
         try:
-            value = float(self.problem.fun(x))
+            value = _number(self.problem.fun(x))
         except BaseException as e:
             self.raised = self.raised or e
             raise
@@ -81,7 +97,7 @@ class Evaluations:
         self.grad_calls += 1
         x = np.array(x, dtype=float).reshape(-1)
         try:
-            g = np.asarray(self.problem.grad(x), dtype=float)
+            g = real_array(self.problem.grad(x), "grad's value")
             if g.size != x.size:
                 raise InvalidProblem(f"grad returned {g.size} entries, the problem has {x.size} variables")
         except BaseException as e:

@@ -212,6 +212,26 @@ def test_a_gradient_of_the_wrong_size_is_an_invalid_problem(name):
         nlp.minimize(p.with_functions(p.fun, lambda x: np.zeros(3)), name)
 
 
+@pytest.mark.parametrize("name", NAMES, ids=str)
+@pytest.mark.parametrize("value, shown", [(np.array([1.0, 2.0]), r"array\(\[1\., 2\.\]\)"), ("a", "'a'"),
+                                          (None, "None")], ids=["two values", "a string", "None"])
+def test_a_value_of_f_that_is_not_one_number_is_an_invalid_problem(name, value, shown):
+    """f returning an array of two values ended in NumPy's "only 0-dimensional arrays can be converted to Python
+    scalars", a string in "could not convert string to float", naming no callable (a library tour)."""
+    installed(name)
+    p = refs.rosenbrock().problem
+    with pytest.raises(InvalidProblem, match=rf"^fun returned {shown}: must be one real number$"):
+        nlp.minimize(p.with_functions(lambda x: value, p.grad), name)
+
+
+@pytest.mark.parametrize("name", NAMES, ids=str)
+def test_a_value_of_f_of_one_element_is_taken(name):
+    installed(name)
+    p = refs.rosenbrock().problem
+    got = nlp.minimize(p.with_functions(lambda x: np.array([p.fun(x)]), p.grad), name)
+    assert got.objective == pytest.approx(nlp.minimize(p, name).objective, abs=1e-9)
+
+
 def test_a_backend_failure_is_a_solver_error(monkeypatch):
     def broken(problem, options):
         raise RuntimeError("native crash")
