@@ -24,7 +24,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.special import comb
 
-from solvers.errors import InvalidProblem
+from solvers.errors import InvalidProblem, real_array
 
 
 @lru_cache(maxsize=64)
@@ -176,7 +176,7 @@ class PiecewisePolynomial:
         Parameters
         ----------
         t
-            Times (any shape); clamped to ``[0, duration]``.
+            Times (s, any shape); clamped to ``[0, duration]``.
         derivative
             Order of the derivative, 0 for position.
 
@@ -184,10 +184,17 @@ class PiecewisePolynomial:
         -------
         numpy.ndarray
             Shape ``t.shape + (dim,)``.
+
+        Raises
+        ------
+        InvalidProblem
+            A time that is NaN or not a number (NaN gave NaN without a word), a derivative order that is not
+            an integer >= 0 (1.5 ended in "slice indices must be integers"; a library tour).
         """
-        if derivative < 0:
-            raise InvalidProblem(f"derivative order must be >= 0, got {derivative}")
-        t = np.asarray(t, dtype=float)
+        _check_order(derivative)
+        t = t if isinstance(t, np.ndarray) and t.dtype.kind == "f" else real_array(t, "t")
+        if np.isnan(t).any():
+            raise InvalidProblem(f"t must not be NaN, got {t.tolist()!s:.60}")
         shape = t.shape
         tf = np.clip(t.reshape(-1), 0.0, self.duration)
         if derivative > self.degree:
@@ -223,6 +230,7 @@ class PiecewisePolynomial:
     # ----------------------------------------------------------- operations
     def derivative(self, order: int = 1) -> PiecewisePolynomial:
         """The ``order``-th time derivative as a piecewise polynomial of degree ``D - order``."""
+        _check_order(order)
         if order == 0:
             return self
         if order > self.degree:
@@ -291,6 +299,12 @@ class PiecewisePolynomial:
         T = ends - starts
         keep = T > 1e-12 * max(1.0, self.duration)
         return PiecewisePolynomial(T[keep], a[keep])
+
+
+def _check_order(order: object) -> None:
+    """A derivative's order: an integer >= 0 (a bool is not one)."""
+    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 0:
+        raise InvalidProblem(f"derivative order must be an integer >= 0, got {order!r}")
 
 
 def concatenate(trajectories: Sequence[PiecewisePolynomial]) -> PiecewisePolynomial:

@@ -39,6 +39,24 @@ def test_evaluate_shapes_and_clamping():
         tr(0.0, derivative=-1)
 
 
+def test_evaluate_names_a_time_or_an_order_it_cannot_take():
+    """NaN times gave NaN positions without a word (``ContinuousPlan.positions`` refused them, a robot's own
+    ``evaluate``, which the README points to, did not); an order of 1.5 ended in "slice indices must be
+    integers", a string time in NumPy's "could not convert string to float" (a library tour)."""
+    tr = random_traj(np.random.default_rng(1))
+    with pytest.raises(InvalidProblem, match=r"^t must not be NaN, got \[0\.5, nan\]$"):
+        tr.evaluate(np.array([0.5, np.nan]))
+    with pytest.raises(InvalidProblem, match=r"^t = 'a': must be an array of real numbers"):
+        tr.evaluate("a")
+    for order in (1.5, True, "1"):
+        with pytest.raises(InvalidProblem, match=r"^derivative order must be an integer >= 0, got "):
+            tr.evaluate(0.5, order)
+        with pytest.raises(InvalidProblem, match=r"^derivative order must be an integer >= 0, got "):
+            tr.derivative(order)
+    np.testing.assert_allclose(tr.evaluate(np.inf), tr.evaluate(tr.duration))  # clamped, as documented
+    np.testing.assert_allclose(tr.evaluate([0.5], np.int64(2)), tr.evaluate(np.array([0.5]), 2))
+
+
 def test_derivative_object_matches_evaluate():
     rng = np.random.default_rng(2)
     tr = random_traj(rng)
