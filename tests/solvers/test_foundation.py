@@ -168,3 +168,13 @@ def test_public_api_and_a_quiet_import():
             "assert not heavy, heavy\n")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
+
+
+def test_a_backend_citation_of_any_year_counts():
+    """The QP backends' record test took years 1990 to 2029 only and refused a backend citing SLSQP (Kraft,
+    1988), which docs/extending.md asks for ("cites its paper with its year"); a library tour."""
+    from support.repository import cites_a_year
+
+    assert cites_a_year('Kraft, "A software package for sequential quadratic programming" (1988).')
+    assert cites_a_year("Goldfarb, Idnani, Math. Programming 27 (1983)") and cites_a_year("a paper of 2031")
+    assert not cites_a_year("no paper here, version 0.12345") and not cites_a_year(None)

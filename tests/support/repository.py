@@ -22,3 +22,12 @@ def declared_extras(distribution: str = "") -> set[str]:
     import tomllib
 
     return set(tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"])
+
+
+def cites_a_year(doc: str | None) -> bool:
+    """Whether a backend module's docstring gives its paper's year (docs/extending.md: "cites its paper with its
+    year"): any year of 1900 to 2099. The QP test took 1990 to 2029 only, and refused a backend that cited SLSQP's
+    paper (Kraft, 1988) or the dual active-set method of quadprog (Goldfarb and Idnani, 1983), a library tour."""
+    import re
+
+    return bool(doc) and re.search(r"(?<!\d)(19|20)\d\d(?!\d)", doc or "") is not None

@@ -22,7 +22,7 @@ from solvers.nlp.capabilities import NLPCapabilities
 from solvers.nlp.solution import Outcome
 from solvers.registry import Backend, Registry
 from support import nlp_reference as refs
-from support.repository import ROOT, declared_extras
+from support.repository import ROOT, cites_a_year, declared_extras
 
 NAMES = nlp.BACKENDS.names()
 REFERENCES = refs.all_references()
@@ -302,7 +302,7 @@ def test_backend_record(name):
         f"{name}: extra {b.extra!r} not declared by {b.distribution or 'pyproject.toml'}"
     assert b.requires and callable(b.entry) and isinstance(b.capabilities, NLPCapabilities)
     doc = sys.modules[b.entry.__module__].__doc__
-    assert doc and any(str(y) in doc for y in range(1950, 2030)), f"{name}: the module docstring cites no paper"
+    assert cites_a_year(doc), f"{name}: the module docstring cites no paper with its year"
     assert b.summary
 
 

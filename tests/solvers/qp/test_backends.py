@@ -20,7 +20,7 @@ from solvers import qp
 from solvers.errors import InfeasibleError, InvalidProblem, SolverError, SolverNotFound
 from solvers.registry import Registry
 from support import qp_reference as ref_problems
-from support.repository import ROOT, TEST_DATA, declared_extras
+from support.repository import ROOT, TEST_DATA, cites_a_year, declared_extras
 
 NAMES = qp.BACKENDS.names()
 REFERENCES = ref_problems.all_references()
@@ -402,7 +402,7 @@ def test_backend_record(name):
         f"{name}: extra {b.extra!r} not declared by {b.distribution or 'pyproject.toml'}"
     assert b.requires and issubclass(b.entry, qp.PreparedQP) and b.entry.name == name
     doc = sys.modules[b.entry.__module__].__doc__
-    assert doc and any(str(y) in doc for y in range(1990, 2030)), f"{name}: the module docstring cites no paper"
+    assert cites_a_year(doc), f"{name}: the module docstring cites no paper with its year"
 
 
 def test_importing_solvers_qp_imports_no_native_backend():
