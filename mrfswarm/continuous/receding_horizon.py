@@ -626,19 +626,24 @@ class ContinuousPlan:
         return self.max_pieces == 0 or max(self.pieces_per_robot, default=0) <= self.max_pieces
 
     def positions(self, times: np.ndarray | float) -> np.ndarray:
-        """(S, N, dim) every robot's position at ``times`` ((N, dim) at one time given as a number); times outside
-        the flight are clamped to it (before it: the starts, after it: where the robots rest).
+        """(S, N, dim) every robot's position at ``times`` (s) of shape (S,) ((N, dim) at one time given as a number;
+        ``times.shape + (N, dim)`` for times of any shape); times outside the flight are clamped to it (before it:
+        the starts, after it: where the robots rest).
 
         Raises
         ------
         ValueError
-            A time that is not finite (NaN gave NaN positions without a word).
+            A time that is not a finite number (NaN gave NaN positions without a word, a string NumPy's "could not
+            convert string to float").
         """
-        t = np.asarray(times, dtype=float)
+        try:
+            t = np.asarray(times, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"positions: times must be numbers (s), got {times!r:.60}") from None
         if not np.all(np.isfinite(t)):
             raise ValueError(f"positions: times must be finite, got {times!r:.60}")
-        out = np.stack([tr.evaluate(np.atleast_1d(t)) for tr in self.trajectories], axis=1)
-        return out[0] if t.ndim == 0 else out
+        # robots on the axis before the point's: times of shape (4, 3) gave (4, N, 3, dim), robots between them
+        return np.stack([tr.evaluate(t) for tr in self.trajectories], axis=-2)
 
 
 @dataclass

@@ -83,6 +83,18 @@ def test_positions_refuse_times_that_are_not_finite(t):
         run("free5").continuous.positions(t)
 
 
+def test_positions_at_times_of_any_shape_end_in_robots_and_axes():
+    """Times of shape (4, 3) gave positions of shape (4, N, 3, dim), the robots' axis between the times' (a library
+    tour); a string ended in NumPy's "could not convert string to float"."""
+    c = run("free5").continuous
+    t = np.linspace(0.0, c.makespan_s, 12).reshape(4, 3)
+    got = c.positions(t)
+    assert got.shape == (4, 3, len(c.trajectories), c.dim)
+    np.testing.assert_array_equal(got.reshape(12, len(c.trajectories), c.dim), c.positions(t.reshape(-1)))
+    with pytest.raises(ValueError, match=r"^positions: times must be numbers \(s\), got 'a'$"):
+        c.positions("a")
+
+
 def test_corridor_flies_without_stopping():
     """The default (continuous seams, safe regions) flies the paper's corridor without a stop."""
     c = run("corridor").continuous
