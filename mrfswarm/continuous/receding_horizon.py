@@ -125,7 +125,7 @@ from mrfswarm.continuous.time_grid import (
     witness_durations,
 )
 from mrfswarm.continuous.window_cache import WINDOWS
-from mrfswarm.errors import UnsafeTrajectoryError
+from mrfswarm.errors import ConfigError, ScenarioError, UnsafeTrajectoryError
 from mrfswarm.geometry import downwash_scale
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.maps.obstacles import ObstacleIndex
@@ -684,6 +684,27 @@ class TimeAllocation:
     rows: dict[bytes, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
 
+def _cell_paths(paths: object, grid: OccupancyGrid) -> np.ndarray:
+    """``paths`` as (T + 1, N, d) integer cells of ``grid`` (d = ``grid.ndim``, at least one configuration and one
+    robot), or ScenarioError saying what is wrong. Paths in metres (``Result.discrete_paths_world()``) were floored
+    to other cells without a word, NaN cast with a RuntimeWarning, (T + 1, N) paths ended in an IndexError inside
+    the regions and no configuration at all in NumPy's "attempt to get argmax of an empty sequence" (a library
+    tour)."""
+    try:
+        p = np.asarray(paths, dtype=float)
+    except (TypeError, ValueError):
+        raise ScenarioError(f"paths must be (T + 1, N, {grid.ndim}) grid cells, got {paths!r:.60}") from None
+    if p.ndim != 3 or p.shape[-1] != grid.ndim or min(p.shape) < 1:
+        raise ScenarioError(f"paths must have shape (T + 1, N, {grid.ndim}), one index per axis of the grid's "
+                            f"{grid.ndim} axes: the cells of every robot at every step, got {p.shape}")
+    bad = ~np.isfinite(p) | (p != np.round(p))
+    if bad.any():
+        t, i = (int(v) for v in np.argwhere(bad)[0][:2])
+        raise ScenarioError(f"paths[{t}, {i}] = {p[t, i].tolist()}: paths are grid cells, whole numbers (metres? "
+                            "cells are grid.world_to_cell(points))")
+    return p.astype(np.int64)
+
+
 class RecedingHorizon:
     """Smooths discrete paths window by window on one common time grid.
 
@@ -715,6 +736,11 @@ class RecedingHorizon:
     SolverNotFound
         An unknown or missing QP backend, or with ``cfg.time_refinement`` NLP backend
         (``cfg.nlp``).
+    ConfigError
+        ``cfg`` that is not a :class:`~mrfswarm.config.SmoothingConfig`.
+    ScenarioError
+        ``paths`` that are not (T + 1, N, d) whole numbers, T + 1 and N at least 1; a radius not in (0, half a
+        cell); two robots closer than the safety distance in a step.
     UnsafeTrajectoryError
         A region closer than the robot radius to an obstacle (the discrete plan breaks its
         motion rule).
@@ -724,10 +750,11 @@ class RecedingHorizon:
                  backend: str | None = None, qp_options: QPOptions | None = None, workers: int | None = None,
                  downwash: float = 1.0) -> None:
         t0 = time.perf_counter()
-        self.paths = np.asarray(paths, dtype=np.int64)
+        if not isinstance(cfg, SmoothingConfig):  # a dict ended in "'dict' object has no attribute 'backend'"
+            raise ConfigError(f"cfg must be a mrfswarm.config.SmoothingConfig (a Config's .smoothing), got "
+                              f"{type(cfg).__name__}")
+        self.paths = _cell_paths(paths, grid)
         self.dim = self.paths.shape[-1]
-        if self.dim != grid.ndim:
-            raise ValueError(f"paths of {self.dim} axes on a grid of {grid.ndim}")
         self.downwash = float(downwash)
         self.scale = downwash_scale(self.dim, self.downwash)
         self.grid, self.cfg = grid, cfg
