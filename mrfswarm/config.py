@@ -359,13 +359,24 @@ def _section_types() -> dict[str, type]:
     return {name: hints[name] for name in _SECTIONS}
 
 
+#: Characters of a wrong value a message shows: a map given as an array of 60 x 40 cells was refused in a message of
+#: 17,000 characters, the whole array (a library tour).
+SHOWN_CHARS = 80
+
+
+def _shown(value: Any) -> str:
+    """``repr(value)``, cut to :data:`SHOWN_CHARS` characters."""
+    text = repr(value)
+    return text if len(text) <= SHOWN_CHARS else f"{text[:SHOWN_CHARS - 3]}..."
+
+
 def _coerce(key: str, value: Any, hint: Any) -> Any:
     """Check ``value`` against the annotation ``hint``; return it in the field's type."""
     origin = get_origin(hint)
     args = get_args(hint)
     if origin is None and hint is type(None):
         if value is not None:
-            raise ConfigError(f"{key} must be empty, got {value!r}")
+            raise ConfigError(f"{key} must be empty, got {_shown(value)}")
         return None
     if args and type(None) in args:  # Optional[X]
         if value is None:
@@ -374,33 +385,36 @@ def _coerce(key: str, value: Any, hint: Any) -> Any:
         return _coerce(key, value, inner[0])
     if hint is bool:
         if not isinstance(value, bool):
-            raise ConfigError(f"{key} must be true or false, got {value!r}")
+            raise ConfigError(f"{key} must be true or false, got {_shown(value)}")
         return value
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{key} must be an integer, got {value!r}")
+            raise ConfigError(f"{key} must be an integer, got {_shown(value)}")
         return value
     if hint is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{key} must be a number, got {value!r}")
+            raise ConfigError(f"{key} must be a number, got {_shown(value)}")
         if not math.isfinite(value):
-            raise ConfigError(f"{key} must be finite, got {value!r}")
+            raise ConfigError(f"{key} must be finite, got {_shown(value)}")
         return float(value)
     if hint is str:
         if not isinstance(value, str):
-            raise ConfigError(f"{key} must be a string, got {value!r}")
+            raise ConfigError(f"{key} must be a string, got {_shown(value)}")
         return value
     if hint is dict or origin is dict:
         if not isinstance(value, dict):
-            raise ConfigError(f"{key} must be a table, got {value!r}")
+            # an occupancy array built in code (as data, it is a list of lists by now) is a map file's content
+            array = ('; an occupancy array is read from a file: numpy.save it and give {"kind": "npy", "path": ...}'
+                     if key == "scenario.map" and isinstance(value, list) else "")
+            raise ConfigError(f"{key} must be a table, got {_shown(value)}{array}")
         return value
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis:  # tuple[X, ...]: any length, checked later
         if not isinstance(value, (list, tuple)):
-            raise ConfigError(f"{key} must be a list of numbers, got {value!r}")
+            raise ConfigError(f"{key} must be a list of numbers, got {_shown(value)}")
         return tuple(_coerce(f"{key}[{i}]", v, args[0]) for i, v in enumerate(value))
     if origin is tuple:
         if not isinstance(value, (list, tuple)) or len(value) != len(args):
-            raise ConfigError(f"{key} must be a list of {len(args)} numbers, got {value!r}")
+            raise ConfigError(f"{key} must be a list of {len(args)} numbers, got {_shown(value)}")
         return tuple(_coerce(f"{key}[{i}]", v, args[i]) for i, v in enumerate(value))
     raise TypeError(f"unsupported config annotation {hint!r} for {key}")  # a bug in this module, not user input
 
