@@ -122,10 +122,14 @@ class QPSolver:
     ------
     SolverNotFound
         At construction, for an unknown or missing backend.
+    InvalidOptions
+        At construction, ``options`` that are not an :class:`Options` (or None).
     """
 
     def __init__(self, backend: str = DEFAULT_BACKEND, options: Options | None = None, *, reuse: bool = True) -> None:
         self.record = BACKENDS.get(backend)
+        if options is not None:  # a dict failed at the first solve as "piqp failed: AttributeError: ..."
+            check_argument(options, Options, "options", InvalidOptions, "solvers.qp.Options")
         self.options = options
         self.reuse = reuse
         self._prepared: PreparedQP | None = None
@@ -146,8 +150,9 @@ class QPSolver:
         Raises
         ------
         InvalidProblem, InfeasibleError, SolverError
-            As :func:`solve`; the handle is reset first.
+            As :func:`solve` (``problem`` not a :class:`QPProblem` too); the handle is reset first.
         """
+        check_argument(problem, QPProblem, "problem", InvalidProblem, "solvers.qp.QPProblem")
         prepared = self._prepared
         try:
             if self.reuse and prepared is not None and prepared.same_pattern(problem):

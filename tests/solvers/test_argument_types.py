@@ -40,6 +40,21 @@ def test_qp_problem_of_another_type(problem):
         solvers.qp.solve(problem, backend="osqp")
 
 
+def test_qp_solver_arguments_of_another_type():
+    """The same for the re-solving handle: a dict of options failed at its first solve as "piqp failed:
+    AttributeError: 'dict' object has no attribute 'time_limit'", a tuple as a problem in a bare AttributeError, also
+    after a first solve (a library tour)."""
+    with pytest.raises(InvalidOptions, match=r"^options must be a solvers\.qp\.Options, got dict$"):
+        solvers.qp.QPSolver("piqp", options={"max_iter": 3})
+    solver = solvers.qp.QPSolver("piqp")
+    with pytest.raises(InvalidProblem, match=r"^problem must be a solvers\.qp\.QPProblem, got tuple$"):
+        solver.solve((1, 2))
+    solver.solve(_qp())
+    with pytest.raises(InvalidProblem, match=r"^problem must be a solvers\.qp\.QPProblem, got tuple$"):
+        solver.solve((1, 2))
+    assert np.allclose(solver.solve(_qp()).x, [1, 1], atol=1e-6)
+
+
 def test_nlp_arguments_of_another_type():
     with pytest.raises(InvalidOptions, match=r"^options must be a solvers\.nlp\.Options, got dict$"):
         solvers.nlp.minimize(_nlp(), backend="slsqp", options={"tol": 1e-6})
