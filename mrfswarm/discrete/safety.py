@@ -48,14 +48,20 @@ def _closest_during_step(p0: np.ndarray, p1: np.ndarray, pairs: np.ndarray) -> t
     return float(dist[k]), (int(pairs[k, 0]), int(pairs[k, 1]))
 
 
+def _cell(c: np.ndarray) -> str:
+    """A cell as ``(x, y)`` or ``(x, y, z)``: a tuple of NumPy integers printed as "(np.int64(11), np.int64(11))"
+    (a library tour)."""
+    return f"({', '.join(str(int(v)) for v in c)})"
+
+
 def _step_messages(t: int, p: np.ndarray, inb: np.ndarray, occupied_at: np.ndarray, shared, cut,
                    prev: np.ndarray | None, closest: tuple[float, tuple[int, int] | None]) -> list[str]:
     """One step's findings in a fixed order: off the map, occupied, shared, cuts, separation."""
-    out = [f"step {t}: robot {i} off the map at cell {tuple(p[i])}" for i in np.flatnonzero(~inb)]
-    out += [f"step {t}: robot {i} in an occupied cell {tuple(p[i])}" for i in np.flatnonzero(occupied_at)]
-    out += [f"step {t}: two robots share cell {tuple(p[f])}" for f in shared]
+    out = [f"step {t}: robot {i} off the map at cell {_cell(p[i])}" for i in np.flatnonzero(~inb)]
+    out += [f"step {t}: robot {i} in an occupied cell {_cell(p[i])}" for i in np.flatnonzero(occupied_at)]
+    out += [f"step {t}: two robots share cell {_cell(p[f])}" for f in shared]
     if prev is not None:
-        out += [f"step {t}: robot {i}'s move {tuple(prev[i])} -> {tuple(p[i])} cuts an obstacle" for i in cut]
+        out += [f"step {t}: robot {i}'s move {_cell(prev[i])} -> {_cell(p[i])} cuts an obstacle" for i in cut]
     d, pair = closest
     if d < MIN_SEPARATION - _TOL and (prev is not None or d > 0):  # at rest, d = 0 is a shared cell (above)
         what = "while moving" if prev is not None else "at the start"
@@ -86,6 +92,9 @@ def discrete_violations(paths: np.ndarray, free: np.ndarray, limit: int = 10, do
         c >= 1: the separation is measured with z divided by c (3-D).
     """
     paths = np.asarray(paths)
+    if paths.ndim != 3 or paths.shape[-1] != np.ndim(free):  # (T + 1, N) paths: "'numpy.int64' object is not iterable"
+        raise ValueError(f"paths must have shape (T + 1, N, {np.ndim(free)}) (cells on the {np.ndim(free)}-D grid), "
+                         f"got {paths.shape}")
     out: list[str] = []
     for t, p in enumerate(paths):
         inb, occ = _on_map(p, free)

@@ -76,3 +76,18 @@ def test_segments_clear_equals_segment_clear(seed):
     got = segments_clear(free, a, b)
     assert got.tolist() == [segment_clear(free, p, q) for p, q in zip(a, b)]
     assert got.any() and not got.all()
+
+
+def test_findings_name_cells_as_plain_numbers():
+    """A cell in a finding read "(np.int64(11), np.int64(11))" (NumPy 2's repr of a tuple of its integers), and
+    paths without their axis of points ended in "'numpy.int64' object is not iterable" (a library tour)."""
+    free = np.ones((10, 10), dtype=bool)
+    free[4, 4] = False
+    paths = np.array([[[0, 0], [2, 2]], [[11, 11], [4, 4]]])
+    for check in (discrete_violations, discrete_violations_brute_force):
+        assert check(paths, free)[:4] == ["step 1: robot 0 off the map at cell (11, 11)",
+                                          "step 1: robot 1 in an occupied cell (4, 4)",
+                                          "step 1: robot 0's move (0, 0) -> (11, 11) cuts an obstacle",
+                                          "step 1: robot 1's move (2, 2) -> (4, 4) cuts an obstacle"]
+    with pytest.raises(ValueError, match=r"^paths must have shape \(T \+ 1, N, 2\) .*got \(2, 2\)$"):
+        discrete_violations(paths[:, :, 0], free)
