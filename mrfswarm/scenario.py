@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import logging
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
-from mrfswarm.config import Config
+from mrfswarm.config import Config, validated
 from mrfswarm.continuous.receding_horizon import flight_model
 from mrfswarm.discrete.congestion import CongestionField
 from mrfswarm.discrete.goal_distance import GoalDistance, GoalGraph
@@ -137,12 +138,21 @@ class Scenario:
 def build_scenario(cfg: Config, seed: int | None = None) -> Scenario:
     """Load the map, place the swarm and the goal, and compute rho_S once.
 
+    ``cfg`` is checked as :func:`mrfswarm.plan` checks it (:func:`mrfswarm.config.validated`): a config changed in
+    code may hold what a file may not. ``seed`` (an integer >= 0) overrides the sampled start's seed.
+
     Raises
     ------
     ConfigError, ScenarioError
-        Bad parameters, a robot or the goal off the map or in an obstacle, two robots in
-        one cell, k out of range, a search order too large for the map's dimension.
+        Bad parameters (``cfg`` not a :class:`Config`, ``seed`` not an integer >= 0), a robot or the goal off the
+        map or in an obstacle, two robots in one cell, k out of range, a search order too large for the map's
+        dimension.
     """
+    # called alone (stage by stage), a dict ended in "'dict' object has no attribute 'scenario'", a negative
+    # robot_radius set in code planned, a string seed in NumPy's "SeedSequence expects int" (a library tour)
+    cfg = validated(cfg)
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0):
+        raise ConfigError(f"seed = {seed!r}: must be an integer >= 0")
     grid = load_map(cfg.scenario.map, cfg.base_dir)
     check_order(cfg.mrf.order, grid.ndim, cfg.scenario.downwash)
     morse = Morse.from_config(cfg.interaction, grid.resolution)  # k_a, k_r in cells (potentials module)

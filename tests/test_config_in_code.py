@@ -100,3 +100,18 @@ def test_a_map_given_as_an_array_is_refused_in_a_short_line_that_says_how():
     with pytest.raises(ConfigError, match=r"^smoothing\.v_max must be a number, got \[0, 1, .*\.\.\.$") as e:
         from_dict({"smoothing": {"v_max": list(range(1000))}})
     assert len(str(e.value)) < 150
+
+
+def test_build_scenario_alone_checks_its_config_and_seed():
+    """Stage by stage (build_scenario, then plan_discrete), a dict ended in "'dict' object has no attribute
+    'scenario'", a negative robot radius set in code gave a scenario, a string seed NumPy's "SeedSequence expects
+    int or sequence of ints" (a library tour)."""
+    cfg = Config()
+    with pytest.raises(ConfigError, match=r"^expected a Config, got dict"):
+        mrfswarm.build_scenario({"scenario": {}})
+    with pytest.raises(ConfigError, match=r"^scenario\.robot_radius = -1\.0: must be > 0"):
+        mrfswarm.build_scenario(cfg.replace(scenario=dataclasses.replace(cfg.scenario, robot_radius=-1.0)))
+    for seed in ("a", -1, True):
+        with pytest.raises(ConfigError, match=rf"^seed = {seed!r}: must be an integer >= 0$"):
+            mrfswarm.build_scenario(cfg, seed=seed)
+    assert mrfswarm.build_scenario(cfg, seed=np.int64(3)).start.tolist() == mrfswarm.build_scenario(cfg, 3).start.tolist()
