@@ -115,8 +115,8 @@ class PiecewisePolynomial:
     _knots: np.ndarray = field(init=False, repr=False)  # 0 and the cumulative durations, set in __post_init__
 
     def __post_init__(self) -> None:
-        T = np.array(self.durations, dtype=float).reshape(-1)
-        a = np.array(self.coefficients, dtype=float)
+        T = np.array(real_array(self.durations, "durations")).reshape(-1)  # copies: the trajectory owns them
+        a = np.array(real_array(self.coefficients, "coefficients"))
         if a.ndim == 2:  # one dimension given as (M, D+1)
             a = a[:, :, None]
         if a.ndim != 3 or a.shape[0] != T.size or a.shape[0] == 0 or a.shape[2] == 0:

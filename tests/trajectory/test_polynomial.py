@@ -79,6 +79,13 @@ def test_validation():
         PiecewisePolynomial([1.0], np.zeros((2, 8, 2)))
     with pytest.raises(InvalidProblem, match="finite"):
         PiecewisePolynomial([1.0], np.full((1, 8, 2), np.nan))
+    # NumPy's "could not convert string to float: 'a'", naming neither array; None read as a NaN duration (a tour)
+    with pytest.raises(InvalidProblem, match=r"^durations = \['a'\]: must be an array of real numbers"):
+        PiecewisePolynomial(["a"], np.zeros((1, 8, 2)))
+    with pytest.raises(InvalidProblem, match=r"^durations = None: must be an array of real numbers, not None$"):
+        PiecewisePolynomial(None, np.zeros((1, 8, 2)))
+    with pytest.raises(InvalidProblem, match=r"^coefficients = \[\[\['a'\]\]\]: must be an array of real numbers"):
+        PiecewisePolynomial([1.0], [[["a"]]])
 
 
 def test_tau_time_round_trip():
