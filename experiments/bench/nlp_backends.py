@@ -1,11 +1,13 @@
 """Benchmark every registered NLP backend on the time refinement's problems of real windows.
 
 The scenario's discrete plan is smoothed by the receding horizon with the time refinement
-on; at each of the first ``--windows`` windows, before the run's own refinement (the
-configured backend, Ipopt by default, so the run goes on as ``mrfswarm run`` would), the
-window's time-allocation NLP (:meth:`RecedingHorizon.time_allocation`: f(T) = J*(T) +
-w N sum(T) over the step durations, every evaluation the window's QP, the gradient from
-its multipliers) is built afresh for every backend of ``solvers.nlp.BACKENDS`` and
+on by Ipopt (``--nlp ipopt``); at each of the first ``--windows`` windows, before the run's
+own refinement (so the run goes on as ``mrfswarm run --nlp ipopt`` would), the window's
+time-allocation NLP (:meth:`RecedingHorizon.time_allocation`: f(T) = J*(T) + w N sum(T)
+over the step durations, every evaluation the window's QP at the NLP refinement's
+iteration budget, the gradient from its multipliers) is built afresh for every backend of
+``solvers.nlp.BACKENDS``, with the row sum(T) <= the QP's sum where the backend takes
+linear rows (:meth:`RecedingHorizon._not_longer`, as the refinement poses it), and
 minimized from the QP's durations, with two settings:
 
 - ``run``: the settings the refinement uses (``NLP_OPTIONS``: tol 1e-4, 12 iterations);
@@ -15,7 +17,8 @@ Per window, setting and backend: status, iterations, calls of f and of its gradi
 dispatch counts them), distinct points evaluated (``points``: each one a window QP, the
 refinement's cache answers repeated calls) and those where f was not defined (``NaN``: the
 QP had no solution), wall time, the objective at the returned point, the best objective
-among the points evaluated (``best seen``: what the refinement keeps, if it certifies),
+among the points evaluated that last no longer than the QP's (``best seen``: what the
+refinement keeps, if it certifies; L-BFGS-B, without the row, also evaluates longer ones),
 and against Ipopt in the same run and window: both relative gaps (negative: lower than
 Ipopt's) and the time ratio. Prints a table and writes every row to
 ``experiments/bench/results/nlp_backends.csv`` (``--out`` to change). The machine's load
@@ -36,7 +39,7 @@ import numpy as np
 from csv_table import write_csv
 
 from mrfswarm.config import load_config
-from mrfswarm.continuous.receding_horizon import NLP_OPTIONS, RecedingHorizon
+from mrfswarm.continuous.receding_horizon import NLP_OPTIONS, SAME_LENGTH, RecedingHorizon
 from mrfswarm.pipeline import plan, qp_options
 from solvers import nlp
 
@@ -61,9 +64,10 @@ class Benchmarked(RecedingHorizon):
             for setting, options in SETTINGS.items():
                 for name in self.backends:
                     alloc = self.time_allocation(sol, a, start, rec, merged)
-                    f0 = alloc.problem.fun(alloc.problem.x0)  # cached: not counted below
+                    problem = self._not_longer(alloc.problem, sol, name)  # the problem the refinement solves
+                    f0 = problem.fun(problem.x0)  # cached: not counted below
                     t0 = time.perf_counter()
-                    res = nlp.minimize(alloc.problem, name, options)
+                    res = nlp.minimize(problem, name, options)
                     dt = time.perf_counter() - t0
                     self.active, self.limit_rows = alloc.base  # as before this backend's run
                     self.rows.append(dict(window=f"{a}..{a + len(sol.durations)}", steps=len(sol.durations),
@@ -74,7 +78,9 @@ class Benchmarked(RecedingHorizon):
                                           nan_points=sum(s is None for s in alloc.solved.values()), time_s=dt,
                                           f_start=f0, objective=res.objective,
                                           best_seen=min(v.cost + alloc.weight * v.durations.sum()
-                                                        for v in alloc.solved.values() if v is not None)))
+                                                        for v in alloc.solved.values()
+                                                        if v is not None and v.durations.sum()
+                                                        <= sol.durations.sum() + SAME_LENGTH)))
         return super()._refine(sol, a, start, rec, merged)
 
 
@@ -121,6 +127,16 @@ def summary(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def benchmarked(config: pathlib.Path, windows: int, backends: list[str]) -> Benchmarked:
+    """The receding horizon over ``config``'s discrete plan, refined as ``mrfswarm run --nlp ipopt`` refines it,
+    whose first ``windows`` windows' NLPs ``backends`` minimize too."""
+    cfg = load_config(config, ["simulation.enabled=false", "smoothing.time_refinement=true",
+                               "smoothing.refinement=nlp", f"smoothing.nlp={BASELINE}"])
+    discrete = plan(load_config(config, ["simulation.enabled=false", "smoothing.enabled=false"]), progress=False)
+    return Benchmarked(discrete.discrete.paths, discrete.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
+                       cfg.smoothing.backend, qp_options(cfg), workers=1, windows=windows, backends=backends)
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--config", type=pathlib.Path, default=ROOT / "experiments" / "corridor.toml")
@@ -131,13 +147,9 @@ def main(argv: list[str] | None = None) -> None:
     backends = nlp.available()
     if BASELINE not in backends:
         raise SystemExit(f"the baseline {BASELINE} is not installed")
-    cfg = load_config(args.config, ["simulation.enabled=false", "smoothing.time_refinement=true"])
-    discrete = plan(load_config(args.config, ["simulation.enabled=false", "smoothing.enabled=false"]))
-    print(f"{args.config.name}: {discrete.discrete.paths.shape[1]} robots, {discrete.discrete.n_steps} steps; "
-          f"QP backend {cfg.smoothing.backend}; NLP backends {', '.join(backends)}; load {os.getloadavg()[0]:.1f} "
-          f"on {os.cpu_count()} cores")
-    rh = Benchmarked(discrete.discrete.paths, discrete.scenario.grid, cfg.smoothing, cfg.scenario.robot_radius,
-                     cfg.smoothing.backend, qp_options(cfg), workers=1, windows=args.windows, backends=backends)
+    rh = benchmarked(args.config, args.windows, backends)
+    print(f"{args.config.name}: {rh.N} robots, {rh.T} steps; QP backend {rh.backend}; NLP backends "
+          f"{', '.join(backends)}; load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     rh.run()
     rows = with_baseline(rh.rows)
     print(table(rows))

@@ -1557,9 +1557,10 @@ class RecedingHorizon:
                  method, status)
         return sol
 
-    def _not_longer(self, problem: NLPProblem, sol: _Solution) -> NLPProblem:
-        """``problem`` with the row sum(T) <= ``sol``'s sum where the NLP backend ``cfg.nlp`` takes linear rows:
-        the scaling's cap (``scale_durations``, ``total``), and what :meth:`_refine` keeps.
+    def _not_longer(self, problem: NLPProblem, sol: _Solution, backend: str | None = None) -> NLPProblem:
+        """``problem`` with the row sum(T) <= ``sol``'s sum where the NLP backend (``backend``, by default
+        ``cfg.nlp``) takes linear rows: the scaling's cap (``scale_durations``, ``total``), and what :meth:`_refine`
+        keeps.
 
         The windows' optimum of snap + weight x time often lies at longer steps than the QP's (the profiles are
         fast): without the row the NLP spent its iterations there, on points the refinement then rejects.
@@ -1568,7 +1569,7 @@ class RecedingHorizon:
         19.47 -> 19.30, the doorway 10.455 -> 10.468; SLSQP, sqpmethod and trust-constr 1.3-3.5 % sooner on the
         forest and rooms. A backend without linear rows (L-BFGS-B) gets the bounds alone.
         """
-        if not solvers.nlp.BACKENDS.get(self.cfg.nlp).capabilities.linear_constraints:
+        if not solvers.nlp.BACKENDS.get(backend or self.cfg.nlp).capabilities.linear_constraints:
             return problem
         return dataclasses.replace(problem, A=np.ones((1, len(sol.durations))), lb=-np.inf,
                                    ub=float(sol.durations.sum()))
