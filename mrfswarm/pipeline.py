@@ -305,9 +305,9 @@ class Result:
 
 def _solve_failures(windows: list) -> dict:
     """``{"windows": how many windows had an attempt the QP backend failed to solve, "statuses": its distinct
-    statuses}`` (attempts it proved infeasible are not failures: a faster attempt often is). Each status as the
-    backend's error quotes it (``'maximum iterations reached'``)."""
-    statuses = {repr(s) for w in windows for s in w.unsolved}
+    statuses}`` (attempts it proved infeasible are not failures: a faster attempt often is). A status is the backend's
+    own text, as ``SolverError.status`` holds it (the attempt's message quotes it: ``'MaxTime'``)."""
+    statuses = {str(s) for w in windows for s in w.unsolved}
     return {"windows": sum(bool(w.unsolved) for w in windows), "statuses": sorted(statuses)}
 
 

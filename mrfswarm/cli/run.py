@@ -208,7 +208,7 @@ def run(args: argparse.Namespace) -> int:
     # design (clutter40: 8 of 16 windows); one without fails where it solves inaccurately (SCS: 3 of 9 on the corridor)
     if failures["windows"] and 4 * failures["windows"] >= s["windows"] and \
             solvers.qp.BACKENDS.get(s["qp"]).capabilities.iteration_cap is None:
-        status = f" (status {failures['statuses'][0]})" if failures["statuses"] else ""
+        status = f" (status {failures['statuses'][0]!r})" if failures["statuses"] else ""
         print(f"mrfswarm: warning: the QP backend {s['qp']} did not solve attempts of {failures['windows']} of "
               f"{s['windows']} smoothing windows{status}: they fly slower attempts; see result.json's solve_failures",
               file=sys.stderr)

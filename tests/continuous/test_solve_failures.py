@@ -38,4 +38,4 @@ def test_a_run_counts_the_windows_its_backend_did_not_solve():
     assert all(w.unsolved == ["Status.PIQP_MAX_ITER_REACHED"] * len(w.failed) for w in windows), \
         [(w.failed, w.unsolved) for w in windows]
     # as result.json said it before: the status as the backend's error quotes it
-    assert result.summary()["solve_failures"] == {"windows": len(windows), "statuses": ["'Status.PIQP_MAX_ITER_REACHED'"]}
+    assert result.summary()["solve_failures"] == {"windows": len(windows), "statuses": ["Status.PIQP_MAX_ITER_REACHED"]}
