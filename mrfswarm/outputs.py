@@ -192,7 +192,9 @@ def write_continuous_outputs(result: Result, out: Path, animate: bool = False) -
     pos = c.positions(t)
     n = pos.shape[1]
     world = result.discrete_paths_world()
-    title = f"smoothed trajectories ({cfg.smoothing.seam} seams, {result.qp}): makespan {c.makespan_s:.1f} s"
+    # the NLP backend too where one refined the durations: a run per backend drew the same title (a solver tour)
+    title = (f"smoothed trajectories ({cfg.smoothing.seam} seams, {result.smoothing_solvers}): makespan "
+             f"{c.makespan_s:.1f} s")
 
     beneath = [world[:, i] for i in range(n)] if n <= plots.INDIVIDUAL_MAX else None  # the discrete paths
     written.append(atomic_write(figs / "trajectories.png", lambda p: plots.plot_paths(

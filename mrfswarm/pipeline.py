@@ -115,6 +115,14 @@ class Result:
         sm = self.config.smoothing
         return sm.nlp if sm.enabled and sm.time_refinement and sm.refinement == "nlp" else None
 
+    @property
+    def smoothing_solvers(self) -> str | None:
+        """The continuous stage's backends as the run's line and its trajectory figure name them: the QP backend, and
+        the NLP backend where one refined the durations (``"piqp, refined by ipopt"``); None without the stage."""
+        if self.qp is None:
+            return None
+        return self.qp if self.nlp is None else f"{self.qp}, refined by {self.nlp}"
+
     def robots(self) -> list[RobotOutcome]:
         """Where each robot ended and, if short of the goal region, why (:mod:`mrfswarm.discrete.robot_outcomes`)."""
         scn = self.scenario

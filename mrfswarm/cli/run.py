@@ -174,8 +174,8 @@ def run(args: argparse.Namespace) -> int:
             f"{s['min_separation_discrete']:.2f} m discrete")
     if s["min_separation_continuous"] is not None:
         # the NLP backend too where one refined the durations (a solver tour saw only the QP's named)
-        solvers_used = s["qp"] if s["nlp"] is None else f"{s['qp']}, refined by {s['nlp']}"
-        line += f", {s['min_separation_continuous']:.2f} m smooth ({solvers_used}), makespan {s['makespan_s']:.1f} s"
+        line += (f", {s['min_separation_continuous']:.2f} m smooth ({result.smoothing_solvers}), makespan "
+                 f"{s['makespan_s']:.1f} s")
         q = s["flight_quality"]
         if q["makespan_over_bound"] is not None:
             line += f" ({q['makespan_over_bound']:.2f} x the lower bound, {q['stops_per_robot']:.2f} stops per robot)"

@@ -373,6 +373,29 @@ def test_an_nlp_backend_the_run_does_not_use_is_one_warning_line(sets, why, tmp_
         assert json.loads((tmp_path / "r" / "result.json").read_text())["nlp"] == "slsqp"
 
 
+def test_the_trajectory_figure_names_the_nlp_backend_that_refined(tmp_path, capsys, monkeypatch):
+    """trajectories.png's title named the QP backend alone: the runs of a comparison of NLP backends drew one title.
+    It names them as the run's line does."""
+    from mrfswarm import plots
+
+    titles = []
+    plot_paths = plots.plot_paths
+
+    def spy(path, grid, paths, goal=None, title="", **kw):
+        titles.append(title)
+        return plot_paths(path, grid, paths, goal, title, **kw)
+
+    monkeypatch.setattr(plots, "plot_paths", spy)
+    argv = ["run", str(EXPERIMENTS / "free5.toml"), "--set", "simulation.enabled=false"]
+    assert main([*argv, "--set", "smoothing.time_refinement=true", "--nlp", "slsqp", "--out", str(tmp_path / "r")]) == 0
+    assert main([*argv, "--out", str(tmp_path / "d")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "(piqp, refined by slsqp)" in lines[0] and "(piqp)" in lines[1]
+    drawn = [title for title in titles if title.startswith("smoothed trajectories")]
+    assert len(drawn) == 2
+    assert "(continuous seams, piqp, refined by slsqp)" in drawn[0] and "(continuous seams, piqp)" in drawn[1]
+
+
 def test_a_backend_that_fails_many_attempts_without_an_iteration_cap_is_said(tmp_path, capsys):
     """SCS flew the arena 1.54 x its bound against piqp's 1.34 with no word (a solver tour): its windows' faster
     attempts ended "solved (inaccurate)" and slower ones flew. result.json counts such windows; a backend without
