@@ -60,6 +60,14 @@ class UnusedSettingWarning(UserWarning):
     on without it, and the warning says what would use it."""
 
 
+class PlanWarning(UserWarning):
+    """What a finished plan warns of (:meth:`~mrfswarm.pipeline.Result.warnings`): robots short of the goal or cut
+    at ``mrf.max_steps``, windows flown as their rest-to-rest witness (slower, with stops), a QP backend that failed
+    attempts of many windows, the NLP refinement's errors, a flight too long for a Crazyflie's memory, a simulated
+    flight that came closer than the plan. :func:`~mrfswarm.pipeline.plan` issues one per text, pointing at its
+    caller; ``mrfswarm run`` prints the same texts after its summary line."""
+
+
 class PlanError(MrfswarmError):
     """A plan stopped after its discrete stage; ``result`` holds what was computed.
 
@@ -82,6 +90,7 @@ __all__ = [
     "InvalidProblem",
     "MrfswarmError",
     "PlanError",
+    "PlanWarning",
     "ScenarioError",
     "SolverError",
     "SolverNotFound",

@@ -22,7 +22,7 @@ from mrfswarm.discrete.motion import cell_values
 from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, DiscreteProblem, plan_discrete
 from mrfswarm.discrete.pruning import prune_paths
 from mrfswarm.discrete.robot_outcomes import RobotOutcome, robot_outcomes
-from mrfswarm.errors import ConfigError, PlanError, ScenarioError, SolversError, UnusedSettingWarning
+from mrfswarm.errors import ConfigError, PlanError, PlanWarning, ScenarioError, SolversError, UnusedSettingWarning
 from mrfswarm.metrics import DiscreteMetrics, discrete_metrics
 from mrfswarm.scenario import Scenario, build_scenario
 from solvers import mrf as mrf_solvers
@@ -178,6 +178,14 @@ class Result:
                 "mean_speed_m_s": float(stops.mean_speed.mean()) if stops.mean_speed.size else 0.0,
             }
         return self._quality
+
+    def warnings(self) -> list[str]:
+        """What this run warns of, one line each, in the order ``mrfswarm run`` prints them after its summary line
+        (:func:`mrfswarm.run_warnings.run_warnings`); :func:`plan` issues each as a
+        :class:`~mrfswarm.errors.PlanWarning`. Empty for a run with nothing to say."""
+        from mrfswarm.run_warnings import run_warnings
+
+        return run_warnings(self)
 
     def discrete_paths_world(self) -> np.ndarray:
         """(T + 1, N, d) discrete paths in metres (d = 3 on a voxel map: z from the map)."""
@@ -477,6 +485,18 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
     PlanError
         Any error after the discrete stage (a swarm that cannot move, a continuous
         stage or a simulation that fails); its ``result`` holds what was computed.
+
+    Warns
+    -----
+    PlanWarning
+        One per line of :meth:`Result.warnings` of a plan that completed, pointing at the
+        caller: robots short of the goal or cut at ``mrf.max_steps``, windows flown as their
+        rest-to-rest witness (slower, with stops), a QP backend that failed attempts of many
+        windows, the NLP refinement's errors, a flight too long for a Crazyflie's memory, a
+        simulated flight that came closer than the plan. ``mrfswarm run`` prints the same
+        lines (``warnings.filterwarnings("ignore", category=PlanWarning)`` silences them).
+    UnusedSettingWarning
+        A setting the run does not use (``nlp`` without the time refinement).
     """
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0):
         raise ConfigError(f"seed = {seed!r}: must be an integer >= 0")
@@ -523,6 +543,10 @@ def plan(config: Config | str | Path, *, mrf: str | None = None, qp: str | None 
         _paper_pruning(result)
         raise PlanError(str(e), result) from e  # the CLI still writes what was computed
     _paper_pruning(result)
+    # what `mrfswarm run` prints after its summary line: a caller in Python heard none of it (every window flown as
+    # its rest-to-rest witness under smoothing.qp_options.max_iter = 1, free5 flying 13.3 s instead of 4.7, unsaid)
+    for text in result.warnings():
+        warnings.warn(text, PlanWarning, stacklevel=2)
     return result
 
 

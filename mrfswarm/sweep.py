@@ -43,6 +43,7 @@ from mrfswarm.errors import (
     DeprecatedKeyWarning,
     MrfswarmError,
     PlanError,
+    PlanWarning,
     SolversError,
     UnusedSettingWarning,
 )
@@ -290,7 +291,8 @@ def _run_point(task: _Task) -> dict:
     one) is the point's result (its message, and what a :class:`PlanError` carries);
     anything else propagates: it is a bug. The toolkit's own warnings (a setting the point leaves unused) are
     ``warnings``, ``(category, text)`` pairs the sweep's process says (:func:`_say`), and the numerical layer's
-    logged warnings (:data:`_HANDED_LOGS`) are ``logged``, texts it says naming the point (:func:`_tell`), in a
+    logged warnings (:data:`_HANDED_LOGS`) and the plan's own (:class:`~mrfswarm.errors.PlanWarning`: windows flown
+    as their witness, robots short of the goal) are ``logged``, texts it says naming the point (:func:`_tell`), in a
     process's main thread; a Dask worker's threads say them where they are (:func:`warnings.catch_warnings` is not
     for threads, nor a logger's handlers).
     """
@@ -298,7 +300,7 @@ def _run_point(task: _Task) -> dict:
     logged: list[str] = []
     if threading.current_thread() is not threading.main_thread():
         return _plan_point(task) | {"warnings": handed, "logged": logged}
-    with _handing(handed), _logging_into(logged):
+    with _handing(handed, logged), _logging_into(logged):
         out = _plan_point(task)
     return out | {"warnings": handed, "logged": logged}
 
@@ -325,14 +327,16 @@ def _plan_point(task: _Task) -> dict:
 
 
 @contextlib.contextmanager
-def _handing(handed: list[tuple[type[Warning], str]]) -> Iterator[None]:
-    """Collect the block's warnings of the toolkit (:data:`_HANDED`) into ``handed`` as ``(category, text)``; show
-    any other as it would have been shown. A worker process printed them in Python's format (file, line, source
-    line), once per worker, and the sweep's own process said again what building the points had said."""
+def _handing(handed: list[tuple[type[Warning], str]], logged: list[str] | None = None) -> Iterator[None]:
+    """Collect the block's warnings of the toolkit (:data:`_HANDED`) into ``handed`` as ``(category, text)``, and
+    (given ``logged``) its :class:`PlanWarning` texts into ``logged`` (said naming the point, as a logged warning: what a point's plan
+    warns of is that point's); show any other as it would have been shown. A worker process printed them in Python's
+    format (file, line, source line), once per worker, and the sweep's own process said again what building the
+    points had said."""
     records: list[warnings.WarningMessage] = []
     try:
         with warnings.catch_warnings(record=True) as caught:
-            for category in _HANDED:
+            for category in (*_HANDED, PlanWarning):
                 warnings.filterwarnings("always", category=category)
             records = caught
             yield
@@ -340,6 +344,8 @@ def _handing(handed: list[tuple[type[Warning], str]]) -> Iterator[None]:
         for w in records:
             if issubclass(w.category, _HANDED):
                 handed.append((w.category, str(w.message)))
+            elif logged is not None and issubclass(w.category, PlanWarning):
+                logged.append(str(w.message))
             else:
                 warnings.showwarning(w.message, w.category, w.filename, w.lineno, w.file, w.line)
 

@@ -521,3 +521,21 @@ def test_a_backends_warning_names_the_point_it_came_from_once(workers, tmp_path,
     assert said[1] == f"{text}: also in sweep {other}", said
     if workers == 1:  # in point order
         assert first == names[0], said
+
+
+@pytest.mark.parametrize("workers", [2, 1])
+def test_what_a_points_plan_warns_of_is_said_once_naming_the_point(workers, tmp_path, capfd, caplog):
+    """``plan`` issues what a run warns of (windows flown as their rest-to-rest witness) as a PlanWarning; a sweep's
+    worker printed it in Python's format once per point. It is said once per sweep, naming the point, as a
+    backend's warning is."""
+    rc = main(["sweep", str(FREE5), "--grid", "simulation.rate_hz=100,200", "--out", str(tmp_path / "out"),
+               "--workers", str(workers), "--set", "simulation.enabled=false",
+               "--set", "smoothing.qp_options.max_iter=1"])
+    text = "smoothing windows had no solution at their planned durations and fly the rest-to-rest witness"
+    bare = [line for line in capfd.readouterr().err.splitlines() if text in line]
+    said = [r.getMessage() for r in caplog.records if r.levelname == "WARNING" and text in r.getMessage()]
+    names = ["sweep point 0 (simulation.rate_hz=100)", "sweep point 1 (simulation.rate_hz=200)"]
+    first = next((n for n in names if said and said[0].startswith(f"{n}: ")), None)
+    assert rc == 0 and not bare and first is not None and len(said) == 2, (bare, said)
+    other = next(n for n in names if n != first).removeprefix("sweep ")
+    assert said[1] == f"{said[0].removeprefix(first + ': ')}: also in sweep {other}", said

@@ -5,8 +5,10 @@ Every module of this package that defines ``add_parser(subparsers)`` (which sets
 (:class:`~mrfswarm.errors.MrfswarmError` of the domain, and the numerical layer's, under their common root
 :class:`~solvers.errors.SolversError`: bad config, bad input, missing backend) becomes one line on stderr and
 exit code 2; no traceback. A config key under an old name
-(:class:`~mrfswarm.errors.DeprecatedKeyWarning`) or a setting the run does not use
-(:class:`~mrfswarm.errors.UnusedSettingWarning`) is one line on stderr too, and the command goes on.
+(:class:`~mrfswarm.errors.DeprecatedKeyWarning`), a setting the run does not use
+(:class:`~mrfswarm.errors.UnusedSettingWarning`) or what a finished plan warns of
+(:class:`~mrfswarm.errors.PlanWarning`, where a command plans through ``plan`` and does not print them itself, as
+``mrfswarm run`` does) is one line on stderr too, and the command goes on.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import threading
 import warnings
 from typing import Any, NoReturn
 
-from mrfswarm.errors import DeprecatedKeyWarning, OutputExistsError, SolversError, UnusedSettingWarning
+from mrfswarm.errors import DeprecatedKeyWarning, OutputExistsError, PlanWarning, SolversError, UnusedSettingWarning
 
 
 class _Parser(argparse.ArgumentParser):
@@ -97,12 +99,12 @@ class _Formatter(logging.Formatter):
 
 
 def _one_line(show: Any) -> Any:
-    """``warnings.showwarning`` that writes a :class:`DeprecatedKeyWarning` or :class:`UnusedSettingWarning` as one
-    line, others as ``show`` does."""
+    """``warnings.showwarning`` that writes a :class:`DeprecatedKeyWarning`, :class:`UnusedSettingWarning` or
+    :class:`PlanWarning` as one line, others as ``show`` does."""
 
     def showwarning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
                     file: Any = None, line: str | None = None) -> None:
-        if issubclass(category, (DeprecatedKeyWarning, UnusedSettingWarning)):
+        if issubclass(category, (DeprecatedKeyWarning, UnusedSettingWarning, PlanWarning)):
             print(f"mrfswarm: warning: {message}", file=sys.stderr)
         else:
             show(message, category, filename, lineno, file, line)

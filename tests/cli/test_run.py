@@ -2,6 +2,7 @@
 
 import csv
 import json
+import os
 import subprocess
 import sys
 import warnings
@@ -11,7 +12,7 @@ import numpy as np
 import pytest
 
 from mrfswarm.cli import main
-from support.repository import EXPERIMENTS
+from support.repository import EXPERIMENTS, ROOT
 
 CORRIDOR_MAP = """map = { kind = "boxes", size = [40, 40], boxes = [
     { center = [19.5, 32.5], size = [18, 16] }, { center = [19.5, 9.5], size = [18, 16] }] }"""
@@ -280,6 +281,21 @@ def test_windows_that_fly_the_rest_to_rest_witness_are_said(tmp_path, capsys):
                    f"no solution at their planned durations and fly the rest-to-rest witness (slower, with stops) "
                    f"(last rejected: {reasons[0]}{more}): see result.json's witness_reasons; smoothing.qp_options or "
                    "the QP backend may be too tight"]
+
+
+def test_a_real_process_says_the_witness_windows_once(tmp_path):
+    """``plan`` issues what a run warns of as :class:`~mrfswarm.errors.PlanWarning` for Python callers; the command
+    prints each line once, after its summary line, in its own words (not a second time from ``plan``)."""
+    out = tmp_path / "tight"
+    proc = subprocess.run([sys.executable, "-m", "mrfswarm.cli", "run", str(EXPERIMENTS / "free5.toml"), "--out",
+                           str(out), "--set", "simulation.enabled=false", "--set", "smoothing.qp_options.max_iter=1"],
+                          capture_output=True, text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    res = json.loads((out / "result.json").read_text())
+    said = [line for line in proc.stderr.splitlines() if "rest-to-rest witness" in line]
+    assert proc.returncode == 0 and len(said) == 1, proc.stderr
+    assert said[0].startswith(f"mrfswarm: warning: {res['windows']} of {res['windows']} smoothing windows had no "
+                              "solution at their planned durations"), said
+    assert "PlanWarning" not in proc.stderr, proc.stderr
 
 
 def test_a_simulated_flight_closer_than_the_plan_is_said(tmp_path, capsys, monkeypatch):
