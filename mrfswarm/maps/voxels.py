@@ -45,7 +45,8 @@ def load_npy(spec: dict, base_dir: Path) -> OccupancyGrid:
     path = file_path(spec, base_dir)
     placement({k: v for k, v in spec.items() if k != "origin"})  # the resolution before the file; its origin's
     prob = _read_npy(path)  # length is the array's number of axes
-    res, origin = placement(spec, 2 if prob.ndim == 2 else 3)
+    _check_axes(prob, path, (2, 3))  # a 1-D or 4-D array is the file's fault, not the origin's
+    res, origin = placement(spec, prob.ndim)
     return _grid(prob, path, res, origin, dims=(2, 3))
 
 
@@ -58,15 +59,19 @@ def load_binvox(spec: dict, base_dir: Path) -> OccupancyGrid:
 
 def _grid(prob: np.ndarray, path: Path, resolution: float, origin: tuple[float, ...],
           dims: tuple[int, ...] = (3,)) -> OccupancyGrid:
-    if prob.ndim not in dims:
-        shapes = " or ".join({2: "a map (W, H)", 3: "a voxel map (W, H, D)"}[d] for d in dims)
-        raise ScenarioError(f"{path}: array of shape {prob.shape}: expected {shapes}")
+    _check_axes(prob, path, dims)
     if prob.size > MAX_CELLS:
         raise ScenarioError(f"{path}: {' x '.join(map(str, prob.shape))} cells exceeds the limit of {MAX_CELLS}")
     try:
         return OccupancyGrid(prob, resolution=resolution, origin=origin)
     except ScenarioError as e:  # values outside [0, 1], an empty axis: say which file
         raise ScenarioError(f"{path}: {e}") from None
+
+
+def _check_axes(prob: np.ndarray, path: Path, dims: tuple[int, ...]) -> None:
+    if prob.ndim not in dims:
+        shapes = " or ".join({2: "a map (W, H)", 3: "a voxel map (W, H, D)"}[d] for d in dims)
+        raise ScenarioError(f"{path}: array of shape {prob.shape}: expected {shapes}")
 
 
 def read_npy(path: Path | str, resolution: float = 1.0,

@@ -414,3 +414,12 @@ def test_a_2d_npy_array_is_a_2d_map(tmp_path):
     assert tuple(load_map({"kind": "npy", "path": "flat.npy"}, tmp_path).origin) == (0.0, 0.0)
     with pytest.raises(ConfigError, match=r"origin = \[1, 2, 3\]: must be a list of 2 numbers"):
         load_map({"kind": "npy", "path": "flat.npy", "origin": [1, 2, 3]}, tmp_path)
+
+
+@pytest.mark.parametrize("shape", [(5,), (2, 2, 2, 2)], ids=["1-D", "4-D"])
+def test_an_npy_array_of_other_axes_is_named_before_the_origin(tmp_path, shape):
+    """A 1-D or 4-D array with an origin of 2 numbers was refused as "origin ... must be a list of 3 numbers
+    [x, y, z] on a 3-D map" (a map tour): the map is neither, the file is wrong. The array's shape is said."""
+    np.save(tmp_path / "odd.npy", np.zeros(shape, dtype=bool))
+    with pytest.raises(ScenarioError, match=r"odd\.npy: array of shape .*: expected a map \(W, H\) or a voxel map"):
+        load_map({"kind": "npy", "path": "odd.npy", "origin": [0.0, 0.0]}, tmp_path)
