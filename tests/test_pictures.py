@@ -440,3 +440,30 @@ def test_3d_figures_and_animation_frames_keep_their_labels_inside(tmp_path, size
         ink = np.asarray(Image.open(tmp_path / picture).convert("L")).astype(int) < 128
         edges = {"left": ink[:, :2], "right": ink[:, -2:], "top": ink[:2], "bottom": ink[-2:]}
         assert not any(e.any() for e in edges.values()), (picture, {k: int(e.sum()) for k, e in edges.items()})
+
+
+def test_a_big_maps_thin_walls_are_all_drawn():
+    """A 2000 x 2000 MovingAI map with two walls one cell thick across it (a map tour): its figures drew the wall at
+    y = 1500 and not the one at y = 500, the nearest-neighbour resampling to a few hundred pixels keeping one cell
+    row in seven. Each wall is drawn where it is (the map in blocks of cells, shaded by their occupied fraction as a
+    voxel column is)."""
+    plt = plots._plt()
+    occ = np.zeros((2000, 2000), dtype=bool)
+    walls = [300, 500, 700, 1100, 1500, 1901]
+    occ[100:1900, walls] = True
+    grid = OccupancyGrid.from_occupied(occ)
+    fig, ax = plt.subplots(figsize=(6, 6), dpi=110)
+    plots.draw_map(ax, grid)
+    fig.canvas.draw()
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    height = rgba.shape[0]
+    x_mid = ax.transData.transform((1000.0, 0.0))[0]
+    for y in walls:
+        y_px = ax.transData.transform((1000.0, y))[1]
+        row = int(round(height - y_px))
+        band = rgba[row - 1:row + 2, int(x_mid) - 50:int(x_mid) + 50, 0]  # red channel: 255 white
+        assert (band.min(axis=0) <= 255 * plots.OCCUPIED_GREY).all(), f"wall at y = {y} not drawn"
+    assert (rgba[int(round(height - ax.transData.transform((1000.0, 1000.0))[1])), int(x_mid), :3] == 255).all()
+    assert tuple(ax.get_xlim()) == (grid.extent[0], grid.extent[1])
+    assert tuple(ax.get_ylim()) == (grid.extent[2], grid.extent[3])
+    plt.close(fig)
