@@ -25,7 +25,9 @@ log = logging.getLogger(__name__)
 OCCUPIED_THRESHOLD = 0.5
 
 #: Largest number of cells a grid may have (10^8 float64 cells = 800 MB); larger sizes are
-#: almost certainly a typo in a config or a corrupt file header, not a real scenario.
+#: almost certainly a typo in a config or a corrupt file header, not a real scenario. Planning
+#: on a map needs far more than the grid: the goal field's search graph peaks at about 600
+#: bytes a cell (2.4 GB for 2000 x 2000 cells; README, "Limits worth knowing").
 MAX_CELLS = 10**8
 
 # A point within this many cells of a cell edge is treated as lying on it, so that a point
