@@ -49,7 +49,8 @@ LOADERS: dict[str, Callable[[dict, Path], OccupancyGrid]] = {
     "npy": load_npy,
     "binvox": load_binvox,
 }
-#: The kinds that take ``extrude`` (2-D maps; ``free`` and ``boxes`` when their size has 2 numbers).
+#: The kinds that take ``extrude`` (2-D maps; ``free`` and ``boxes`` when their size has 2 numbers). A 2-D ``npy``
+#: array takes it too, in its loader: whether the array is 2-D is known once the file is read.
 EXTRUDABLE = ("free", "boxes", "ascii", "movingai", "ros")
 
 

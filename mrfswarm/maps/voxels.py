@@ -30,6 +30,7 @@ import numpy as np
 
 from mrfswarm.errors import ScenarioError
 from mrfswarm.file_input import read_bytes
+from mrfswarm.maps import extrusion
 from mrfswarm.maps.grid import MAX_CELLS, OccupancyGrid
 from mrfswarm.maps.spec import PREFIX, check_keys, file_path, placement
 
@@ -40,14 +41,22 @@ _TRIMESH = "reading and writing .binvox files needs trimesh: pip install 'mrfswa
 
 
 def load_npy(spec: dict, base_dir: Path) -> OccupancyGrid:
-    """``{kind="npy", path="x.npy"}``: a (W, H, D) or (W, H) NumPy array, True (or P >= 0.5) occupied."""
-    check_keys(spec, _KEYS, PREFIX, required=("path",))
+    """``{kind="npy", path="x.npy"}``: a (W, H, D) or (W, H) NumPy array, True (or P >= 0.5) occupied.
+
+    A (W, H) array takes ``extrude`` as every 2-D map does (:mod:`mrfswarm.maps.extrusion`); whether the map is
+    2-D is known once the file is read, so the key is taken here, not by :func:`mrfswarm.maps.load_map`.
+    """
+    check_keys(spec, (*_KEYS, extrusion.KEY), PREFIX, required=("path",))
     path = file_path(spec, base_dir)
-    placement({k: v for k, v in spec.items() if k != "origin"})  # the resolution before the file; its origin's
+    flat = {k: v for k, v in spec.items() if k != extrusion.KEY}
+    placement({k: v for k, v in flat.items() if k != "origin"})  # the resolution before the file; its origin's
     prob = _read_npy(path)  # length is the array's number of axes
     _check_axes(prob, path, (2, 3))  # a 1-D or 4-D array is the file's fault, not the origin's
-    res, origin = placement(spec, prob.ndim)
-    return _grid(prob, path, res, origin, dims=(2, 3))
+    if extrusion.KEY in spec and prob.ndim == 2:
+        return extrusion.load_extruded(spec, base_dir, lambda plane, _: _grid(prob, path, *placement(plane), dims=(2,)))
+    res, origin = placement(flat, prob.ndim)
+    grid = _grid(prob, path, res, origin, dims=(2, 3))
+    return extrusion.extrude(grid, extrusion.depth(spec[extrusion.KEY])) if extrusion.KEY in spec else grid
 
 
 def load_binvox(spec: dict, base_dir: Path) -> OccupancyGrid:

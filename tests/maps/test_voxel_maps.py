@@ -235,7 +235,6 @@ def test_ros_extruded_keeps_its_frame_check(tmp_path):
      r"origin = \[0, 0\]: must be a list of 3 numbers \[x, y, z\] on a 3-D map "
      r"\(scenario\.map\.extrude makes it one: its z is the centre of layer 0\)$"),
     ({"kind": "free", "size": [10000, 10000], "extrude": 2}, r"extrude = 2: 10000 x 10000 x 2 voxels exceeds"),
-    ({"kind": "npy", "path": "v.npy", "extrude": 2}, r"unknown key scenario\.map\.extrude; allowed: kind, path"),
     ({"kind": "binvox", "path": "v.binvox", "extrude": 2}, r"unknown key scenario\.map\.extrude"),
 ])
 def test_bad_extrusion_is_a_config_error(spec, match):
@@ -423,3 +422,24 @@ def test_an_npy_array_of_other_axes_is_named_before_the_origin(tmp_path, shape):
     np.save(tmp_path / "odd.npy", np.zeros(shape, dtype=bool))
     with pytest.raises(ScenarioError, match=r"odd\.npy: array of shape .*: expected a map \(W, H\) or a voxel map"):
         load_map({"kind": "npy", "path": "odd.npy", "origin": [0.0, 0.0]}, tmp_path)
+
+
+def test_a_2d_npy_array_extrudes_as_every_2d_map(tmp_path):
+    """A (W, H) array is a 2-D map, and "a 2-D map of any kind takes extrude" (the docs), but the npy loader refused
+    the key as unknown (a map tour). It is the 2-D map raised, placed as the other kinds' are; a (W, H, D) array
+    given extrude is refused as already 3-D."""
+    occ = np.zeros((6, 4), dtype=bool)
+    occ[2, 1:3] = True
+    np.save(tmp_path / "flat.npy", occ)
+    g = load_map({"kind": "npy", "path": "flat.npy", "resolution": 0.5, "origin": [1.0, 2.0, 0.25],
+                  "extrude": 3}, tmp_path)
+    assert g.shape == (6, 4, 3) and g.origin == (1.0, 2.0, 0.25) and g.resolution == 0.5
+    assert all(np.array_equal(g.occupied[:, :, k], occ) for k in range(3))
+    assert load_map({"kind": "npy", "path": "flat.npy", "extrude": 2}, tmp_path).origin == (0.0, 0.0, 0.0)
+    with pytest.raises(ConfigError, match=r"origin = \[1\.0, 2\.0\]: must be a list of 3 numbers"):
+        load_map({"kind": "npy", "path": "flat.npy", "origin": [1.0, 2.0], "extrude": 2}, tmp_path)
+    with pytest.raises(ConfigError, match=r"extrude = 0: must be an integer >= 1"):
+        load_map({"kind": "npy", "path": "flat.npy", "extrude": 0}, tmp_path)
+    np.save(tmp_path / "tall.npy", np.zeros((3, 3, 2), dtype=bool))
+    with pytest.raises(ConfigError, match=r"extrude = 2: the map is already 3-D \(3 x 3 x 2 voxels\)"):
+        load_map({"kind": "npy", "path": "tall.npy", "extrude": 2}, tmp_path)
