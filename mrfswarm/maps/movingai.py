@@ -22,6 +22,7 @@ obstacles (they reach flight altitude). So: free '.', 'G', 'S', 'W'; occupied '@
 
 from __future__ import annotations
 
+import codecs
 import logging
 from pathlib import Path
 
@@ -68,7 +69,7 @@ def read_movingai(path: Path | str, resolution: float = 1.0,
 
     The header's ``height`` and ``width`` lines may come in either order; the ``type``
     value (``octile`` in every published map) is not used. Blank lines at the end of the
-    file are ignored.
+    file and a UTF-8 byte-order mark at its start are ignored.
 
     Raises
     ------
@@ -78,6 +79,7 @@ def read_movingai(path: Path | str, resolution: float = 1.0,
     """
     path = Path(path)
     raw = read_bytes(path, "MovingAI map")
+    raw = raw.removeprefix(codecs.BOM_UTF8)  # a map edited in an editor that saves one (TOML and YAML files skip it too)
     try:
         text = raw.decode("ascii")
     except UnicodeDecodeError as e:

@@ -395,6 +395,15 @@ def test_movingai_tolerates_crlf_swapped_dims_and_trailing_blank_lines(tmp_path)
     assert g.shape == (3, 2) and cells(g.occupied) == {(0, 0), (2, 1)}
 
 
+def test_movingai_skips_a_byte_order_mark(tmp_path):
+    """A map saved by an editor that writes a UTF-8 byte-order mark was refused as "not an ASCII MovingAI map (byte
+    0xef at offset 0)" (a map tour); the TOML config and the ROS YAML beside it were read. The mark is skipped."""
+    p = tmp_path / "bom.map"
+    p.write_bytes(b"\xef\xbb\xbftype octile\nheight 2\nwidth 3\nmap\n@..\n..T\n")
+    g = read_movingai(p)
+    assert g.shape == (3, 2) and cells(g.occupied) == {(0, 0), (2, 1)}
+
+
 def test_movingai_round_trip(tmp_path):
     rng = np.random.default_rng(1)
     occ = rng.random((13, 7)) < 0.3
