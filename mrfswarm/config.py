@@ -28,6 +28,7 @@ from mrfswarm.trajectory.uav_csv import DEGREE as EXPORT_DEGREE
 from solvers.mrf import METHODS as MRF_METHODS
 from solvers.mrf import Options as MRFOptions
 from solvers.nlp import BACKENDS as NLP_BACKENDS
+from solvers.nlp import Options as NLPOptions
 from solvers.qp import Options as QPOptions
 
 SEAM_MODES = ("rest", "continuous")
@@ -58,6 +59,7 @@ RENAMED_KEYS = {
 SOLVER_OPTIONS: dict[str, type] = {
     "mrf.options": MRFOptions,
     "smoothing.qp_options": QPOptions,
+    "smoothing.nlp_options": NLPOptions,
 }
 
 
@@ -276,7 +278,10 @@ class SmoothingConfig:
     smoothing.refinement=nlp``). ``check_rate_hz`` > 0
     adds an independent sampled check of the whole flight at that rate. ``qp_options`` (the
     table ``[smoothing.qp_options]``) sets fields of :class:`solvers.qp.Options`
-    (``eps_abs``, ``eps_rel``, ``max_iter``, ...) over the stage's own for every QP solve.
+    (``eps_abs``, ``eps_rel``, ``max_iter``, ...) over the stage's own for every QP solve;
+    ``nlp_options`` (``[smoothing.nlp_options]``) sets fields of :class:`solvers.nlp.Options` (``tol``,
+    ``max_iter``, ``time_limit``, ``verbose``) over the time refinement's own (``tol = 1e-4``, ``max_iter = 12``:
+    :data:`mrfswarm.continuous.receding_horizon.NLP_OPTIONS`) for every NLP solve of ``refinement = "nlp"``.
     ``max_pieces`` > 0 caps each robot's polynomial pieces (a Crazyflie holds 31): a flight of
     more steps flies several steps per piece where needed (0: one piece per step; see
     :mod:`mrfswarm.continuous.merge_pieces`).
@@ -304,6 +309,7 @@ class SmoothingConfig:
     check_rate_hz: float = 0.0
     max_pieces: int = 31
     qp_options: dict[str, Any] = field(default_factory=dict)
+    nlp_options: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

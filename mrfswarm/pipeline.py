@@ -400,6 +400,11 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
             warnings.warn(f"smoothing.nlp = {cfg.smoothing.nlp!r} not used: smoothing.refinement is "
                           f"{cfg.smoothing.refinement!r} (set smoothing.refinement = \"nlp\" too, or give "
                           f"--nlp {cfg.smoothing.nlp})", UnusedSettingWarning, stacklevel=2)
+    sm = cfg.smoothing
+    if sm.nlp_options and not (sm.enabled and sm.time_refinement and sm.refinement == "nlp"):
+        warnings.warn(f"smoothing.nlp_options = {sm.nlp_options} not used: they set the time refinement's NLP "
+                      "backend, which runs with smoothing.time_refinement = true and smoothing.refinement = \"nlp\" "
+                      "(--nlp NAME)", UnusedSettingWarning, stacklevel=2)
     mrf_solvers.METHODS.get(cfg.mrf.method)  # fail now, not after the map is loaded
     if cfg.mrf.escalation != "none":  # a method that is not installed failed only at the first step it solved
         mrf_solvers.METHODS.get(cfg.mrf.escalation)

@@ -291,7 +291,8 @@ def motion_acceleration(v_max: float, a_max: float, j_max: float, fraction: floa
     return fraction * min(a_max, 0.5 * math.sqrt(v_max * j_max))
 
 
-#: The time refinement's NLP settings: each iteration solves the window's QP a few times; on
+#: The time refinement's NLP settings (the config's ``[smoothing.nlp_options]`` go over these): each iteration
+#: solves the window's QP a few times; on
 #: corridor.toml 12 Ipopt iterations keep nearly all of 25's gain (makespan 21.4 s against 21.3) at a fifth of the QPs.
 NLP_OPTIONS = NLPOptions(tol=1e-4, max_iter=12)
 #: Options of the window QPs unless the caller gives others (the config's [smoothing.qp_options] go over
@@ -763,6 +764,8 @@ class RecedingHorizon:
         if cfg.time_refinement and cfg.refinement == "nlp":
             solvers.nlp.BACKENDS.get(cfg.nlp)  # and so does the refinement's NLP backend
         self.qp_options = qp_options or QP_OPTIONS
+        #: the time refinement's NLP options: the config's [smoothing.nlp_options] over NLP_OPTIONS
+        self.nlp_options = dataclasses.replace(NLP_OPTIONS, **cfg.nlp_options)
         budget = solvers.qp.BACKENDS.get(self.backend).capabilities.iteration_budget(self.qp_options.max_iter)
         self.optimistic_options = dataclasses.replace(self.qp_options,
                                                       max_iter=max(1, math.ceil(OPTIMISTIC_BUDGET * budget)))
@@ -1529,7 +1532,7 @@ class RecedingHorizon:
             method, status = "scaling", scaled.status
         else:
             try:
-                res = solvers.nlp.minimize(self._not_longer(alloc.problem, sol), self.cfg.nlp, NLP_OPTIONS)
+                res = solvers.nlp.minimize(self._not_longer(alloc.problem, sol), self.cfg.nlp, self.nlp_options)
                 method, status = res.backend, res.raw_status
             except SolverError as e:  # as a failed QP backend's windows fly their witness, the run goes on: the
                 # points the backend had evaluated are window QPs' solutions, certified below like any other
