@@ -99,9 +99,31 @@ def test_the_clear_move_table_is_the_guard_for_obstacles(monkeypatch):
 
     paths, free = around_an_obstacle()
     monkeypatch.setattr(st, "clear_moves", lambda f: np.ones((*f.shape, 9), dtype=bool))
+    monkeypatch.setattr(st, "_LAST_INTO", [])  # not the last map's table
     out, done = st.straighten(paths, free)
     assert done >= 1
     assert discrete_violations(out, free) != []
+
+
+def test_the_clear_move_table_is_computed_once_per_map(monkeypatch):
+    """The table is of the whole map (8.4 s on 2000 x 2000): kept for the next plan on the same map ("auto" plans up
+    to three), computed again for another map."""
+    import mrfswarm.discrete.straighten as st
+
+    monkeypatch.setattr(st, "_LAST_INTO", [])
+    calls: list[tuple] = []
+    clear_moves = st.clear_moves
+    monkeypatch.setattr(st, "clear_moves", lambda f: calls.append(f.shape) or clear_moves(f))
+    paths, free = around_an_obstacle()
+    first, _ = st.straighten(paths, free)
+    again, _ = st.straighten(paths, free.copy())
+    np.testing.assert_array_equal(first, again)
+    assert len(calls) == 1
+    other = free.copy()
+    other[0, -1] = not other[0, -1]
+    table = st._clear_into_of(other)
+    assert len(calls) == 2 and not np.array_equal(table, st._clear_into_of(free))
+    assert not table.flags.writeable  # shared: no plan may write into it
 
 
 def beside_a_neighbour() -> np.ndarray:
