@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import numbers
 from dataclasses import dataclass
@@ -128,8 +129,10 @@ class Scenario:
         if g.congestion_weight <= 0 or self.goal is None or self.distances is None:
             return None
         obstacle = obstacle_field(self.grid.prob, self.config.obstacle_potential)
-        graph = GoalGraph.build(self.grid.free, self.goal, self.grid.resolution, self.config.mrf.order, obstacle,
-                                climb_weight=g.k * self.grid.resolution / g.a)
+        graph = self.distances.graph  # the geodesic field's own (congestion needs it), built with the same arguments
+        if graph is None:
+            graph = GoalGraph.build(self.grid.free, self.goal, self.grid.resolution, self.config.mrf.order, obstacle,
+                                    climb_weight=g.k * self.grid.resolution / g.a)
         return CongestionField(graph=graph, obstacle=obstacle, goal_cfg=g, resolution=self.grid.resolution,
                                weight=g.congestion_weight, every=g.congestion_every, goal_path=self.distances.path,
                                region_radius=0.0 if self.goal_region_radius is None else self.goal_region_radius)
@@ -168,6 +171,8 @@ def build_scenario(cfg: Config, seed: int | None = None) -> Scenario:
     if goal is not None:
         distances = goal_distances(grid.prob, goal, grid.resolution, cfg.goal_potential, cfg.obstacle_potential,
                                    cfg.mrf.order)
+        if cfg.goal_potential.congestion_weight <= 0:  # only the congestion searches the graph again: not kept
+            distances = dataclasses.replace(distances, graph=None)
         if cfg.goal_potential.distance == "geodesic":
             _check_reachable(grid, start, goal, distances)
     static = static_field(grid.prob, goal, grid.resolution, cfg.goal_potential, cfg.obstacle_potential,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -159,3 +160,28 @@ def test_a_congested_field_that_would_overflow_is_not_used(caplog):
     with caplog.at_level("WARNING"):
         assert cf.fields(jam) is None
     assert "overflows" in caplog.text
+
+
+def test_the_scenario_s_congestion_searches_the_geodesic_field_s_graph():
+    """The congestion's graph is the one the geodesic goal field was searched on (built a second time before: 5.6 s
+    on a 2000 x 2000 map), and a congested field is the same as with a graph built again."""
+    from mrfswarm.scenario import build_scenario
+
+    free, goal = two_gaps(), np.array([32, 15])
+    cfg = from_dict({"scenario": {"map": {"kind": "ascii", "rows": _rows(~free)}, "goal": goal.tolist(),
+                                  "start": {"positions": [[5, 15], [5, 13]]}},
+                     "goal_potential": {"congestion": CONGESTION}})
+    scn = build_scenario(cfg)
+    cf = scn.congestion_field()
+    assert cf.graph is scn.distances.graph
+    g, o = cfg.goal_potential, cfg.obstacle_potential
+    fresh = GoalGraph.build(free, goal, 1.0, cfg.mrf.order, obstacle_field((~free).astype(float), o),
+                            climb_weight=g.k / g.a)
+    np.testing.assert_array_equal(cf.graph.climb, fresh.climb)
+    jam = np.array([[x, y] for x in range(16, 20) for y in range(13, 18)])
+    again = CongestionField(graph=fresh, obstacle=cf.obstacle, goal_cfg=g, resolution=1.0, weight=cf.weight,
+                            every=cf.every, goal_path=cf.goal_path, region_radius=cf.region_radius)
+    for a, b in zip(cf.fields(jam), again.fields(jam)):
+        np.testing.assert_array_equal(a, b)
+    off = build_scenario(cfg.replace(goal_potential=dataclasses.replace(cfg.goal_potential, congestion=0.0)))
+    assert off.congestion_field() is None and off.distances.graph is None  # not kept where nothing searches it
