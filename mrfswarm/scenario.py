@@ -162,8 +162,10 @@ def build_scenario(cfg: Config, seed: int | None = None) -> Scenario:
     if cfg.smoothing.enabled and not cfg.scenario.robot_radius < 0.5 * grid.resolution:
         # the discrete stage keeps robots one cell apart and half a cell off walls: a robot as
         # wide as a cell leaves the continuous stage no room
+        k = int(2 * cfg.scenario.robot_radius // grid.resolution) + 1  # the cells of a coarse cell that fits it
         raise ConfigError(f"scenario.robot_radius = {cfg.scenario.robot_radius:g} m must be below half a cell "
-                          f"({0.5 * grid.resolution:g} m on this map)")
+                          f"({0.5 * grid.resolution:g} m on this map; scenario.map.coarsen = {k} draws it in "
+                          f"{k * grid.resolution:g} m cells)")
     start = start_cells(cfg.scenario.start, grid, seed, downwash=cfg.scenario.downwash)
     check_k(cfg.interaction.k, len(start))
     goal = None if cfg.scenario.goal is None else goal_cell(cfg.scenario.goal, grid)

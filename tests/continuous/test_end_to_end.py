@@ -162,7 +162,8 @@ def test_progress_is_quiet_off_a_terminal(tmp_path, capsys):
     ("smoothing.safety_distance=0.5", r"smoothing.safety_distance was removed: .*scenario.robot_radius"),
     ("smoothing.region_growth=-1", r"smoothing.region_growth = -1(\.0)?: must be in \[0, 1000\]"),
     ("smoothing.check_rate_hz=50", r"smoothing.check_rate_hz = 50(\.0)?: must be 0 \(off\) or in \[100, 10000\]"),
-    ("scenario.robot_radius=0.5", r"scenario.robot_radius = 0.5 m must be below half a cell \(0.5 m on this map\)"),
+    ("scenario.robot_radius=0.5", r"scenario.robot_radius = 0.5 m must be below half a cell \(0.5 m on this map; scenario\.map\.coarsen = 2 "
+     r"draws it in 2 m cells\)"),
     ("scenario.robot_radius=0", r"scenario.robot_radius = 0(\.0)?: must be > 0"),
     ('smoothing.backend="nope"', r"unknown QP backend 'nope'"),
 ])

@@ -116,7 +116,8 @@ def test_the_default_robot_radius_on_quarter_metre_cells_is_a_one_line_error(tmp
     rc = main(["run", str(cfg), "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1
-    assert re.search(r"scenario\.robot_radius = 0\.25 m must be below half a cell \(0\.125 m on this map\)", err[0])
+    assert re.search(r"scenario\.robot_radius = 0\.25 m must be below half a cell \(0\.125 m on this map; "
+                     r"scenario\.map\.coarsen = 3 draws it in 0\.75 m cells\)", err[0])
     assert not (tmp_path / "o" / "result.json").exists()
     # a radius below half a cell is accepted (the discrete stage alone is enough to show it)
     rc = main(["run", str(cfg), "--out", str(tmp_path / "ok"), "--set", "scenario.robot_radius=0.1",

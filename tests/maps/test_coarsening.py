@@ -1,0 +1,78 @@
+"""``scenario.map.coarsen = k``: any map drawn in cells of k of its own a side, no obstacle lost. A SLAM map of
+0.05 m cells took only robots below 0.025 m (radius under half a cell; a map tour)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mrfswarm
+from mrfswarm.config import from_dict
+from mrfswarm.errors import ConfigError
+from mrfswarm.maps import OccupancyGrid, load_map, save_ros
+
+
+def slam_map(tmp_path) -> OccupancyGrid:
+    """A 0.05 m ROS map of 4 x 3 m: a wall one cell thick at x = 2 m with a 1 m door, an unknown blob, its origin
+    off zero."""
+    prob = np.zeros((80, 60))
+    prob[40, :] = 1.0
+    prob[40, 25:45] = 0.0  # the door, y in [1.25, 2.25) m past the origin's corner
+    prob[10:12, 50:52] = 0.5  # unknown
+    grid = OccupancyGrid(prob, resolution=0.05, origin=(-1.0 + 0.025, 0.5 + 0.025))
+    save_ros(grid, tmp_path / "lab.yaml")
+    return grid
+
+
+def test_every_obstacle_of_the_fine_map_is_in_an_obstacle_of_the_coarse_one(tmp_path):
+    fine = slam_map(tmp_path)
+    spec = {"kind": "ros", "path": "lab.yaml"}
+    assert np.array_equal(load_map(spec, tmp_path).prob, fine.prob)
+    coarse = load_map({**spec, "coarsen": 4}, tmp_path)
+    assert coarse.resolution == pytest.approx(0.2) and coarse.shape == (20, 15)
+    lo_f, hi_f = fine.bounds
+    lo_c, _ = coarse.bounds
+    np.testing.assert_allclose(lo_c, lo_f)  # the same corner
+    # every fine cell's centre lies in the coarse cell that holds it, at least as occupied
+    centres = np.stack(np.meshgrid(*(fine.origin[a] + 0.05 * np.arange(n) for a, n in enumerate(fine.shape)),
+                                   indexing="ij"), axis=-1).reshape(-1, 2)
+    cells = coarse.world_to_cell(centres)
+    assert (coarse.prob[tuple(cells.T)] >= fine.prob.reshape(-1)).all()
+    assert coarse.occupied.sum() < 4 * fine.occupied.sum()  # the wall stays a wall one coarse cell thick
+    door = coarse.free[10]  # the wall's column: fine cells 25..44 open, so coarse cells 7..10 (6 and 11 hold wall)
+    assert door.sum() == 4 and door[7:11].all()  # 1 m narrowed to 0.8: the free space only shrinks
+
+
+def test_a_block_past_the_map_s_edge_is_a_wall():
+    g = load_map({"kind": "free", "size": [10, 7], "coarsen": 3})
+    assert g.shape == (4, 3)
+    np.testing.assert_array_equal(g.occupied[3], True)  # cells 9..11 of x: 10 and 11 off the map
+    np.testing.assert_array_equal(g.occupied[:, 2], True)  # cells 6..8 of y: 7 and 8 off the map
+    assert g.free[:3, :2].all()
+    assert g.origin == pytest.approx((1.0, 1.0))  # the centre of cells 0..2
+
+
+def test_voxels_are_coarsened_on_every_axis():
+    g = load_map({"kind": "boxes", "size": [8, 8, 4], "boxes": [{"center": [1.5, 2.5, 1.0], "size": [0.5, 0.5, 0.5]}],
+                  "coarsen": 2, "resolution": 0.5})
+    assert g.shape == (4, 4, 2) and g.resolution == 1.0
+    assert np.argwhere(g.occupied).tolist() == [[1, 2, 1]]
+
+
+@pytest.mark.parametrize("value", [0, -2, 1.5, "2", True, None])
+def test_a_wrong_factor_is_one_line_naming_it(value):
+    with pytest.raises(ConfigError, match=r"scenario\.map\.coarsen = ") as e:
+        load_map({"kind": "free", "size": [10, 10], "coarsen": value})
+    assert "\n" not in str(e.value)
+
+
+def test_a_slam_map_plans_robots_of_0_1_m_once_coarsened(tmp_path):
+    """Refused on the 0.05 m cells (radius under half a cell); planned through the door on 0.2 m cells."""
+    slam_map(tmp_path)
+    scn = {"map": {"kind": "ros", "path": str(tmp_path / "lab.yaml")}, "robot_radius": 0.08, "goal_radius": 0.4,
+           "start": {"positions": [[-0.5, 1.9], [-0.5, 2.3]]}, "goal": [2.5, 2.1]}
+    with pytest.raises(ConfigError, match=r"0\.025 m on this map; scenario\.map\.coarsen = 4 draws it in 0\.2 m"):
+        mrfswarm.plan(from_dict({"scenario": scn, "simulation": {"enabled": False}}), progress=False)
+    scn["map"]["coarsen"] = 4
+    r = mrfswarm.plan(from_dict({"scenario": scn, "simulation": {"enabled": False}}), progress=False)
+    assert r.metrics.reached_goal and r.continuous.certificate.ok
