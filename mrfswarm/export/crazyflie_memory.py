@@ -119,9 +119,10 @@ def advice(section: dict[str, Any], max_pieces: int) -> str | None:
     else:
         instead = ("plan a shorter flight (a nearer goal: a long way flown as legs, each a run that starts where "
                    "the last one ended)")
-    return (f"{names} fit no Crazyflie trajectory memory ({cflib_.MEMORY_BYTES} bytes): raw up to {raw['pieces']} "
-            f"pieces, {raw['bytes_raw']} bytes (at most {raw_pieces} pieces fit), {why}; fly.py and "
-            f"cflib_upload.py refuse them: {instead}")
+    one = len(who) == 1  # "robot 1 fit no ... refuse them" (a 3-D tour)
+    return (f"{names} fit{'s' * one} no Crazyflie trajectory memory ({cflib_.MEMORY_BYTES} bytes): raw "
+            f"{'' if one else 'up to '}{raw['pieces']} pieces, {raw['bytes_raw']} bytes (at most {raw_pieces} pieces "
+            f"fit), {why}; fly.py and cflib_upload.py refuse {'it' if one else 'them'}: {instead}")
 
 
 def _compressed(result: Result, taus: np.ndarray,

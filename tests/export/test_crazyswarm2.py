@@ -596,7 +596,8 @@ def test_the_advice_names_what_fails_and_what_to_plan():
     fits = {**robot, "robot": 1, "pieces": 31, "bytes_raw": 4092, "fits_raw": True, "flies": "raw"}
     section = {"robots": [robot, fits], "compressed": {"not_certified_robots": []}}
     text = advice(section, 31)
-    assert text.startswith("robot 0 fit no Crazyflie") and "compressed up to 4971 bytes" in text
+    assert text.startswith("robot 0 fits no Crazyflie trajectory memory (4096 bytes): raw 160 pieces, 21120 bytes")
+    assert "compressed up to 4971 bytes" in text and "cflib_upload.py refuse it:" in text  # one robot: "it"
     assert "plan a shorter flight" in text and "max_pieces" not in text  # the piece limit was on: too long a flight
     assert "smoothing.max_pieces = 31" in advice(section, 0)
     assert advice({"robots": [fits], "compressed": {}}, 31) is None
