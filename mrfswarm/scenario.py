@@ -221,7 +221,7 @@ def goal_cell(goal: tuple[float, ...], grid: OccupancyGrid) -> np.ndarray:
     if not grid.in_bounds(gc):
         raise ScenarioError(f"scenario.goal {format_point(g)} is off the map ({map_box(grid)})")
     if not grid.is_free(gc):
-        raise ScenarioError(f"scenario.goal {format_point(g)} is inside an obstacle (cell {format_point(gc)})")
+        raise ScenarioError(f"scenario.goal {format_point(g)} is inside {grid.occupied_as(gc)} (cell {format_point(gc)})")
     say_snapped(grid, g, gc, "scenario.goal", "goal")
     return gc.astype(np.intp)
 

@@ -84,7 +84,8 @@ def place(grid: OccupancyGrid, points: np.ndarray, what: str = "robot", downwash
         if not inside[i]:
             raise ScenarioError(f"{what} {i} at {format_point(p)} is off the map ({map_box(grid)})")
         if not free[i]:
-            raise ScenarioError(f"{what} {i} at {format_point(p)} is inside an obstacle (cell {format_point(c)})")
+            raise ScenarioError(f"{what} {i} at {format_point(p)} is inside {grid.occupied_as(c)} "
+                                f"(cell {format_point(c)})")
         near = np.linalg.norm((cells[:i] - c) * scale, axis=-1) < _TOO_CLOSE
         j = int(np.flatnonzero(near)[0])
         if np.array_equal(cells[j], c):

@@ -212,6 +212,13 @@ class OccupancyGrid:
             inside &= (ij[..., 2] >= 0) & (ij[..., 2] < self.depth)
         return inside
 
+    def occupied_as(self, ij: np.ndarray) -> str:
+        """What makes the occupied cell ``ij`` (d,) an obstacle, for an error: ``"an obstacle"``, or, where the map
+        file left it unknown (P = 0.5, ROS grey 205), ``"a cell the map leaves unknown (an obstacle)"``; a start in
+        a SLAM map's unexplored part read "inside an obstacle" (a map tour)."""
+        p = float(self.prob[tuple(np.asarray(ij, dtype=np.intp))])
+        return "a cell the map leaves unknown (an obstacle)" if p == 0.5 else "an obstacle"
+
     def is_free(self, ij: np.ndarray) -> np.ndarray:
         """Bool ``(...)``: whether each cell ``(..., d)`` is on the map and free (False off the map)."""
         ij = np.asarray(ij)

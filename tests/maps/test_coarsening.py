@@ -76,3 +76,21 @@ def test_a_slam_map_plans_robots_of_0_1_m_once_coarsened(tmp_path):
     scn["map"]["coarsen"] = 4
     r = mrfswarm.plan(from_dict({"scenario": scn, "simulation": {"enabled": False}}), progress=False)
     assert r.metrics.reached_goal and r.continuous.certificate.ok
+
+
+def test_a_start_or_goal_in_a_cell_the_map_leaves_unknown_says_so(tmp_path):
+    """ROS grey 205 (P = 0.5) is an obstacle; a start there read "inside an obstacle" (a map tour)."""
+    from mrfswarm.errors import ScenarioError
+
+    slam_map(tmp_path)  # unknown at cells (10..11, 50..51): x -0.475 .. -0.425, y 3.0 .. 3.05
+    scn = {"map": {"kind": "ros", "path": str(tmp_path / "lab.yaml")}, "robot_radius": 0.02,
+           "start": {"positions": [[-0.45, 3.02], [-0.5, 2.3]]}, "goal": [2.5, 2.1]}
+    with pytest.raises(ScenarioError, match=r"robot 0 at \(-0\.45, 3\.02\) is inside a cell the map leaves unknown "
+                                            r"\(an obstacle\)"):
+        mrfswarm.plan(from_dict({"scenario": scn, "simulation": {"enabled": False}}), progress=False)
+    scn = {**scn, "start": {"positions": [[-0.5, 2.3], [-0.5, 1.9]]}, "goal": [-0.45, 3.02]}
+    with pytest.raises(ScenarioError, match=r"scenario\.goal \(-0\.45, 3\.02\) is inside a cell the map leaves unknown"):
+        mrfswarm.plan(from_dict({"scenario": scn, "simulation": {"enabled": False}}), progress=False)
+    scn = {**scn, "goal": [1.025, 1.0]}  # the wall at x = 1.0 .. 1.05, below its door
+    with pytest.raises(ScenarioError, match=r"scenario\.goal \(1\.025, 1\) is inside an obstacle"):
+        mrfswarm.plan(from_dict({"scenario": scn, "simulation": {"enabled": False}}), progress=False)
