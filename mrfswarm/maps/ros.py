@@ -112,7 +112,10 @@ def _metadata(path: Path) -> dict[str, Any]:
     except OSError as e:
         raise ScenarioError(f"cannot read ROS map YAML {str(path)!r}: {e.strerror or e}") from e
     except UnicodeDecodeError as e:
-        raise ScenarioError(f"{path}: not a UTF-8 text file (byte offset {e.start}); expected ROS map YAML") from None
+        image = path.suffix.lower() in (".pgm", ".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+        raise ScenarioError(f"{path}: not a UTF-8 text file (byte offset {e.start}); expected ROS map YAML" + (
+            " (this is its image: give scenario.map.path the map's .yaml, whose image: names it)" if image else "")
+        ) from None
     try:
         doc = yaml.safe_load(text)
     except yaml.YAMLError as e:

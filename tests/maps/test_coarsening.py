@@ -1,5 +1,6 @@
-"""``scenario.map.coarsen = k``: any map drawn in cells of k of its own a side, no obstacle lost. A SLAM map of
-0.05 m cells took only robots below 0.025 m (radius under half a cell; a map tour)."""
+"""A SLAM map's cells (a map tour): ``scenario.map.coarsen = k``, any map drawn in cells of k of its own a side, no
+obstacle lost (a map of 0.05 m cells took only robots below 0.025 m: radius under half a cell); and what the errors
+say of a ROS map's unknown cells and of its image given for its YAML."""
 
 from __future__ import annotations
 
@@ -94,3 +95,13 @@ def test_a_start_or_goal_in_a_cell_the_map_leaves_unknown_says_so(tmp_path):
     scn = {**scn, "goal": [1.025, 1.0]}  # the wall at x = 1.0 .. 1.05, below its door
     with pytest.raises(ScenarioError, match=r"scenario\.goal \(1\.025, 1\) is inside an obstacle"):
         mrfswarm.plan(from_dict({"scenario": scn, "simulation": {"enabled": False}}), progress=False)
+
+
+def test_a_ros_map_given_by_its_image_says_to_give_the_yaml(tmp_path):
+    """``kind = "ros"`` pointed at the PGM said only "not a UTF-8 text file ... expected ROS map YAML" (a map tour)."""
+    from mrfswarm.errors import ScenarioError
+
+    slam_map(tmp_path)
+    with pytest.raises(ScenarioError, match=r"lab\.pgm: not a UTF-8 text file .* \(this is its image: give "
+                                            r"scenario\.map\.path the map's \.yaml"):
+        load_map({"kind": "ros", "path": "lab.pgm"}, tmp_path)
