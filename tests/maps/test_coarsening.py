@@ -105,3 +105,25 @@ def test_a_ros_map_given_by_its_image_says_to_give_the_yaml(tmp_path):
     with pytest.raises(ScenarioError, match=r"lab\.pgm: not a UTF-8 text file .* \(this is its image: give "
                                             r"scenario\.map\.path the map's \.yaml"):
         load_map({"kind": "ros", "path": "lab.pgm"}, tmp_path)
+
+
+def test_a_map_too_big_for_the_machine_is_refused_naming_the_coarsening(monkeypatch):
+    """The cell limit (10^8) allows maps whose goal field needs some 60 GB: such a run was killed by the system
+    without a word (a map tour). Here the machine is said to have 1 MB: a 100 x 100 map needs about 6 MB."""
+    import mrfswarm.scenario as scenario_mod
+    from mrfswarm.errors import ScenarioError
+    from mrfswarm.scenario import build_scenario
+
+    data = {"scenario": {"map": {"kind": "free", "size": [100, 100]}, "goal": [90, 90],
+                         "start": {"positions": [[5, 5], [5, 8]]}}, "simulation": {"enabled": False}}
+    monkeypatch.setattr(scenario_mod, "machine_memory", lambda: 10**6)
+    with pytest.raises(ScenarioError, match=r"^scenario\.map: 100 x 100 cells need about 0.006 GB to plan on \(about 600 "
+                                            r"bytes a cell\), more than this machine's 0.001 GB: draw it in coarser cells "
+                                            r"\(scenario\.map\.coarsen = 3 or more\) or crop it$"):
+        build_scenario(from_dict(data))
+    data["scenario"]["map"]["coarsen"] = 3
+    data["scenario"]["start"]["positions"] = [[5, 5], [5, 11]]
+    assert build_scenario(from_dict(data)).grid.shape == (34, 34)  # within the 1 MB
+    monkeypatch.setattr(scenario_mod, "machine_memory", lambda: None)  # a system that does not say: no check
+    data["scenario"]["map"].pop("coarsen")
+    assert build_scenario(from_dict(data)).grid.shape == (100, 100)
