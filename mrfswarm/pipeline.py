@@ -593,9 +593,9 @@ def _paper_pruning(result: Result) -> None:
 def _continuous(result: Result, show: bool, workers: int | None, problem: DiscreteProblem,
                 alternatives: tuple[DiscretePlan, ...] = ()) -> None:
     """Smooth ``result.discrete``; where its flight is short enough to be re-timed as a whole
-    (:attr:`~mrfswarm.continuous.RecedingHorizon.retimes`), fly each of the ``alternatives`` too (its
-    ``alternatives``: the other plans of ``mrf.contested = "auto"``) and keep the one flown soonest, with its discrete
-    plan and metrics.
+    (:attr:`~mrfswarm.continuous.RecedingHorizon.retimes`), fly each of ``alternatives`` too (the other plans of
+    ``mrf.contested = "auto"``, :attr:`~mrfswarm.discrete.planner.DiscretePlan.alternatives`) and keep the one flown
+    soonest, with its discrete plan and metrics.
 
     The flight model ``"auto"`` picks by does not know the re-timing: on the arena (8 robots, 16 steps) it put the
     "downhill" plan 3 % sooner than the "shared" one, which flew 5 % sooner (5.43 s against 5.71). A short flight
