@@ -18,6 +18,7 @@ from scipy import ndimage
 from mrfswarm.cli import main
 from mrfswarm.discrete.interaction_graph import swarm_energy_from_cliques
 from mrfswarm.discrete.motion import WALL_CLEARANCE
+from mrfswarm.discrete.pruning import prune_paths
 from mrfswarm.discrete.safety import discrete_violations
 from mrfswarm.figures import (
     FIGURES,
@@ -163,6 +164,13 @@ def test_fig5_paths_are_collision_free_and_pruning_shortens_them():
     assert snap.pruned_clearance() >= WALL_CLEARANCE * r.scenario.grid.resolution - 1e-9
     for kept in r.pruned:  # pruning keeps each robot's ends
         assert kept[0] == 0 and kept[-1] == r.discrete.n_steps
+
+
+def test_fig5_prunes_per_the_papers_horizon_of_4_steps():
+    # the paper prunes per 4 MRF steps; the figure had followed the default horizon (8) since it changed
+    r = snapshots.mrf_snapshots().result
+    expected = prune_paths(r.discrete.paths, r.scenario.grid.free, 4)
+    assert [k.tolist() for k in r.pruned] == [k.tolist() for k in expected]
 
 
 # --- Fig. 6: final trajectories ------------------------------------------------------------------
