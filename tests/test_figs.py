@@ -85,6 +85,13 @@ def test_unknown_figure_name_is_a_one_line_error(tmp_path, capsys):
     assert "no figure named" in capsys.readouterr().err and not list(tmp_path.iterdir())
 
 
+def test_only_animations_with_quick_is_a_one_line_error(tmp_path, capsys):
+    assert main(["figs", "--quick", "--only", "gifs", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "gifs" in err and "--quick" in err
+    assert not list(tmp_path.iterdir())
+
+
 def test_animations_are_registered_but_skipped_when_quick():
     gifs = [f for f in FIGURES if f.animation]
     assert gifs and all(n.endswith(".gif") for f in gifs for n in f.files)

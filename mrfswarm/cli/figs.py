@@ -28,7 +28,10 @@ def run(args: argparse.Namespace) -> int:
     only = None if args.only is None else [s.strip() for s in args.only.split(",") if s.strip()]
     if only == []:  # not "every figure": that is --only left out
         raise ConfigError(f"--only {args.only!r}: no figure named")
-    width = max(len(f.name) for f in select(only, args.quick))  # an unknown name fails before anything is computed
+    chosen = select(only, args.quick)  # an unknown name fails before anything is computed
+    if not chosen:  # only animations named, which --quick leaves out (max() of nothing was a traceback)
+        raise ConfigError(f"--only {args.only!r} with --quick: nothing to make (--quick makes no animations)")
+    width = max(len(f.name) for f in chosen)
 
     def report(fig, files, seconds) -> None:
         print(f"{fig.name:{width}s} {seconds:6.1f} s  {', '.join(str(f) for f in files)}", flush=True)
