@@ -467,3 +467,24 @@ def test_a_big_maps_thin_walls_are_all_drawn():
     assert tuple(ax.get_xlim()) == (grid.extent[0], grid.extent[1])
     assert tuple(ax.get_ylim()) == (grid.extent[2], grid.extent[3])
     plt.close(fig)
+
+
+def test_a_log_axis_of_two_decades_has_no_crowded_labels():
+    """Fig. 8b's time per MRF step (1.3 to 125 ms) labelled every minor tick: 50, 60, 70, 80, 90, 100 stacked."""
+    plt = plots._plt()
+    with plots.paper_style():
+        fig, ax = plt.subplots(figsize=(5.5, 4.6), dpi=100)
+        ax.plot([5, 2000], [1.3, 125.0])
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        plots.plain_log_ticks(ax.yaxis)
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        lo, hi = ax.get_ylim()
+        labels = [t for t in ax.yaxis.get_ticklabels(minor=False) + ax.yaxis.get_ticklabels(minor=True)
+                  if t.get_visible() and t.get_text() and lo <= t.get_position()[1] <= hi]
+        texts = sorted((t.get_text() for t in labels), key=float)
+        assert texts == ["2", "3", "5", "10", "20", "30", "50", "100"]  # plain numbers, not 10^1
+        boxes = sorted((t.get_window_extent(renderer) for t in labels), key=lambda b: b.y0)
+        assert all(b.y0 >= a.y1 for a, b in zip(boxes, boxes[1:])), "tick labels overlap"
+    plt.close(fig)

@@ -399,11 +399,7 @@ def make_fig8(out: Path, quick: bool = False) -> list[Path]:
                     color=cmap(j / max(1, len(orders))), label=f"n = {n}")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        from matplotlib.ticker import FuncFormatter
-
-        plain = FuncFormatter(lambda v, _: f"{v:g}")
-        ax.yaxis.set_major_formatter(plain)  # "4", not "4 x 10^0"
-        ax.yaxis.set_minor_formatter(plain)
+        plots.plain_log_ticks(ax.yaxis)
         ax.set_xlabel("number of robots N")
         ax.set_ylabel("time per MRF step [ms]")
         ax.grid(alpha=0.3, which="both")
