@@ -5,7 +5,8 @@ ignore Ctrl-C and leave it to the parent (one message, no traceback per worker),
 when the block it serves ends in an exception (Ctrl-C included), cancels the tasks still
 queued and terminates the workers still running instead of waiting for them: an
 interrupted flight simulation of one robot per process (tens of seconds each) otherwise
-kept the run hanging after it had said "interrupted". The sweeps, the window QPs and the
+kept the run hanging after it had said "interrupted". Its workers also end when the parent is
+gone, killed outright (:func:`_exit_with_parent`). The sweeps, the window QPs and the
 flight simulation run their processes through it.
 """
 
@@ -15,6 +16,7 @@ import concurrent.futures as cf
 import contextlib
 import logging
 import multiprocessing
+import os
 import signal
 import threading
 from collections.abc import Iterator
@@ -46,10 +48,25 @@ def ignore_sigint() -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
+def _exit_with_parent() -> None:
+    """End this worker when its parent process is gone.
+
+    A parent killed outright (SIGKILL, the kernel's out-of-memory killer) stops nothing, and concurrent.futures'
+    workers wait for their next task for ever: `mrfswarm sweep --workers 2` killed so left its two workers (90 MB
+    each) asleep until the machine restarted. The parent's sentinel becomes ready when it ends."""
+    parent = multiprocessing.parent_process()
+    if parent is None:
+        return
+    parent.join()
+    os._exit(1)
+
+
 def _start_worker(backends: dict[str, tuple[Backend[Any], ...]]) -> None:
-    """A worker's start: :func:`ignore_sigint`, the backends the parent registered (``solvers.registry.added``;
-    a spawned or forkserver worker does not run the parent's ``register`` calls), and a thread lock for tqdm."""
+    """A worker's start: :func:`ignore_sigint`, a thread that ends it with its parent (:func:`_exit_with_parent`),
+    the backends the parent registered (``solvers.registry.added``; a spawned or forkserver worker does not run the
+    parent's ``register`` calls), and a thread lock for tqdm."""
     ignore_sigint()
+    threading.Thread(target=_exit_with_parent, name="exit-with-parent", daemon=True).start()
     restore(backends)
     # a progress bar, even a disabled one (a sweep's point plans with one), takes tqdm's lock, by default a named
     # multiprocessing semaphore that only the process's exit unlinks: a worker stop() terminates never does, and

@@ -110,3 +110,47 @@ def test_a_stopped_worker_leaves_no_semaphore_to_the_resource_tracker(tmp_path):
                           env={**os.environ, "PYTHONPATH": str(root)})
     assert proc.stdout.strip() == "interrupted"
     assert "leaked" not in proc.stderr, proc.stderr
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie its new parent has not reaped yet has ended)."""
+    try:
+        state = Path(f"/proc/{pid}/status").read_text()
+    except FileNotFoundError:
+        return False
+    return "\nState:\tZ" not in state
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc")
+@pytest.mark.parametrize("start", ["fork", "spawn", "forkserver"])
+def test_workers_end_when_their_parent_is_killed_outright(tmp_path, start):
+    """SIGKILL stops nothing in the parent: `mrfswarm sweep --workers 2` killed so left its two workers waiting
+    for a next task for ever (90 MB each, asleep until the machine restarted)."""
+    script = tmp_path / "killed.py"
+    script.write_text(
+        "import multiprocessing, os, sys, time\n"
+        "from mrfswarm.pools import process_pool\n"
+        "def pid():\n"
+        "    time.sleep(0.3)\n"
+        "    return os.getpid()\n"
+        "if __name__ == '__main__':\n"
+        f"    with process_pool(2, multiprocessing.get_context({start!r})) as pool:\n"
+        "        [f.result() for f in [pool.submit(pid) for _ in range(4)]]\n"
+        "        print(' '.join(str(p) for p in pool._processes), flush=True)\n"
+        "        time.sleep(60)\n")
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.Popen([sys.executable, str(script)], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, text=True, env={**os.environ, "PYTHONPATH": str(root)})
+    try:
+        workers = [int(p) for p in proc.stdout.readline().split()]
+        assert len(workers) == 2 and all(_alive(p) for p in workers)
+    finally:
+        proc.kill()
+        proc.wait()
+    deadline = time.monotonic() + 10.0
+    while any(_alive(p) for p in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    left = [p for p in workers if _alive(p)]
+    for p in left:  # not to leave them to the machine when the test fails
+        os.kill(p, signal.SIGKILL)
+    assert not left
