@@ -77,8 +77,8 @@ def _start_worker(backends: dict[str, tuple[Backend[Any], ...]]) -> None:
 
 
 def stop(pool: cf.ProcessPoolExecutor) -> None:
-    """Cancel ``pool``'s queued tasks and terminate its running workers; returns once the pool's manager thread
-    has seen them go (at most :data:`STOP_JOIN_S`).
+    """Cancel ``pool``'s queued tasks and terminate its running workers; returns once they have ended and the pool's
+    manager thread has seen them go (at most :data:`STOP_JOIN_S` each).
 
     Without that wait the interpreter's exit could race the manager thread: concurrent.futures' exit hook wakes
     it through a pipe the thread closes as it ends (Python 3.11 checks the pipe, then writes), and printed
@@ -89,6 +89,8 @@ def stop(pool: cf.ProcessPoolExecutor) -> None:
     pool.shutdown(wait=False, cancel_futures=True)
     for proc in running:
         proc.terminate()
+    for proc in running:  # gone, so nothing they were writing changes after this returns
+        proc.join(STOP_JOIN_S)
     if manager is not None:
         manager.join(STOP_JOIN_S)
 

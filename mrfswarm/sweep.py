@@ -698,6 +698,21 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
             client.close()
 
 
+def _drop_partial_points(out_dir: Path) -> None:
+    """Delete the hidden ``.NAME.partial-*`` folders of the points a stopped local sweep's workers were writing
+    (``figures``): the pool stops them outright (:func:`mrfswarm.pools.stop`), before their own clean-up, and the
+    folders stayed in ``points/`` (a tour's ``.001_method=gibbs.partial-weywbyc8``). The sweep's folder is its own,
+    so nothing else there is named so. A ``points/`` left empty goes too: stopped before any point finished, the
+    sweep leaves an empty folder, which a new sweep takes (an empty ``points/`` in it was refused as "not an
+    mrfswarm sweep's", even with ``--overwrite``)."""
+    points = out_dir / "points"
+    if points.is_dir():
+        for d in points.glob(".*.partial-*"):
+            shutil.rmtree(d, ignore_errors=True)
+        if not any(points.iterdir()):
+            points.rmdir()
+
+
 def _check_shippable(added: dict[str, tuple[solvers.registry.Backend[Any], ...]]) -> None:
     """The backends this process registered, which the workers repeat (``solvers.registry.restore``), must pickle:
     a script's lambda failed in the workers' start, a traceback and an empty output folder left (a tour).
@@ -775,6 +790,8 @@ def _sweep(config: Path, grid: dict, seeds: list[int] | None, overrides: list[st
         ordered, columns = table()
         if ordered or complete:
             _write_table(out_dir, ordered, columns, meta | {"complete": complete})
+        if not complete and client is None:
+            _drop_partial_points(out_dir)
         if ordered and not complete:  # Ctrl-C, a bug: the finished points are tabulated, which the error line omits
             log.warning("the sweep stopped after %d of %d runs; their rows are in %s (sweep.json: \"complete\": "
                         "false)", len(ordered), len(tasks), out_dir / "sweep.csv")

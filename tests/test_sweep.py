@@ -3,7 +3,11 @@
 import csv
 import json
 import math
+import os
+import signal
+import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from hypothesis import given
@@ -539,3 +543,34 @@ def test_what_a_points_plan_warns_of_is_said_once_naming_the_point(workers, tmp_
     assert rc == 0 and not bare and first is not None and len(said) == 2, (bare, said)
     other = next(n for n in names if n != first).removeprefix("sweep ")
     assert said[1] == f"{said[0].removeprefix(first + ': ')}: also in sweep {other}", said
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_a_stopped_sweep_leaves_no_half_written_point_folder(tmp_path, signum):
+    """With figures, a worker writes its point's folder as `mrfswarm run` does, into a hidden ``.NAME.partial-*``
+    folder renamed into place at the end; Ctrl-C or SIGTERM stops the workers outright, and that folder stayed in
+    ``points/`` (a tour's ``.001_method=gibbs.partial-weywbyc8``)."""
+    out = tmp_path / "out"
+    slow = tmp_path / "slow.py"  # the real CLI, a point's outputs slow to write, so the signal lands meanwhile
+    slow.write_text("import sys, time\nimport mrfswarm.outputs as o\nreal = o.write_discrete_outputs\n"
+                    "def write(*a, **k):\n    sys.stdout.write('writing\\n'); sys.stdout.flush()\n    time.sleep(30)\n"
+                    "    return real(*a, **k)\no.write_discrete_outputs = write\n"  # the spawned workers import it too
+                    "if __name__ == '__main__':\n    from mrfswarm.cli import main\n    sys.exit(main(sys.argv[1:]))\n")
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.Popen([sys.executable, str(slow), "sweep", str(FREE5), "--grid", "mrf.method=icm,trws",
+                             "--figures", "--workers", "2", "--out", str(out), *(f"--set={s}" for s in FAST)],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            env={**os.environ, "PYTHONPATH": str(root)}, start_new_session=True)
+    try:
+        assert proc.stdout.readline() == b"writing\n"
+        assert [p.name for p in (out / "points").iterdir() if ".partial-" in p.name]  # the folder being written
+        os.killpg(proc.pid, signum) if signum == signal.SIGINT else proc.send_signal(signum)  # Ctrl-C: the group
+        proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == (130 if signum == signal.SIGINT else 143)
+    assert not list(out.iterdir())  # no point had finished: nothing left in the way of the next sweep
+    main(["sweep", str(FREE5), "--grid", "mrf.method=icm", "--workers", "1", "--out", str(out),
+          *(f"--set={s}" for s in FAST)])
+    assert (out / "sweep.json").is_file()
