@@ -91,3 +91,25 @@ def test_default_methods_are_the_installed_heuristics():
     names = ablation.default_methods()
     assert "exact" not in names and "icm" in names
     assert set(names) == {b.name for b in mrf.METHODS if not b.capabilities.optimal} & set(mrf.available())
+
+
+DOOR12 = """[scenario]
+goal = [26, 6]
+goal_radius = 2.0
+start = { center = [4.0, 6.0], n_robots = 12, sigma = 1.5, seed = 2 }
+[scenario.map]
+kind = "ascii"
+rows = ["%s", "%s", "%s", "%s", "%s", "%s", "%s", "%s", "%s", "%s", "%s", "%s"]
+""" % tuple(("." * 14 + ("#" if y in (2, 3, 4, 7, 8, 9, 10, 11) else ".") + "." * 15) for y in range(12))
+
+
+def test_a_config_with_the_default_rules_is_measured_on_the_planners_own_step_mrfs(tmp_path):
+    """The help takes "paths to TOML configs"; one with the default rules (a 2-cell door, 12 robots) ended in
+    "AssertionError: step 12: the rebuilt step MRF gives 156.96, the planner's 157.54": the step MRF was rebuilt
+    from the positions alone, without the label sets mrf.trim_backward trims and mrf.trim_escape gives back."""
+    config = tmp_path / "door12.toml"
+    config.write_text(DOOR12)
+    run = ablation.run_one(config, "icm")
+    assert run.row["steps"] == len(run.records) > 12 and run.row["stop_reason"] == "arrived"
+    assert all(r.icm_energy == r.energy for r in run.records)  # ICM on the step's MRF is the planner's ICM step
+    assert all(r.lower_bound <= r.energy + 1e-9 * abs(r.energy) for r in run.records)

@@ -177,6 +177,8 @@ class StepOutcome:
     result: mrf_solvers.MRFResult
     weights: CliqueWeights
     timings: dict[str, float]
+    #: the step MRF the method solved (its label sets trimmed and its field congested as the step's were)
+    model: mrf_solvers.PairwiseMRF
 
     @property
     def moved(self) -> int:
@@ -295,6 +297,7 @@ def mrf_step(problem: DiscreteProblem, positions: np.ndarray, method: str = "icm
         result=res,
         weights=weights,
         timings=timings,
+        model=model,
     )
 
 
