@@ -92,6 +92,34 @@ def knn_edges(points: np.ndarray, k: int) -> np.ndarray:
     return np.stack([keys // n, keys % n], axis=1)
 
 
+def graph_edges(n_nodes: int, edges: np.ndarray) -> np.ndarray:
+    """``edges`` as an (E, 2) int64 array, or ValueError / TypeError naming the first bad edge.
+
+    The enumeration reads edges as the docstring of :func:`maximal_clique_groups` states them
+    (integer pairs i < j of vertices in 0..n_nodes - 1, each once); others gave wrong cliques
+    without a word: a vertex beyond ``n_nodes`` a clique of its own, (1, 0) no clique with its
+    third vertex, 0.5 read as 0 (a library tour).
+    """
+    a = np.asarray(edges)
+    if a.size and a.dtype.kind not in "iu":
+        raise TypeError(f"edges must be integer vertex pairs, got dtype {a.dtype}")
+    if a.size % 2 or (a.ndim == 2 and a.shape[1] != 2) or a.ndim > 2:
+        raise ValueError(f"edges must have shape (E, 2), got {a.shape}")
+    e = a.astype(np.int64).reshape(-1, 2)
+    bad = np.flatnonzero((e.min(axis=1) < 0) | (e.max(axis=1) >= n_nodes))
+    if len(bad):
+        raise ValueError(f"edge {e[bad[0]].tolist()} has a vertex outside 0..{n_nodes - 1}")
+    bad = np.flatnonzero(e[:, 0] >= e[:, 1])
+    if len(bad):
+        raise ValueError(f"edge {e[bad[0]].tolist()}: edges must be pairs i < j")
+    keys = np.sort(e[:, 0] * np.int64(n_nodes) + e[:, 1])
+    repeated = np.flatnonzero(keys[1:] == keys[:-1])
+    if len(repeated):
+        k = int(keys[repeated[0]])
+        raise ValueError(f"edge {[k // n_nodes, k % n_nodes]} is given more than once")
+    return e
+
+
 #: Work budget of the level-wise clique enumeration, in (clique, common neighbour) pairs
 #: per node and edge of the graph; past it, Bron–Kerbosch takes over.
 LEVEL_BUDGET = 64
@@ -226,8 +254,13 @@ def maximal_clique_groups(n_nodes: int, edges: np.ndarray, budget: int | None = 
     -------
     {size: (M, size) int array}: each row a maximal clique sorted ascending, rows in
     lexicographic order.
+
+    Raises
+    ------
+    ValueError, TypeError
+        Edges that are not such pairs (:func:`graph_edges`).
     """
-    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    edges = graph_edges(n_nodes, edges)
     if budget is None:
         budget = LEVEL_BUDGET * (n_nodes + len(edges))
     groups = _cliques_by_level(n_nodes, edges, budget)
@@ -341,7 +374,7 @@ def update_clique_weights(previous: CliqueWeights, n_nodes: int, edges: np.ndarr
     computation (tested); along a crossing only a few percent of the robots change
     neighbours in a step.
     """
-    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    edges = graph_edges(n_nodes, edges)
     if previous.groups is None or len(previous.node) != n_nodes:
         return clique_weights_of_graph(n_nodes, edges)
     n = np.int64(n_nodes)

@@ -104,3 +104,23 @@ def test_clique_factorization_of_a_known_graph():
     assert w.node.tolist() == [2, 1, 2, 1]
     assert dict(zip(map(tuple, edges.tolist()), w.edge.tolist())) == {(0, 1): 1, (0, 2): 2, (0, 3): 1, (1, 2): 1, (2, 3): 1}
     assert list(itertools.chain.from_iterable(x.tolist() for x in c)).count(0) == 2
+
+
+@pytest.mark.parametrize("edges, error, match", [
+    ([[0, 5]], ValueError, r"edge \[0, 5\] has a vertex outside 0..2"),  # was a clique [0, 5] of a 3-vertex graph
+    ([[-1, 2]], ValueError, r"edge \[-1, 2\] has a vertex outside"),
+    ([[1, 0], [2, 1], [2, 0]], ValueError, r"edge \[1, 0\]: edges must be pairs i < j"),  # was three 2-cliques
+    ([[0, 0], [1, 2]], ValueError, r"edge \[0, 0\]"),  # vertex 0 was dropped
+    ([[0, 1], [1, 2], [0, 2], [0, 1]], ValueError, r"edge \[0, 1\] is given more than once"),  # the triangle twice
+    ([[0.5, 1.0]], TypeError, "integer vertex pairs, got dtype float64"),  # 0.5 was read as 0
+    ([[0, 1, 2]], ValueError, r"shape \(E, 2\), got \(1, 3\)"),
+])
+def test_maximal_cliques_refuse_edges_outside_their_contract(edges, error, match):
+    with pytest.raises(error, match=match):
+        maximal_cliques(3, np.array(edges))
+
+
+def test_maximal_cliques_of_no_edges_are_the_vertices():
+    assert [c.tolist() for c in maximal_cliques(3, np.zeros((0, 2), np.intp))] == [[0], [1], [2]]
+    assert [c.tolist() for c in maximal_cliques(2, [])] == [[0], [1]]
+
