@@ -61,8 +61,19 @@ def knn_edges(points: np.ndarray, k: int) -> np.ndarray:
     Returns
     -------
     (E, 2) int array of pairs i < j, sorted lexicographically, without repeats.
+
+    Raises
+    ------
+    ValueError
+        ``points`` not (N, d), or a robot's position not finite (SciPy's tree said "data must be
+        finite", naming no robot).
     """
     pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2:
+        raise ValueError(f"points must have shape (N, d), got {pts.shape}")
+    bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+    if len(bad):
+        raise ValueError(f"robot {int(bad[0])}'s position {pts[bad[0]].tolist()} is not finite")
     n = len(pts)
     check_k(k, n)
     tree = cKDTree(pts)

@@ -124,3 +124,9 @@ def test_maximal_cliques_of_no_edges_are_the_vertices():
     assert [c.tolist() for c in maximal_cliques(3, np.zeros((0, 2), np.intp))] == [[0], [1], [2]]
     assert [c.tolist() for c in maximal_cliques(2, [])] == [[0], [1]]
 
+
+def test_knn_edges_name_the_robot_whose_position_is_not_finite():
+    with pytest.raises(ValueError, match=r"robot 1's position \[nan, 1.0\] is not finite"):
+        knn_edges(np.array([[0.0, 0.0], [np.nan, 1.0], [2.0, 2.0]]), 1)
+    with pytest.raises(ValueError, match=r"robot 2's position \[2.0, inf\]"):
+        knn_edges(np.array([[0.0, 0.0], [1.0, 1.0], [2.0, np.inf]]), 1)
