@@ -132,7 +132,7 @@ def goal_distance(free: np.ndarray, goal_cell: np.ndarray, resolution: float = 1
     free
         (W, H) or (W, H, D) bool, True where free.
     goal_cell
-        (d,) a free cell.
+        (d,) a free cell, integer indices.
     resolution
         Metres per cell.
     order
@@ -193,7 +193,10 @@ class GoalGraph:
         """The graph of the clear moves between free cells (arguments of :func:`goal_distance`)."""
         free = np.asarray(free, dtype=bool)
         shape = free.shape
-        g = np.asarray(goal_cell, dtype=np.intp)
+        raw = np.asarray(goal_cell)
+        if raw.dtype.kind not in "iu":  # 2.5 was read as cell 2 without a word (a library tour)
+            raise TypeError(f"goal cell {raw.tolist()!r} must be integer cell indices, got dtype {raw.dtype}")
+        g = raw.astype(np.intp)
         if not (g.shape == (free.ndim,) and np.all((g >= 0) & (g < shape)) and free[tuple(g)]):
             raise ValueError(f"goal cell {tuple(int(v) for v in g)} is not a free cell of the "
                              f"{' x '.join(str(n) for n in shape)} grid")

@@ -294,6 +294,8 @@ def test_goal_distance_rejects_bad_input():
         goal_distance(free, np.array([0, 0]), climb_weight=-1.0)
     with pytest.raises(ValueError, match="obstacle potential"):
         goal_distance(free, np.array([0, 0]), climb_weight=1.0)
+    with pytest.raises(TypeError, match=r"goal cell \[2.5, 1.0\] must be integer cell indices"):
+        goal_distance(free, np.array([2.5, 1.0]))  # was searched from cell (2, 1)
 
 
 def test_a_goal_too_far_for_k_is_a_clear_error(tmp_path):
