@@ -171,13 +171,17 @@ def repair(mrf: PairwiseMRF, labels: np.ndarray) -> tuple[np.ndarray, int]:
 
 def _rows(name: str, value: object, tail: tuple[int, ...], dtype: type) -> np.ndarray:
     """``value`` as an (m, *tail) array of ``dtype`` (empty: m = 0), or InvalidProblem naming its shape; integer
-    arrays must hold whole numbers (0.7 as a label was read as 0)."""
+    arrays must hold whole numbers (0.7 as a label was read as 0), not booleans."""
     a = np.asarray(value) if isinstance(value, np.ndarray) and value.dtype.kind in "biu" else real_array(value, name)
     if a.size == 0:
         return np.zeros((0, *tail), dtype=dtype)
     if a.ndim != 1 + len(tail) or a.shape[1:] != tail:
         want = ", ".join(["m", *map(str, tail)])
         raise InvalidProblem(f"{name} must have shape ({want}), got {a.shape}")
+    # [[False, True]] as edges was read as the edge (0, 1) (a library tour); real_array made a list's bools floats
+    if dtype is np.intp and np.asarray(value).dtype.kind == "b":
+        shown = " ".join(repr(value).split())
+        raise InvalidProblem(f"{name} = {shown:.60}: must hold integer indices, not booleans")
     if dtype is np.intp and a.dtype.kind == "f" and (not np.all(np.isfinite(a)) or np.any(a != np.round(a))):
         raise InvalidProblem(f"{name} must hold whole numbers")
     return np.ascontiguousarray(a, dtype=dtype)

@@ -77,6 +77,18 @@ def test_mrf_problem_checks_its_shapes():
             mrf.PairwiseMRF(**{**base, key: value})
 
 
+@pytest.mark.parametrize("key, value", [("edges", [[False, True], [True, False]]), ("conflicts", [[False, True]]),
+                                        ("initial", [False, False, True])])
+def test_mrf_problem_refuses_booleans_as_indices(key, value):
+    """[[False, True]] as edges was read as the edge (0, 1), silently; a bool mask where indices belong."""
+    base = dict(unary=np.zeros((3, 2)), edges=[[0, 1], [1, 2]], pairwise=np.zeros((2, 2, 2)),
+                conflicts=np.zeros((0, 2)), conflict_mask=np.zeros((0, 2, 2), bool), initial=[0, 0, 0])
+    if key == "conflicts":
+        base["conflict_mask"] = np.zeros((1, 2, 2), bool)
+    with pytest.raises(InvalidProblem, match=rf"^{key} = .*must hold integer indices, not booleans"):
+        mrf.PairwiseMRF(**{**base, key: value})
+
+
 def test_repair_returns_feasible_labelling():
     rng = np.random.default_rng(0)
     N, L = 6, 3
