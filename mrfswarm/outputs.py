@@ -122,9 +122,13 @@ def write_outputs(result: Result, out: Path, animate: bool = False, overwrite: b
 
     Raises
     ------
+    TypeError
+        ``result`` is not a :class:`~mrfswarm.pipeline.Result`.
     ExportError
         ``out`` holds files (see :func:`check_output_dir`).
     """
+    if not isinstance(result, Result):  # None failed deep in the discrete outputs, an AttributeError (a library tour)
+        raise TypeError(f"write_outputs needs the Result of mrfswarm.plan, got {type(result).__name__}")
     out = Path(out)
     check_output_dir(out, overwrite)
     if animate and result.continuous is None:  # the GIF draws the smoothed flight (a tour's went missing without a word)

@@ -261,6 +261,16 @@ def test_sigterm_stops_the_workers_and_writes_nothing(tmp_path):
     assert not out.exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".out.")]
 
 
+@pytest.mark.parametrize("result", [None, {"discrete": None}])
+def test_write_outputs_of_no_result_is_one_line_before_any_folder(tmp_path, result):
+    """write_outputs(None) ended in "AttributeError: 'NoneType' object has no attribute 'discrete_paths_world'",
+    after making the folder's parent and a staging folder."""
+    out = tmp_path / "runs" / "one"
+    with pytest.raises(TypeError, match=f"^write_outputs needs the Result of mrfswarm.plan, got {type(result).__name__}$"):
+        outputs.write_outputs(result, out)
+    assert not (tmp_path / "runs").exists()
+
+
 def test_check_output_dir_guards(tmp_path):
     from mrfswarm.errors import ExportError
 
