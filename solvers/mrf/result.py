@@ -68,8 +68,8 @@ class Options:
         check_fields(self)
         if self.max_iter < 1:
             raise InvalidOptions(f"max_iter must be >= 1, got {self.max_iter}")
-        if not self.tol >= 0:
-            raise InvalidOptions(f"tol must be >= 0, got {self.tol}")
+        if not 0 <= self.tol < float("inf"):  # inf: no move was ever enough for ICM or the lazy flipper (a library tour)
+            raise InvalidOptions(f"tol must be finite and >= 0, got {self.tol}")
         if self.seed < 0:
             raise InvalidOptions(f"seed must be >= 0, got {self.seed}")
         if self.time_limit is not None and not self.time_limit > 0:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,8 +41,8 @@ class Options:
 
     def __post_init__(self) -> None:
         check_fields(self)
-        if not self.tol > 0:
-            raise InvalidOptions(f"tol must be positive, got {self.tol}")
+        if not 0 < self.tol < math.inf:  # inf: every backend called its start point optimal (a library tour)
+            raise InvalidOptions(f"tol must be positive and finite, got {self.tol}")
         if self.max_iter < 1:
             raise InvalidOptions(f"max_iter must be >= 1, got {self.max_iter}")
         if self.time_limit is not None and not self.time_limit > 0:

@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -51,8 +52,11 @@ class Options:
 
     def __post_init__(self) -> None:
         check_fields(self)
-        if not (self.eps_abs > 0 and self.eps_rel >= 0):
-            raise InvalidOptions(f"tolerances must be positive, got eps_abs={self.eps_abs}, eps_rel={self.eps_rel}")
+        # an infinite tolerance accepts any point: ipopt called x = 0 optimal where the optimum is 0.5, the
+        # points of piqp, proxsuite, clarabel and cvxpy missed their rows, SCS refused it in its own words (a tour)
+        if not (0 < self.eps_abs < math.inf and 0 <= self.eps_rel < math.inf):
+            raise InvalidOptions(f"tolerances must be positive and finite (eps_rel may be 0), got "
+                                 f"eps_abs={self.eps_abs}, eps_rel={self.eps_rel}")
         if self.max_iter < 1:
             raise InvalidOptions(f"max_iter must be >= 1, got {self.max_iter}")
         if self.time_limit is not None and not self.time_limit > 0:

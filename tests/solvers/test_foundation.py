@@ -135,6 +135,20 @@ def test_bad_options_are_invalid_options_naming_the_field():
     assert qp.Options(max_iter=np.int64(5), eps_abs=np.float64(1e-6), time_limit=None).max_iter == 5
 
 
+@pytest.mark.parametrize("make, message", [
+    (lambda: qp.Options(eps_abs=np.inf), r"^tolerances must be positive and finite \(eps_rel may be 0\), got eps_abs=inf"),
+    (lambda: qp.Options(eps_rel=np.inf), r"^tolerances must be positive and finite .*eps_rel=inf$"),
+    (lambda: solvers.nlp.Options(tol=np.inf), r"^tol must be positive and finite, got inf$"),
+    (lambda: mrf.Options(tol=np.inf), r"^tol must be finite and >= 0, got inf$"),
+], ids=["qp_eps_abs", "qp_eps_rel", "nlp_tol", "mrf_tol"])
+def test_an_infinite_tolerance_is_refused(make, message):
+    """An infinite tolerance was taken: on the README's QP (optimum (0.5, 0.5)) ipopt called (0, 0) optimal and
+    piqp, proxsuite, clarabel and cvxpy returned points that miss its row; every NLP backend called its start point
+    optimal; the lazy flipper never moved. SCS alone refused it, in its own words."""
+    with pytest.raises(solvers.InvalidOptions, match=message):
+        make()
+
+
 def test_the_two_roots_of_the_errors():
     """The numerical layer's root is its own; the domain's derives from it; the CLI catches both."""
     from mrfswarm.errors import ConfigError, MrfswarmError, PlanError
