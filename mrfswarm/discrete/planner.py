@@ -514,9 +514,13 @@ def plan_discrete(problem: DiscreteProblem, method: str = "icm", max_steps: int 
     ------
     ScenarioError
         A robot starts where the static field is not finite (no free path to the goal).
+    ValueError
+        ``progress`` not a rule, ``tol`` outside [0, 1).
     """
     if progress not in PROGRESS_RULES:
         raise ValueError(f"progress = {progress!r}: must be one of {', '.join(PROGRESS_RULES)}")
+    if not 0 <= tol < 1:  # inf or NaN ended the plan after one step, "trapped" or "stalled" (mrf.tol's range)
+        raise ValueError(f"tol = {tol!r}: must be in [0, 1) (a fraction of the swarm energy)")
     def one(p: DiscreteProblem, steps: int) -> DiscretePlan:
         return _plan_rule(p, method, steps, tol, patience, options, on_step, progress, arrival)
 

@@ -136,3 +136,16 @@ def test_an_optimizer_that_refuses_a_step_is_said_with_the_step():
                               contested="shared", goal_distance=d.path, goal_path=d.path, goal_region_radius=3.0)
     with pytest.raises(InvalidProblem, match=r"^MRF step 1 \(contested = 'shared'\): exact: \d+ labellings exceed"):
         plan_discrete(problem, method="exact", max_steps=5)
+
+
+@pytest.mark.parametrize("tol", [float("inf"), float("nan"), 1.0, -1e-3])
+def test_plan_discrete_refuses_a_tolerance_outside_its_range(tol):
+    """mrf.tol's range, [0, 1), held for configs only: plan_discrete(tol=inf) ended after one step, "trapped",
+    and NaN after none, "stalled"."""
+    free = np.ones((8, 6), bool)
+    start, goal = np.array([[0, 1], [0, 3]]), np.array([7, 2])
+    problem = DiscreteProblem(free=free, static=random_map_static(free, goal, start, "geodesic", 2), start=start,
+                              goal=goal, morse=Morse(), k=1, order=2)
+    with pytest.raises(ValueError, match=rf"^tol = {tol!r}: must be in \[0, 1\)"):
+        plan_discrete(problem, tol=tol)
+    assert len(plan_discrete(problem, tol=0.0, max_steps=30).paths) > 2
