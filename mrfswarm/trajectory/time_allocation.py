@@ -58,7 +58,7 @@ import numpy as np
 
 from mrfswarm.trajectory.banded import solve_banded
 from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE, EndSpec, MinSnapProblem
-from solvers.errors import InvalidProblem
+from solvers.errors import InvalidOptions, InvalidProblem
 
 log = logging.getLogger(__name__)
 
@@ -223,11 +223,15 @@ def refine_durations(
     InvalidProblem
         A non-positive or non-finite ``time_weight`` or ``min_duration``, ``time_weight=None``
         with a non-zero end derivative, a degree other than ``2q - 1``, or malformed data.
+    InvalidOptions
+        ``tol`` negative or not finite.
     """
     from scipy.optimize import minimize
 
     if time_weight is not None and not (np.isfinite(time_weight) and time_weight > 0):
         raise InvalidProblem(f"time_weight must be positive and finite, got {time_weight}")
+    if not 0 <= tol < np.inf:  # inf: one iteration, "converged" at 69 x the optimum (a library tour)
+        raise InvalidOptions(f"tol must be finite and >= 0, got {tol}")
     base = MinSnapProblem(waypoints, durations, degree=degree, derivative=derivative, start=start, end=end)
     T0 = base.durations.copy()
     tmin = float(min_duration) if min_duration is not None else 1e-3 * float(T0.min())

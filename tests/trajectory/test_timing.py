@@ -15,7 +15,7 @@ from mrfswarm.trajectory import (
     trapezoidal_durations,
 )
 from mrfswarm.trajectory.time_allocation import scaled_time_weight, stationary_time_weight
-from solvers.errors import InvalidProblem
+from solvers.errors import InvalidOptions, InvalidProblem
 from support.trajectories import random_walk
 
 
@@ -188,6 +188,9 @@ def test_refinement_guards():
     for bad in (0.0, -1.0, np.nan, np.inf):
         with pytest.raises(InvalidProblem, match="time_weight must be positive"):
             refine_durations(W, [1.0, 1.0], time_weight=bad)
+    for bad in (np.inf, np.nan, -1.0):  # inf stopped after one iteration, far from the optimum, "converged"
+        with pytest.raises(InvalidOptions, match=f"^tol must be finite and >= 0, got {bad}$"):
+            refine_durations(W, [1.0, 1.0], time_weight=1.0, tol=bad)
     # keeping the total needs homogeneous ends; a given non-zero end velocity breaks it
     with pytest.raises(InvalidProblem, match="needs ends at rest or free"):
         refine_durations(W, [1.0, 1.0], start=[[1.0, 0.0]])
