@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from mrfswarm.discrete.motion import in_grid, scaled, step_min_separation
+from mrfswarm.discrete.motion import in_grid, step_min_separation
 from mrfswarm.geometry import edge_gap, norm, point_box_distance
 
 #: Samples per step when measuring obstacle clearance along straight moves.
@@ -63,7 +63,7 @@ def min_separation(paths: np.ndarray, downwash: float = 1.0) -> float:
     if paths.shape[1] < 2:
         return float("inf")
     if len(paths) == 1:
-        return float(min_pair_distances(scaled(paths[:1], downwash))[0][0])
+        return step_min_separation(paths[0], paths[0], downwash)[0]
     return min(step_min_separation(paths[t], paths[t + 1], downwash)[0] for t in range(len(paths) - 1))
 
 

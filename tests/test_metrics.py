@@ -95,6 +95,16 @@ def test_min_separation_is_in_the_downwash_scaled_metric_within_steps():
     assert min_separation(paths[:1], downwash=2.0) == pytest.approx(np.hypot(1.0, 0.5))
 
 
+@pytest.mark.parametrize("steps", [1, 2])
+@pytest.mark.parametrize("z0", range(8))
+def test_min_separation_of_robots_one_scaled_cell_apart_is_exactly_one(z0, steps):
+    """Two robots stacked 3 voxels apart at downwash 3 are one cell apart in the scaled metric; scaling the positions
+    before subtracting them gave 0.9999999999999999 (z0 = 2) or 0.9999999999999998 (z0 = 4), which result.json
+    printed as it was (a 3-D tour)."""
+    p = np.array([[[0, 0, z0], [0, 0, z0 + 3]], [[1, 0, z0], [1, 0, z0 + 3]]])[:steps]
+    assert min_separation(p, downwash=3.0) == 1.0
+
+
 def test_obstacle_clearance_in_3d_matches_brute_force():
     rng = np.random.default_rng(0)
     occupied = rng.random((8, 7, 6)) < 0.1

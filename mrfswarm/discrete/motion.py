@@ -246,17 +246,20 @@ def step_min_separation(p0: np.ndarray, p1: np.ndarray, downwash: float = 1.0) -
     -------
     (distance, pair); ``(inf, None)`` for a single robot.
     """
-    p0 = scaled(p0, downwash)
-    p1 = scaled(p1, downwash)
-    if len(p0) < 2:
+    c0, c1 = np.asarray(p0, dtype=float), np.asarray(p1, dtype=float)
+    q0, q1 = scaled(c0, downwash), scaled(c1, downwash)
+    if len(q0) < 2:
         return float("inf"), None
-    step = float(np.max(norm(p1 - p0), initial=0.0))
+    step = float(np.max(norm(q1 - q0), initial=0.0))
     # The closest pair during the step starts at most (nearest start distance + 2 step)
     # apart, so these pairs contain it: the answer is exact, not a bound.
-    d_nn = float(cKDTree(p0).query(p0, 2)[0][:, 1].min())
-    pairs = nearby_pairs(p0, d_nn + 2 * step + 1e-9)
-    d0 = p0[pairs[:, 0]] - p0[pairs[:, 1]]
-    v = (p1[pairs[:, 0]] - p0[pairs[:, 0]]) - (p1[pairs[:, 1]] - p0[pairs[:, 1]])
+    d_nn = float(cKDTree(q0).query(q0, 2)[0][:, 1].min())
+    pairs = nearby_pairs(q0, d_nn + 2 * step + 1e-9)
+    i, j = pairs[:, 0], pairs[:, 1]
+    # cells subtracted, then scaled, as the step's conflict table does: positions scaled first left float noise
+    # (robots 3 voxels apart at downwash 3: 0.9999999999999999 cells in result.json, a 3-D tour)
+    d0 = scaled(c0[i] - c0[j], downwash)
+    v = scaled((c1[i] - c0[i]) - (c1[j] - c0[j]), downwash)
     dist = min_distance_during_move(d0, v)
     k = int(np.argmin(dist))
     return float(dist[k]), (int(pairs[k, 0]), int(pairs[k, 1]))
