@@ -160,3 +160,26 @@ def test_a_run_ending_where_f_is_nan_hands_back_the_best_finite_point(name):
     sol = nlp.minimize(nlp.NLPProblem(fun, _rosenbrock_grad, np.array([-1.2, 1.0]), -10.0, 10.0), name)
     assert np.isfinite(sol.objective) and sol.objective <= _rosenbrock(np.array([-1.2, 1.0]))
     assert sol.objective == pytest.approx(fun(sol.x))
+
+
+def _forward_difference_gradient(x: np.ndarray, h: float = 1e-4) -> np.ndarray:
+    f0 = _rosenbrock(x)
+    return np.array([(_rosenbrock(x + h * e) - f0) / h for e in np.eye(len(x))])
+
+
+def test_trust_constrs_small_trust_region_is_judged_by_the_verdict():
+    """trust-constr's end by ``xtol`` (its trust radius below the tolerance: steps kept failing) was mapped to
+    OPTIMAL_INACCURATE, which the verdict gives only at a first-order point: with a forward-difference gradient it
+    ended so at (0.970, 0.942), first-order residual 5e-3, where Ipopt and sqpmethod ran out of iterations. Now it
+    is ERROR there, and OPTIMAL_INACCURATE where the same end is a first-order point (the exact gradient, tol
+    1e-15)."""
+    installed("trust_constr")
+    inexact = nlp.NLPProblem(_rosenbrock, _forward_difference_gradient, [-1.2, 1.0], -2.0, 2.0)
+    sol = nlp.minimize(inexact, "trust_constr")
+    assert "xtol" in sol.raw_status
+    assert first_order_residual(inexact, sol.x, _forward_difference_gradient(sol.x)) > 1e-3
+    assert sol.status is nlp.Status.ERROR, sol.status
+    exact = nlp.NLPProblem(_rosenbrock, _rosenbrock_grad, [-1.2, 1.0], -2.0, 2.0)
+    sol = nlp.minimize(exact, "trust_constr", nlp.Options(tol=1e-15, max_iter=3000))
+    assert "xtol" in sol.raw_status
+    assert sol.status is nlp.Status.OPTIMAL_INACCURATE and np.allclose(sol.x, 1.0, atol=1e-6)
