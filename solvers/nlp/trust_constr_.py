@@ -8,7 +8,8 @@ programming", SIAM Journal on Optimization 9 (1999); Conn, Gould, Toint,
 With bounds or rows SciPy runs its ``tr_interior_point`` algorithm (a barrier problem
 solved by equality-constrained SQP in a trust region). The Hessian is SciPy's ``BFGS()``
 quasi-Newton approximation. Bounds are kept feasible (``keep_feasible=True``): ``f`` is
-evaluated inside them only.
+evaluated inside them only. A start on a bound is moved inside first, as Ipopt moves it
+(:func:`interior_start`).
 
 Translation of :class:`~solvers.nlp.Options`: ``tol`` is ``gtol`` (the Lagrangian
 gradient's norm, with the constraint violation) and ``xtol`` (the trust radius), and
@@ -18,6 +19,7 @@ sets ``verbose`` 2 (else 0); ``time_limit`` is checked between iterations.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -44,9 +46,36 @@ def _settings(o: Options) -> dict:
             "verbose": 2 if o.verbose else 0}
 
 
+#: How far a start on a bound is moved inside, relative to the bound's size and to the width between the bounds
+#: (Ipopt's ``bound_push`` and ``bound_frac``, whose defaults these are).
+BOUND_PUSH = 1e-2
+
+
+def interior_start(problem: NLPProblem) -> NLPProblem:
+    """``problem`` with ``x0`` at least ``min(BOUND_PUSH max(1, |bound|), BOUND_PUSH (upper - lower))`` inside
+    each bound, as Ipopt places its start; fixed variables (``lower == upper``) stay.
+
+    trust-constr keeps the bounds feasible by slacks whose barrier is ``log s``; a start on a bound has ``s = 0``
+    and the variable never left it: from (2, -2) in [-2, 2]^2 trust-constr called Rosenbrock's corner (f = 3601)
+    optimal, from a start on one bound a point at f = 0.25 (SciPy issue 15093).
+    """
+    lo, hi, x = np.asarray(problem.lower), np.asarray(problem.upper), problem.x0
+    width = hi - lo
+    with np.errstate(invalid="ignore"):  # inf - inf of a free side: not used
+        lo_in = np.where(np.isfinite(lo), lo + np.minimum(BOUND_PUSH * np.maximum(1.0, np.abs(lo)), BOUND_PUSH * width),
+                         -np.inf)
+        hi_in = np.where(np.isfinite(hi), hi - np.minimum(BOUND_PUSH * np.maximum(1.0, np.abs(hi)), BOUND_PUSH * width),
+                         np.inf)
+    inside = np.minimum(np.maximum(x, lo_in), hi_in)
+    return problem if np.array_equal(inside, x) else dataclasses.replace(problem, x0=inside)
+
+
 def solve(problem: NLPProblem, options: Options) -> Outcome:
-    """Minimize ``problem`` with trust-constr (BFGS Hessian)."""
+    """Minimize ``problem`` with trust-constr (BFGS Hessian), from ``x0`` moved inside its bounds
+    (:func:`interior_start`)."""
     from scipy.optimize import BFGS
+
+    problem = interior_start(problem)
 
     with warnings.catch_warnings():
         # after a NaN, dispatch repeats the last gradient (solvers.nlp.evaluation): BFGS then

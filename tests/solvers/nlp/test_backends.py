@@ -94,6 +94,18 @@ def test_evaluations_stay_inside_the_bounds_and_are_counted(name):
     assert sol.evaluations == len(seen) and sol.gradient_evaluations == grads[0]
 
 
+@pytest.mark.parametrize("x0", [[2.0, -2.0], [0.5, 0.5], [1.5, 2.0]], ids=["corner", "on_lower", "on_upper"])
+@pytest.mark.parametrize("name", NAMES, ids=str)
+def test_a_start_on_a_bound_reaches_the_minimum(name, x0):
+    """Rosenbrock in [-2, 2] x [-2, 2] (x >= 0.5 for the start on a lower bound), started on a bound: trust-constr,
+    whose barrier keeps bounds by slacks that are 0 there, never moved off it and called the start point (f = 3601
+    at the corner) or a point on that bound (f = 0.25) optimal. Every backend reaches (1, 1)."""
+    installed(name)
+    lower = [0.5 if x0 == [0.5, 0.5] else -2.0, -2.0]
+    sol = nlp.minimize(nlp.NLPProblem(refs._rosenbrock, refs._rosenbrock_grad, x0, lower, 2.0), name)
+    assert_agrees(sol, np.ones(2), 0.0)
+
+
 @pytest.mark.parametrize("name", NAMES, ids=str)
 def test_nan_region_is_stepped_back_from(name):
     """f undefined (NaN) on part of the box, entered by the first steps: every backend still
