@@ -131,6 +131,14 @@ def test_bad_input_from_a_real_process_has_no_traceback(tmp_path):
     assert "inside an obstacle" in p.stderr
 
 
+def test_python_dash_m_mrfswarm_is_the_command():
+    """`python -m mrfswarm solvers` said "No module named mrfswarm.__main__; 'mrfswarm' is a package and cannot be
+    directly executed" (only `python -m mrfswarm.cli` worked), where the console script is not on the PATH."""
+    p = subprocess.run([sys.executable, "-m", "mrfswarm", "solvers"], capture_output=True, text=True, cwd=ROOT)
+    assert p.returncode == 0, p.stderr
+    assert "NLP backends (--nlp)" in p.stdout and "MRF methods (--mrf)" in p.stdout
+
+
 def test_missing_config_file(capsys):
     assert main(["run", "/no/such/config.toml"]) == 2
     assert "cannot read config '/no/such/config.toml'" in capsys.readouterr().err
