@@ -81,6 +81,9 @@ def solve(problem: NLPProblem, options: Options) -> Outcome:
         # after a NaN, dispatch repeats the last gradient (solvers.nlp.evaluation): BFGS then
         # skips its update and SciPy warns that f looks linear, which it is not
         warnings.filterwarnings("ignore", message="delta_grad == 0.0", category=UserWarning)
+        # rows that are linearly dependent (x + y >= 3 and x + y <= 1): SciPy factorizes them by SVD instead, as it
+        # should, and said so on stderr at every solve, twice
+        warnings.filterwarnings("ignore", message="Singular Jacobian matrix", category=UserWarning)
         res, timed_out = scipy_minimize.run(problem, "trust-constr", _settings(options), options, hess=BFGS())
     status = Status.TIME_LIMIT if timed_out else STATUS.get(int(res.status), Status.ERROR)
     return Outcome(x=np.asarray(res.x, dtype=float), status=status, raw_status=str(res.message),

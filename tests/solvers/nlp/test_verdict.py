@@ -183,3 +183,16 @@ def test_trust_constrs_small_trust_region_is_judged_by_the_verdict():
     sol = nlp.minimize(exact, "trust_constr", nlp.Options(tol=1e-15, max_iter=3000))
     assert "xtol" in sol.raw_status
     assert sol.status is nlp.Status.OPTIMAL_INACCURATE and np.allclose(sol.x, 1.0, atol=1e-6)
+
+
+def test_trust_constr_is_quiet_on_linearly_dependent_rows():
+    """SciPy warned "Singular Jacobian matrix. Using SVD decomposition to perform the factorizations." twice for
+    rows x + y >= 3 and x + y <= 1, through the library onto a user's stderr: it factorizes them by SVD, as it
+    should, and the verdict still says INFEASIBLE."""
+    installed("trust_constr")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sol = nlp.minimize(infeasible_rows(), "trust_constr")
+    assert sol.status is nlp.Status.INFEASIBLE
