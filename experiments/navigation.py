@@ -35,6 +35,7 @@ Writes ``OUT/navigation.csv`` (one row per run), ``OUT/navigation.md`` (the tabl
 
     PYTHONPATH=. python experiments/navigation.py --out paper_figs           # 1728 runs, 10-40 min on 2 shared cores (as loaded)
     PYTHONPATH=. python experiments/navigation.py --quick --out /tmp/nav     # 8 maps, ICM variants, 240 runs, ~2.5 min
+    PYTHONPATH=. python experiments/navigation.py --figure-only              # the figure again from navigation.csv, ~20 s
 """
 
 from __future__ import annotations
@@ -151,6 +152,9 @@ def run_case(args: tuple) -> tuple[dict, np.ndarray | None]:
 
 #: (map, N, start seed) whose paths the figure draws, with the default and the Euclidean field.
 EXAMPLES = (("trap_01", 20, 0), ("rooms_02", 20, 0))
+#: What the figure's example panels draw, by variant: the ``euclidean`` variant keeps the default's rules
+#: (only its goal field is the paper's); the paper's rules throughout are the ``paper`` variant, not drawn.
+EXAMPLE_LABELS = {"euclidean": "Euclidean field, default rules", "default": "geodesic field (default)"}
 
 
 def run_all(quick: bool, workers: int) -> tuple[list[dict], dict]:
@@ -172,6 +176,42 @@ def run_all(quick: bool, workers: int) -> tuple[list[dict], dict]:
                     paths[(row["variant"], row["map"], row["n_robots"], row["start_seed"])] = p
                 if (i + 1) % 50 == 0 or i + 1 == len(tasks):
                     print(f"{i + 1}/{len(tasks)} runs, {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+    return rows, paths
+
+
+def read_rows(path: Path) -> list[dict]:
+    """The rows of a study's ``navigation.csv``, typed as :func:`run_case` returns them."""
+    ints = ("seed", "n_robots", "start_seed", "at_goal", "mrf_steps", "trapped", "stalled", "separated")
+    floats = ("min_separation_m", "max_nearest_neighbour_m", "planning_s", "field_s", "goal_region_m")
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        r.update({k: int(r[k]) for k in ints})
+        r.update({k: float(r[k]) for k in floats})
+        r.update({k: r[k] == "True" for k in ("success", "cohesive")})
+        r["steps_to_goal"] = int(r["steps_to_goal"]) if r["steps_to_goal"] else ""
+    return rows
+
+
+def example_runs() -> tuple[list[dict], dict]:
+    """The runs whose paths the figure draws (:data:`EXAMPLES`, :data:`EXAMPLE_LABELS`), planned again."""
+    from mrfswarm.maps import save_movingai
+    from mrfswarm.maps.synthetic import generate
+
+    gen = _generate_module()
+    rows, paths = [], {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, n, s in EXAMPLES:
+            kind, seed = name.rsplit("_", 1)
+            m = generate(kind, int(seed))
+            save_movingai(m.grid, Path(tmp) / f"{m.name}.map")
+            path = Path(tmp) / f"{m.name}_n{n}.toml"
+            path.write_text(gen.config_text(m, n))
+            for v in EXAMPLE_LABELS:
+                overrides, method = ICM_VARIANTS[v]
+                row, p = run_case((v, overrides, method, name, kind, int(seed), n, s, str(path), True))
+                rows.append(row)
+                paths[(v, name, n, s)] = p
     return rows, paths
 
 
@@ -286,7 +326,7 @@ def figure(rows: list[dict], paths: dict, path: Path) -> Path:
         for name, n, s in EXAMPLES:
             kind, seed = name.rsplit("_", 1)
             m = generate(kind, int(seed))
-            for v in ("euclidean", "default"):
+            for v in EXAMPLE_LABELS:
                 ax = fig.add_subplot(gs[1, col])
                 col += 1
                 P = paths.get((v, name, n, s))
@@ -303,8 +343,7 @@ def figure(rows: list[dict], paths: dict, path: Path) -> Path:
                     status = "not run"
                 ax.plot(*m.start, marker="s", color="tab:blue", ms=7, zorder=4)
                 ax.plot(*m.goal, marker="*", color="tab:red", ms=13, zorder=4)
-                label = "geodesic (default)" if v == "default" else "Euclidean (paper)"
-                ax.set_title(f"({chr(ord('d') + col - 1)}) {name}, {label}\n{status}", fontsize=9)
+                ax.set_title(f"({chr(ord('d') + col - 1)}) {name}, {EXAMPLE_LABELS[v]}\n{status}", fontsize=9)
                 ax.set_xticks([])
                 ax.set_yticks([])
         plots.save_figure(fig, path)
@@ -316,9 +355,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "paper_figs", help="output folder (default: paper_figs)")
     ap.add_argument("--quick", action="store_true", help="8 maps, the ICM variants only")
     ap.add_argument("--workers", type=int, default=2, help="processes (default 2)")
+    ap.add_argument("--figure-only", action="store_true",
+                    help="redraw OUT/navigation.png from OUT/navigation.csv, planning again only the example runs "
+                    "it draws (seconds); refused if their robots at the goal or trapped differ from the CSV's")
     args = ap.parse_args(argv)
     if args.workers < 1:
         ap.error(f"--workers {args.workers}: must be >= 1")
+    if args.figure_only:
+        return _redraw(args.out)
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     rows, paths = run_all(args.quick, args.workers)
@@ -335,6 +379,31 @@ def main(argv: list[str] | None = None) -> int:
     figure(rows, paths, args.out / "navigation.png")
     print(md)
     print(f"{len(rows)} runs in {time.perf_counter() - t0:.0f} s -> {args.out}", file=sys.stderr)
+    return 0
+
+
+def _redraw(out: Path) -> int:
+    """``--figure-only``: the figure from the study's CSV and the example runs planned again."""
+    csv_path = out / "navigation.csv"
+    if not csv_path.is_file():
+        print(f"navigation.py: error: --figure-only needs {csv_path}, the study's table: run the study", file=sys.stderr)
+        return 2
+    rows = read_rows(csv_path)
+    fresh, paths = example_runs()
+    for f in fresh:
+        old = next((r for r in rows if all(r[k] == f[k] for k in ("variant", "map", "n_robots", "start_seed"))), None)
+        now = {k: f[k] for k in ("at_goal", "trapped", "steps_to_goal", "mrf_steps")}
+        then = {k: old[k] for k in now} if old else None
+        # the panel prints at_goal and trapped from the CSV beside the paths planned now: they must agree
+        if then is None or any(then[k] != now[k] for k in ("at_goal", "trapped")):
+            print(f"navigation.py: error: {f['variant']} on {f['map']} with {f['n_robots']} robots now plans "
+                  f"{now}, {csv_path} says {then or 'nothing'}: run the whole study", file=sys.stderr)
+            return 2
+        if then != now:
+            print(f"navigation.py: warning: {f['variant']} on {f['map']} with {f['n_robots']} robots now plans "
+                  f"{now}, {csv_path} says {then}: the panel draws the paths planned now", file=sys.stderr)
+    figure(rows, paths, out / "navigation.png")
+    print(f"{out / 'navigation.png'}: redrawn from {csv_path} and {len(fresh)} example runs", file=sys.stderr)
     return 0
 
 
