@@ -13,8 +13,11 @@ import struct
 import networkx as nx
 import numpy as np
 import pytest
+from matplotlib.collections import LineCollection
+from mpl_toolkits.mplot3d.art3d import Line3DCollection
 from scipy import ndimage
 
+from mrfswarm import plots
 from mrfswarm.cli import main
 from mrfswarm.discrete.interaction_graph import swarm_energy_from_cliques
 from mrfswarm.discrete.motion import WALL_CLEARANCE
@@ -31,6 +34,7 @@ from mrfswarm.figures import (
     studies,
     trajectories,
 )
+from mrfswarm.maps import OccupancyGrid
 
 
 def _png_size(path) -> tuple[int, int]:
@@ -155,6 +159,41 @@ def test_fig4_combined_field_has_its_valley_at_the_goal():
     assert tuple(cf.goal) == (65.0, 15.0)
     start = cf.field[tuple(cf.grid.world_to_cell(cf.robots.mean(axis=0)))]
     assert start > 5 * cf.field.min()
+
+
+def _faces(segments) -> set:
+    return {tuple(sorted(map(tuple, np.round(seg, 9).tolist()))) for seg in segments}
+
+
+def test_obstacle_edges_are_the_faces_between_occupied_and_free_cells():
+    occ = np.zeros((4, 3), bool)
+    occ[1, 1] = occ[2, 1] = True  # a block of two cells: the face between them is inside it
+    occ[3, 0] = True  # a cell in the map's corner: its faces on the map's edge too
+    grid = OccupancyGrid.from_occupied(occ, resolution=0.5, origin=(1.0, 2.0))
+    cells = [((0.5, 0.5), (1.5, 0.5)), ((1.5, 0.5), (2.5, 0.5)), ((0.5, 1.5), (1.5, 1.5)), ((1.5, 1.5), (2.5, 1.5)),
+             ((0.5, 0.5), (0.5, 1.5)), ((2.5, 0.5), (2.5, 1.5)),
+             ((2.5, -0.5), (3.5, -0.5)), ((2.5, 0.5), (3.5, 0.5)), ((2.5, -0.5), (2.5, 0.5)), ((3.5, -0.5), (3.5, 0.5))]
+    expected = _faces(np.array([1.0, 2.0]) + 0.5 * np.array(cells))
+    edges = plots.obstacle_edges(grid)
+    assert edges.shape == (len(cells), 2, 2)
+    assert _faces(edges) == expected
+
+
+def test_fig4_outlines_its_three_blocks(tmp_path, monkeypatch):
+    """Fig. 4 drew the obstacles only as the field's faint bumps (they add 5 to a field of ~30): both views now
+    outline every face between an occupied and a free cell."""
+    saved = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path, dpi=100: saved.append(fig) or path)
+    potentials.make_fig4(tmp_path)
+    cf = potentials.combined_field()
+    expected = _faces(plots.obstacle_edges(cf.grid))
+    assert len(expected) == 2 * (6 + 10) + 2 * (6 + 8) + 2 * (6 + 8)  # the three blocks' perimeters, in cells
+    top, surface = saved[0].axes[1], saved[0].axes[0]
+    drawn = [c for c in top.collections if isinstance(c, LineCollection)]
+    assert any(_faces(c.get_segments()) == expected for c in drawn)
+    lifted = [c for c in surface.collections if isinstance(c, Line3DCollection)]
+    assert len(lifted) == 1
+    plots._plt().close(saved[0])
 
 
 # --- Fig. 5: MRF steps and pruning ---------------------------------------------------------------

@@ -198,6 +198,7 @@ def make_fig3(out: Path, quick: bool = False) -> list[Path]:
 def make_fig4(out: Path, quick: bool = False) -> list[Path]:
     """Write ``fig4_combined_field.png``: a 3-D surface and a top view (log colour scale) of rho_S + I."""
     from matplotlib.colors import LogNorm
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
     cf = combined_field()
     plt = plots._plt()
@@ -211,18 +212,30 @@ def make_fig4(out: Path, quick: bool = False) -> list[Path]:
         norm = LogNorm(vmin=F.min(), vmax=F.max())
         ax3.plot_surface(XY[..., 0], XY[..., 1], F, facecolors=plt.get_cmap("viridis")(norm(F)), rstride=1,
                          cstride=1, linewidth=0, antialiased=False, shade=False)
+        # the obstacles' outline on the surface, at the field's height at each cell corner (the mean of the cells
+        # around it), drawn over the surface: their bumps alone are faint (they add up to 5 on a field of ~30)
+        corners = np.pad(F, 1, mode="edge")
+        corners = (corners[:-1, :-1] + corners[1:, :-1] + corners[:-1, 1:] + corners[1:, 1:]) / 4
+        edges = plots.obstacle_edges(cf.grid)
+        ij = np.rint((edges - np.asarray(cf.grid.origin)) / cf.grid.resolution + 0.5).astype(int)
+        ax3.computed_zorder = False
+        ax3.add_collection3d(Line3DCollection(np.concatenate([edges, corners[ij[..., 0], ij[..., 1]][..., None]], -1),
+                                              colors="k", linewidths=1.5, zorder=3))
         ax3.set_box_aspect((W / H, 1, 1.0), zoom=1.25)
         ax3.view_init(elev=38, azim=-75)
         ax3.set_xlabel("x [m]", labelpad=8)
         ax3.set_ylabel("y [m]")
         ax3.set_zlabel("energy")
-        ax3.set_title("combined potential field $\\rho_G + \\rho_O + \\Sigma_j\\,\\rho_I$ (3-D view)", y=0.93)
+        ax3.set_title("combined potential field $\\rho_G + \\rho_O + \\Sigma_j\\,\\rho_I$ (3-D view; obstacles "
+                      "outlined)", y=0.93)
         ax = fig.add_axes([0.07, 0.05, 0.86, 0.32])
         plots.draw_field(ax, F, cf.grid.extent, label="energy (log scale)", cmap="viridis", norm=norm)
         xs = cf.grid.cell_to_world(np.stack([np.arange(W), np.zeros(W, int)], 1))[:, 0]
         ys = cf.grid.cell_to_world(np.stack([np.zeros(H, int), np.arange(H)], 1))[:, 1]
         ax.contour(xs, ys, F.T, levels=np.geomspace(F.min() * 1.02, F.max(), 22), colors="w", linewidths=0.5,
                    alpha=0.6)
+        plots.outline_obstacles(ax, cf.grid)
+        ax.plot([], [], color="k", lw=1.5, label="obstacles (occupied cells)")
         ax.scatter(cf.robots[:, 0], cf.robots[:, 1], s=30, c="tab:red", edgecolors="w", zorder=5, label="robots")
         ax.plot(cf.goal[0], cf.goal[1], "*", ms=15, color="gold", mec="k", zorder=6,
                 label=f"goal ({cf.goal[0]:g}, {cf.goal[1]:g})")
