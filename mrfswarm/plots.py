@@ -134,6 +134,29 @@ def fit_inside(fig, margin: float = 0.05, rounds: int = 3) -> None:
             return
         fig.set_size_inches(w + grow[0], h + grow[1])
 
+
+def fit_height(fig, ax, pad: float = 0.15) -> None:
+    """``tight_layout``, then the figure lowered (the width kept) to what ``ax``, held at its aspect, draws.
+
+    A figure taller than the axes needs draws it in the middle of blank bands. The figure is made as high as the
+    axes, what is drawn above and below it (title, labels) and ``pad`` (inches, ``tight_layout``'s) at each edge,
+    the axes' cell as high as the axes. Not ``tight_layout`` again: it measures an axes held at its aspect only
+    roughly, and on a wide map it left the y labels outside the figure.
+    """
+    fig.tight_layout()
+    ax.apply_aspect()
+    w, h = fig.get_size_inches()
+    cell, drawn = ax.get_position(original=True), ax.get_position()
+    if cell.height - drawn.height < 1e-3:
+        return  # the axes fills its cell's height: no band above or below it
+    ink = fig.get_tightbbox()  # inches
+    below = drawn.y0 * h - ink.y0 + pad
+    above = ink.y1 - drawn.y1 * h + pad
+    height = below + drawn.height * h + above
+    fig.set_size_inches(w, height)
+    fig.subplots_adjust(bottom=below / height, top=1.0 - above / height)
+
+
 #: The side views of a 3-D figure are at least this share of the map's larger horizontal extent high: a flatter
 #: map's heights are drawn stretched (a map one voxel high got side panels a few pixels thick, their ticks overlapping).
 SIDE_SHARE = 0.2
@@ -506,6 +529,11 @@ def animate(path: Path, grid: OccupancyGrid, t: np.ndarray, positions: np.ndarra
     title = panels[0][0].set_title("") if len(panels) == 1 else fig.suptitle("")
     if len(panels) > 1:
         fit_inside(fig)
+    else:
+        # view_figure's height has room for a legend, which the animation has not: the map, held at its aspect,
+        # sat in the middle, a blank band of 0.7 inch above the title (57 px of a 400 px wide GIF) and one below
+        title.set_text(f"t = {t[-1]:.1f} s")
+        fit_height(fig, panels[0][0])
     span = max(1, int(round(trail_s * fps)))
 
     def frame(k: int):

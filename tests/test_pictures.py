@@ -442,6 +442,33 @@ def test_3d_figures_and_animation_frames_keep_their_labels_inside(tmp_path, size
         assert not any(e.any() for e in edges.values()), (picture, {k: int(e.sum()) for k, e in edges.items()})
 
 
+@pytest.mark.parametrize(("size", "res"), [((40, 40), 1.0), ((24, 16), 0.25), ((60, 8), 1.0), ((20, 40), 1.0)],
+                         ids=["square", "arena", "wide", "tall"])
+def test_a_2d_animation_has_no_blank_band_above_its_title(tmp_path, size, res):
+    """The 2-D GIFs (paper_figs' anim_*.gif, a run's --animate) had 57 blank rows above the title and 35 below the x
+    label: their figure's height had room for a legend the animation does not draw. Every frame now ends within
+    tight_layout's pad (12 px) of what it draws, above and below, and keeps its 400 px width; nothing is cut (a
+    layout of the wide map cut its y labels at the left edge). The tall map is drawn narrower than the GIF, as
+    before (view_figure's height is at most 1.5 times the width)."""
+    from PIL import Image
+
+    grid = OccupancyGrid(np.zeros(size), res)
+    t = np.array([0.0, 9.5, 123.4])
+    pos = res * np.array([[[1.0, 2.0], [3.0, 4.0]], [[5.0, 6.0], [7.0, 3.0]], [[9.0, 2.0], [9.0, 4.0]]])
+    plots.animate(tmp_path / "a.gif", grid, t, pos, res * np.array([10.0, 3.0]))
+    gif = Image.open(tmp_path / "a.gif")
+    assert gif.size[0] == 400
+    for k in range(gif.n_frames):
+        gif.seek(k)
+        ink = np.asarray(gif.convert("L")) < 250
+        rows, cols = np.flatnonzero(ink.any(axis=1)), np.flatnonzero(ink.any(axis=0))
+        blank = {"above": rows[0], "below": gif.size[1] - 1 - rows[-1], "left": cols[0],
+                 "right": gif.size[0] - 1 - cols[-1]}
+        assert all(v > 0 for v in blank.values()), (k, blank)
+        kept = ("above", "below") if size == (20, 40) else tuple(blank)
+        assert all(blank[side] <= 16 for side in kept), (k, blank)
+
+
 def test_a_big_maps_thin_walls_are_all_drawn():
     """A 2000 x 2000 MovingAI map with two walls one cell thick across it (a map tour): its figures drew the wall at
     y = 1500 and not the one at y = 500, the nearest-neighbour resampling to a few hundred pixels keeping one cell
