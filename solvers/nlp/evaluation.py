@@ -115,8 +115,12 @@ class Evaluations:
         return self._finite_gradient.get(np.asarray(x, dtype=float).reshape(-1).tobytes())
 
     def value_at(self, x: np.ndarray) -> float:
-        """``f(x)``: the value already computed at exactly ``x``, else one more (uncounted) call."""
+        """``f(x)``: the value already computed at exactly ``x``, else one more (uncounted) call; NaN, without a
+        call, at a point that is not finite (a backend's answer: the user's ``f`` is never handed one, and a time
+        refinement's raised "P, q and A must be finite", naming neither the backend nor its NaN point)."""
         x = np.asarray(x, dtype=float).reshape(-1)
+        if not np.all(np.isfinite(x)):
+            return float("nan")
         known = self._values.get(x.tobytes())
         return float(self.problem.fun(x.copy())) if known is None else known
 

@@ -27,8 +27,8 @@ def rosenbrock() -> NLPProblem:
     return NLPProblem(f, g, np.array([-1.2, 1.0]), np.full(2, -5.0), np.full(2, 5.0))
 
 
-def with_entry(monkeypatch, entry) -> str:
-    record = dataclasses.replace(dispatch.BACKENDS.get("lbfgsb"), entry=entry)
+def with_entry(monkeypatch, entry, like: str = "lbfgsb") -> str:
+    record = dataclasses.replace(dispatch.BACKENDS.get(like), name="answers", entry=entry)
     real = dispatch.BACKENDS.get
     monkeypatch.setattr(dispatch.BACKENDS, "get", lambda name: record if name == "answers" else real(name))
     return "answers"
@@ -50,3 +50,26 @@ def test_a_well_formed_outcome_is_completed(monkeypatch):
     name = with_entry(monkeypatch, lambda problem, options: Outcome(np.ones(2), Status.OPTIMAL, "done", 7))
     sol = solvers.nlp.minimize(rosenbrock(), name)
     assert sol.status is Status.OPTIMAL and np.allclose(sol.x, 1.0) and sol.objective == 0.0 and sol.iterations == 7
+
+
+def test_a_point_that_is_not_finite_is_never_handed_to_f(monkeypatch):
+    """A backend answering NaN "optimal": dispatch evaluated the user's f there to complete the solution, and a time
+    refinement's f (a window QP at those durations) raised "P, q and A must be finite", naming no backend (a tour's
+    plugin). The caller gets the best point the run evaluated, not reported optimal."""
+    seen = []
+
+    def f(x):
+        if not np.all(np.isfinite(x)):
+            raise ValueError("f was handed a point that is not finite")
+        seen.append(x.copy())
+        return float((x - 1) @ (x - 1))
+
+    def answers(problem, options):
+        problem.fun(np.array([0.5, 0.5]))
+        problem.fun(np.array([0.8, 0.9]))
+        return Outcome(np.full(2, np.nan), Status.OPTIMAL, "done", 2)
+
+    name = with_entry(monkeypatch, answers)
+    sol = solvers.nlp.minimize(NLPProblem(f, lambda x: 2 * (x - 1), np.zeros(2)), name)
+    assert len(seen) == 2 and np.allclose(sol.x, [0.8, 0.9]) and not sol.status.ok
+
