@@ -21,7 +21,7 @@ from solvers.nlp.capabilities import NLPCapabilities
 from solvers.nlp.evaluation import Evaluations
 from solvers.nlp.problem import NLPProblem
 from solvers.nlp.solution import Options, Outcome, Solution
-from solvers.nlp.verdict import ACCEPTABLE, first_order_residual, rows_feasible
+from solvers.nlp.verdict import ACCEPTABLE, ROW_SLACK, first_order_residual, rows_feasible, worst_row
 from solvers.registry import Backend, Registry
 from solvers.status import Status
 
@@ -117,7 +117,8 @@ def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Optio
     InvalidOptions
         If ``options`` is not an :class:`Options` (or None).
     SolverError
-        If the backend itself fails (raises), carrying its error text.
+        If the backend itself fails (raises), carrying its error text, or labels optimal a point that misses a
+        linear row by more than :data:`~solvers.nlp.verdict.ROW_SLACK`.
     Exception
         Whatever ``problem.fun`` or ``problem.grad`` raised, as itself.
     """
@@ -141,6 +142,11 @@ def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Optio
     total = time.perf_counter() - t0
     _check_outcome(record.name, out, problem.n)
     x = np.clip(np.asarray(out.x, dtype=float).reshape(-1), problem.lower, problem.upper)  # Ipopt relaxes by 1e-8
+    row, miss = worst_row(problem, x)
+    if out.status.ok and miss > ROW_SLACK:
+        raise SolverError(f"{record.name}: returned a point labelled {out.status.name} that misses row {row} by "
+                          f"{miss:.3g} (relative to its bound): not a solution (status {out.raw_status!r})",
+                          backend=record.name, status=str(out.raw_status))
     objective = ev.value_at(x)
     if not np.isfinite(objective) and ev.best is not None and problem.max_violation(ev.best[1]) <= 1e-9:
         # sqpmethod and SLSQP ended where f is NaN (or at a far point): the caller gets the best finite point seen,

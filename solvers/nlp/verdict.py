@@ -28,6 +28,12 @@ from solvers.nlp.problem import NLPProblem
 #: acceptable level (``acceptable_tol``) is 1e-6.
 ACCEPTABLE = 1e-6
 
+#: A point a backend labels optimal may miss a linear row by at most this much, relative to 1 + |the row's bound|
+#: (the QP backends' ``solvers.qp.base.ROW_SLACK``); further, it is not a solution, whatever the label: a backend
+#: whose record claims ``linear_constraints`` without honouring them (L-BFGS-B's) had its point outside the rows
+#: reported optimal.
+ROW_SLACK = 1e-3
+
 
 def rows_feasible(problem: NLPProblem) -> bool:
     """Whether some ``x`` meets the bounds and the linear rows (a linear program; bounds alone always admit
@@ -44,6 +50,20 @@ def rows_feasible(problem: NLPProblem) -> bool:
                   bounds=np.column_stack([problem.lower, problem.upper]), method="highs")
     # status 2 is HiGHS's proof of infeasibility; anything else (solved, or a numerical failure) is no proof
     return int(res.status) != 2
+
+
+def worst_row(problem: NLPProblem, x: np.ndarray) -> tuple[int, float]:
+    """The linear row that ``x`` misses most, and by how much relative to 1 + |its bound| (-1, 0 when every row
+    holds, or there are none)."""
+    if not problem.has_linear_rows:
+        return -1, 0.0
+    ax = problem.rows @ np.asarray(x, dtype=float)
+    lb, ub = np.asarray(problem.lb, dtype=float), np.asarray(problem.ub, dtype=float)
+    with np.errstate(invalid="ignore"):
+        miss = np.maximum(np.where(np.isfinite(lb), (lb - ax) / (1 + np.abs(lb)), 0.0),
+                          np.where(np.isfinite(ub), (ax - ub) / (1 + np.abs(ub)), 0.0))
+    k = int(np.argmax(miss))
+    return k, max(float(miss[k]), 0.0)
 
 
 def first_order_residual(problem: NLPProblem, x: np.ndarray, g: np.ndarray, tol: float = ACCEPTABLE) -> float:

@@ -73,3 +73,15 @@ def test_a_point_that_is_not_finite_is_never_handed_to_f(monkeypatch):
     sol = solvers.nlp.minimize(NLPProblem(f, lambda x: 2 * (x - 1), np.zeros(2)), name)
     assert len(seen) == 2 and np.allclose(sol.x, [0.8, 0.9]) and not sol.status.ok
 
+
+def test_a_point_labelled_optimal_outside_the_rows_is_a_solver_error(monkeypatch):
+    """A record claiming linear rows for L-BFGS-B, which ignores them: its unconstrained minimum (1, 1), outside
+    x1 + x2 <= 1, was reported OPTIMAL (a tour's plugin), where a QP backend's would be refused (ROW_SLACK)."""
+    problem = NLPProblem(lambda x: float((x - 1) @ (x - 1)), lambda x: 2 * (x - 1), np.zeros(2),
+                         A=np.ones((1, 2)), lb=[-np.inf], ub=[1.0])
+    name = with_entry(monkeypatch, lambda p, o: Outcome(np.ones(2), Status.OPTIMAL, "converged", 3), "slsqp")
+    with pytest.raises(SolverError, match=r"^answers: returned a point labelled OPTIMAL that misses row 0 by 0\.5 "):
+        solvers.nlp.minimize(problem, name)
+    near = lambda p, o: Outcome(np.array([0.5, 0.5 + 1e-4]), Status.OPTIMAL, "converged", 3)  # noqa: E731
+    name = with_entry(monkeypatch, near, "slsqp")  # within the slack: a first-order backend's tolerance
+    assert solvers.nlp.minimize(problem, name).status is Status.OPTIMAL
