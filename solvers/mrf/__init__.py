@@ -58,7 +58,7 @@ def minimize(mrf: PairwiseMRF, method: str = DEFAULT_METHOD, options: Options | 
     SolverError
         The method raised (its error text), or returned something else than an :class:`MRFResult` whose labels are
         one whole number per node (a tour's methods returning a tuple, n + 1 labels or float labels ended in numpy's
-        errors inside the planner).
+        errors inside the planner), or an energy that is not its labelling's.
     """
     entry = METHODS.get(method).entry
     check_argument(mrf, PairwiseMRF, "mrf", InvalidProblem, "solvers.mrf.PairwiseMRF")
@@ -81,7 +81,24 @@ def minimize(mrf: PairwiseMRF, method: str = DEFAULT_METHOD, options: Options | 
     if not mrf.is_feasible(res.labels):
         labels, n = repair(mrf, res.labels)
         res = dataclasses.replace(res, labels=labels, energy=mrf.energy(labels), repaired=n)
+    else:
+        _check_energy(method, mrf, res)
     return dataclasses.replace(res, time_s=time.perf_counter() - t0)
+
+
+#: How far a method's reported energy may be from its labelling's, relative to 1 + |that energy| (a sum of many
+#: terms taken in another order).
+ENERGY_SLACK = 1e-9
+
+
+def _check_energy(method: str, mrf: PairwiseMRF, res: MRFResult) -> None:
+    """A :class:`SolverError` unless ``res.energy`` is the energy of ``res.labels``: the planner reads it (its stop
+    rule, and the escalation keeps the plan of lower energy), and a tour's method reporting -1e9 for an ICM labelling
+    was taken at its word."""
+    energy = mrf.energy(res.labels)
+    if not abs(float(res.energy) - energy) <= ENERGY_SLACK * (1.0 + abs(energy)):
+        raise SolverError(f"{method}: returned energy {float(res.energy):.10g} for a labelling whose energy is "
+                          f"{energy:.10g}", backend=method, status="bad energy")
 
 
 __all__ = [

@@ -51,3 +51,16 @@ def test_a_labelling_out_of_range_is_still_repaired(monkeypatch):
     name = with_entry(monkeypatch, lambda p, o: result(np.array([0, 7, 1, 0])))
     res = mrf.minimize(chain(), name)
     assert res.repaired == 1 and res.labels.tolist() == [0, 0, 1, 0]
+
+
+def test_an_energy_that_is_not_the_labellings_is_a_solver_error(monkeypatch):
+    """The planner reads the method's energy (its stop rule; the escalation keeps the lower one): a tour's method
+    reporting -1e9 for ICM's labelling was taken at its word."""
+    def lying(problem, options):
+        return dataclasses.replace(mrf.METHODS.get("icm").entry(problem, options), energy=-1e9)
+
+    name = with_entry(monkeypatch, lying)
+    with pytest.raises(SolverError, match=r"^mine: returned energy -1000000000 for a labelling whose energy is 0$"):
+        mrf.minimize(chain(), name)
+    name = with_entry(monkeypatch, lambda p, o: result(np.zeros(4, int)))  # energy 0.0, the labelling's
+    assert mrf.minimize(chain(), name).energy == 0.0
