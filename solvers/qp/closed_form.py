@@ -61,7 +61,7 @@ RCOND_MIN = 1e-14
 RESIDUAL_OK, RESIDUAL_USABLE = 1e-10, 1e-6
 REFINE_STEPS = 3
 _RUIZ_SWEEPS = 8
-_EQUALITY_ONLY = "backend 'closed_form' solves equality-constrained problems only; this problem has inequality rows"
+_EQUALITY_ONLY = "backend {!r} solves equality-constrained problems only; this problem has inequality rows"
 
 
 def _ruiz(K: sp.csc_matrix) -> np.ndarray:
@@ -86,7 +86,7 @@ class ClosedFormQP(PreparedQP):
 
         split = split_rows(problem)
         if split.n_in:  # dispatch refuses these first (the record has no inequalities); a direct caller too
-            raise InvalidProblem(_EQUALITY_ONLY)
+            raise InvalidProblem(_EQUALITY_ONLY.format(self.name))
         n, me = problem.n, split.n_eq
         K = sp.bmat([[problem.P, split.A_eq.T], [split.A_eq, None]], format="csc")
         K = sp.csc_matrix(K)  # bmat of an (n, 0) block with None keeps shapes, make sure of CSC
@@ -109,10 +109,10 @@ class ClosedFormQP(PreparedQP):
         self.rcond, self.factor_nnz = rcond, lu.L.nnz + lu.U.nnz
         log.debug("closed_form: KKT %d x %d, nnz(L+U) = %d, rcond ~ %.1e", N, N, lu.L.nnz + lu.U.nnz, rcond)
 
-    @staticmethod
-    def _singular_message(n: int, me: int, why: str) -> str:
+    def _singular_message(self, n: int, me: int, why: str) -> str:
+        # self.name, not "closed_form": a subclass registered under another name (a plugin's copy) says its own
         return (
-            f"closed_form: the KKT matrix ({n} variables, {me} equality rows) is singular ({why}): "
+            f"{self.name}: the KKT matrix ({n} variables, {me} equality rows) is singular ({why}): "
             "the equality rows are linearly dependent, or P is not positive definite on their "
             "nullspace (the QP has no unique solution)"
         )
@@ -122,7 +122,7 @@ class ClosedFormQP(PreparedQP):
         split = split_rows(problem)
         if not split.same_partition(self._split):
             if problem.has_inequalities:
-                raise InvalidProblem(_EQUALITY_ONLY)
+                raise InvalidProblem(_EQUALITY_ONLY.format(self.name))
             super().update(problem)
             return
         if same_matrices(self.problem, problem):

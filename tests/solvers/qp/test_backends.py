@@ -279,6 +279,22 @@ def test_dispatch_refuses_inequalities_for_an_equality_only_backend():
         qp.BACKENDS.get("closed_form").entry(problem)
 
 
+def test_a_copy_of_the_closed_form_under_another_name_names_itself():
+    """A plugin's subclass registered as "my_kkt" (its record claiming inequalities) stopped the run with "backend
+    'closed_form' solves equality-constrained problems only", and a singular KKT matrix said "closed_form:" too."""
+    from solvers.qp.closed_form import ClosedFormQP
+
+    class MyKkt(ClosedFormQP):
+        name = "my_kkt"
+
+    with pytest.raises(InvalidProblem, match=r"^backend 'my_kkt' solves equality-constrained problems only"):
+        MyKkt(ref_problems.random_inequality().problem)
+    twice = qp.QPProblem(P=sp.eye(2, format="csc"), q=np.zeros(2), A=sp.csc_matrix(np.ones((2, 2))),
+                         l=np.ones(2), u=np.ones(2))  # the same equality row twice: a singular KKT matrix
+    with pytest.raises(InvalidProblem, match=r"^my_kkt: the KKT matrix \(2 variables, 2 equality rows\) is singular"):
+        MyKkt(twice)
+
+
 # ------------------------------------------------------------------ the reusable handle
 
 
