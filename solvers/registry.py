@@ -122,12 +122,16 @@ class Registry(Generic[C]):
     group
         The entry-point group whose records join when the registry is first read; ``None``
         for none (a test's registry). One registry per group.
+    entry_class
+        The class every record's ``entry`` must subclass, its ``name`` the record's (QP backends:
+        :class:`solvers.qp.PreparedQP`); ``None``: any callable (a function).
     """
 
     def __init__(self, kind: str, backends: list[Backend[C]], noun: str = "backend", *,
-                 capabilities: type[C] | None = None, group: str | None = None) -> None:
+                 capabilities: type[C] | None = None, group: str | None = None,
+                 entry_class: type | None = None) -> None:
         self.kind, self.noun = kind, noun  # noun: what the kind calls its entries ("MRF method")
-        self.capabilities, self.group = capabilities, group
+        self.capabilities, self.group, self.entry_class = capabilities, group, entry_class
         self._backends: dict[str, Backend[C]] = {}
         self._builtin: frozenset[str] = frozenset()
         self._broken: dict[str, str] = {}  # entry points that failed to load: name -> why
@@ -149,6 +153,16 @@ class Registry(Generic[C]):
                              "underscores, starting with a letter")
         if not callable(b.entry):
             raise ValueError(f"{self.kind} {self.noun} {b.name!r}: entry {b.entry!r} is not callable")
+        if self.entry_class is not None:
+            # a function as a QP backend's entry (an NLP backend's is one) failed in every solve, "AttributeError:
+            # 'Solution' object has no attribute 'solve'"; a copy of a built-in class under another record name
+            # named the original in its solutions and errors
+            need = f"{self.entry_class.__module__}.{self.entry_class.__qualname__}"
+            if not (isinstance(b.entry, type) and issubclass(b.entry, self.entry_class)):
+                raise ValueError(f"{self.kind} {self.noun} {b.name!r}: entry {b.entry!r} is not a subclass of {need}")
+            if getattr(b.entry, "name", None) != b.name:
+                raise ValueError(f"{self.kind} {self.noun} {b.name!r}: its entry {b.entry.__qualname__} is named "
+                                 f"{getattr(b.entry, 'name', None)!r}; subclass it with name = {b.name!r}")
         if self.capabilities is not None and not isinstance(b.capabilities, self.capabilities):
             raise ValueError(f"{self.kind} {self.noun} {b.name!r}: capabilities must be a "
                              f"{self.capabilities.__name__}, got {type(b.capabilities).__name__}")

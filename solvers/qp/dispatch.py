@@ -38,6 +38,7 @@ BACKENDS: Registry[QPCapabilities] = Registry(
     ],
     capabilities=QPCapabilities,
     group="solvers.qp",
+    entry_class=PreparedQP,
 )
 
 DEFAULT_BACKEND = "osqp"

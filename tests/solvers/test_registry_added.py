@@ -14,6 +14,7 @@ from solvers.errors import SolverNotFound
 from solvers.mrf import icm
 from solvers.mrf.capabilities import MRFCapabilities
 from solvers.mrf.synthetic import random_mrf
+from solvers.qp import piqp_
 from solvers.qp.capabilities import QPCapabilities
 from solvers.registry import Backend, Registry, added, restore
 
@@ -61,6 +62,37 @@ def test_a_wrong_record_is_refused_naming_itself(record, message):
     with pytest.raises(ValueError, match=message):
         mrf.METHODS.register(record)
     assert len(mrf.METHODS) == n
+
+
+def _solves_with_piqp(problem, options):  # a function, as an NLP backend's entry is
+    return qp.solve(problem, "piqp", options)
+
+
+class PiqpCopy(piqp_.PiqpQP):
+    name = "piqp_copy"
+
+
+@pytest.mark.parametrize("entry, name, message", [
+    (_solves_with_piqp, "my_qp", r"^QP backend 'my_qp': entry <function _solves_with_piqp .*> is not a subclass of "
+                                 r"solvers\.qp\.base\.PreparedQP$"),
+    (piqp_.PiqpQP, "piqp_twin", r"^QP backend 'piqp_twin': its entry PiqpQP is named 'piqp'; subclass it with "
+                                r"name = 'piqp_twin'$"),
+])
+def test_a_qp_record_whose_entry_is_not_its_own_prepared_class_is_refused(entry, name, message):
+    """A function as a QP backend's entry joined, and every solve failed with "AttributeError: 'Solution' object has
+    no attribute 'solve'" (a tour's plugin, a traceback from mrfswarm.plan); piqp's class under another record name
+    solved as "piqp" in its solutions and errors."""
+    record = dataclasses.replace(piqp_.BACKEND, name=name, entry=entry)
+    with pytest.raises(ValueError, match=message):
+        qp.BACKENDS.register(record)
+    assert name not in qp.BACKENDS
+    copy = dataclasses.replace(piqp_.BACKEND, name="piqp_copy", entry=PiqpCopy)
+    try:
+        qp.BACKENDS.register(copy)  # its own subclass: taken
+        assert qp.solve(qp.QPProblem(P=np.eye(2), q=[-1, -1], A=[[1, 1]], l=[-np.inf], u=[1]), "piqp_copy").backend \
+            == "piqp_copy"
+    finally:
+        qp.BACKENDS.unregister("piqp_copy")
 
 
 def test_a_second_record_under_a_registered_name_is_refused():
