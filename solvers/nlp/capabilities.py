@@ -13,7 +13,9 @@ class NLPCapabilities:
     ----------
     bounds
         Takes variable bounds and never evaluates ``f`` outside them (the time
-        refinement's durations must stay positive).
+        refinement's durations must stay positive): dispatch stops a backend that does with a
+        ``SolverError`` naming it; without it :func:`solvers.nlp.minimize` refuses a problem
+        with finite bounds.
     linear_constraints
         Takes linear rows ``lb <= A x <= ub``; without it :func:`solvers.nlp.minimize`
         refuses a problem that has some.

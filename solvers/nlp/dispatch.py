@@ -49,6 +49,10 @@ def available() -> list[str]:
 
 
 def _accepts(record: Backend[NLPCapabilities], problem: NLPProblem) -> None:
+    if not record.capabilities.bounds and np.isfinite(np.concatenate([problem.lower, problem.upper])).any():
+        able = ", ".join(BACKENDS.available(lambda c: c.bounds)) or "none"
+        raise InvalidProblem(f"backend {record.name!r} takes no bounds; this problem has some (installed backends "
+                             f"that take them: {able})")
     if problem.has_linear_rows and not record.capabilities.linear_constraints:
         able = ", ".join(BACKENDS.available(lambda c: c.linear_constraints)) or "none"
         raise InvalidProblem(f"backend {record.name!r} takes bounds only; this problem has linear rows "
@@ -112,13 +116,14 @@ def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Optio
     SolverNotFound
         If ``backend`` is unknown or not installed.
     InvalidProblem
-        If ``problem`` is not an :class:`NLPProblem`, has linear rows and the backend takes none, or ``grad``
-        returns a vector of the wrong size.
+        If ``problem`` is not an :class:`NLPProblem`, has linear rows or finite bounds and the backend takes none,
+        or ``grad`` returns a vector of the wrong size.
     InvalidOptions
         If ``options`` is not an :class:`Options` (or None).
     SolverError
-        If the backend itself fails (raises), carrying its error text, or labels optimal a point that misses a
-        linear row by more than :data:`~solvers.nlp.verdict.ROW_SLACK`.
+        If the backend itself fails (raises), carrying its error text, labels optimal a point that misses a
+        linear row by more than :data:`~solvers.nlp.verdict.ROW_SLACK`, or (its record claiming ``bounds``)
+        evaluates ``f`` or its gradient outside the bounds.
     Exception
         Whatever ``problem.fun`` or ``problem.grad`` raised, as itself.
     """
@@ -128,7 +133,8 @@ def minimize(problem: NLPProblem, backend: str = DEFAULT_BACKEND, options: Optio
         check_argument(options, Options, "options", InvalidOptions, "solvers.nlp.Options")
     _accepts(record, problem)
     options = options or Options()
-    ev = Evaluations(problem, replace_nan=not record.capabilities.nan_step_back)
+    ev = Evaluations(problem, replace_nan=not record.capabilities.nan_step_back,
+                     inside=record.name if record.capabilities.bounds else None)
     t0 = time.perf_counter()
     try:
         out: Outcome = record.entry(ev.counted(), options)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from solvers.errors import InvalidProblem, real_array
+from solvers.errors import InvalidProblem, SolverError, real_array
 from solvers.nlp.problem import NLPProblem
 
 
@@ -53,9 +53,11 @@ class Evaluations:
         The first exception a callable (or a check here) raised, if any.
     """
 
-    def __init__(self, problem: NLPProblem, *, replace_nan: bool = False) -> None:
+    def __init__(self, problem: NLPProblem, *, replace_nan: bool = False, inside: str | None = None) -> None:
         self.problem = problem
         self.replace_nan = replace_nan
+        #: the backend whose record promises to evaluate only inside the bounds (``bounds``), if any
+        self.inside = inside
         self.highest = -np.inf
         self._last_gradient: np.ndarray | None = None
         self.fun_calls = 0
@@ -68,11 +70,26 @@ class Evaluations:
         #: x -> whether the user's gradient there was finite (a NaN gradient handed on as zeros looked stationary)
         self._finite_gradient: dict[bytes, bool] = {}
 
+    def _check_inside(self, x: np.ndarray, what: str) -> None:
+        """A :class:`SolverError` naming the backend if its record promises ``bounds`` and ``x`` is outside them: a
+        tour's backend stepping past them handed the time refinement negative durations, and the run stopped with
+        "P[4, 4] = -1.1e+16 < 0: P must be positive semidefinite", naming neither the backend nor the bounds."""
+        if self.inside is None or x.size != self.problem.n:
+            return
+        lower, upper = np.asarray(self.problem.lower), np.asarray(self.problem.upper)
+        out = np.flatnonzero((x < lower) | (x > upper))
+        if out.size:
+            i = int(out[0])
+            raise SolverError(f"{self.inside}: evaluated {what} at x[{i}] = {x[i]:.6g}, outside its bounds "
+                              f"[{lower[i]:.6g}, {upper[i]:.6g}], although its record claims bounds",
+                              backend=self.inside, status="outside the bounds")
+
     def fun(self, x: np.ndarray) -> float:
         """``f(x)``, counted and remembered."""
         self.fun_calls += 1
         x = np.array(x, dtype=float).reshape(-1)
         try:
+            self._check_inside(x, "f")
             value = _number(self.problem.fun(x))
         except BaseException as e:
             self.raised = self.raised or e
@@ -97,6 +114,7 @@ class Evaluations:
         self.grad_calls += 1
         x = np.array(x, dtype=float).reshape(-1)
         try:
+            self._check_inside(x, "the gradient")
             g = real_array(self.problem.grad(x), "grad's value")
             if g.size != x.size:
                 raise InvalidProblem(f"grad returned {g.size} entries, the problem has {x.size} variables")

@@ -11,7 +11,7 @@ import pytest
 
 import solvers.nlp
 import solvers.nlp.dispatch as dispatch
-from solvers.errors import SolverError
+from solvers.errors import InvalidProblem, SolverError
 from solvers.nlp import NLPProblem
 from solvers.nlp.solution import Outcome
 from solvers.status import Status
@@ -85,3 +85,46 @@ def test_a_point_labelled_optimal_outside_the_rows_is_a_solver_error(monkeypatch
     near = lambda p, o: Outcome(np.array([0.5, 0.5 + 1e-4]), Status.OPTIMAL, "converged", 3)  # noqa: E731
     name = with_entry(monkeypatch, near, "slsqp")  # within the slack: a first-order backend's tolerance
     assert solvers.nlp.minimize(problem, name).status is Status.OPTIMAL
+
+
+def _steps_past_the_bounds(problem, options):
+    """Gradient steps that ignore the bounds (a record claiming them)."""
+    x = np.array(problem.x0, dtype=float)
+    for _ in range(20):
+        x = x - 0.5 * problem.grad(x)
+        problem.fun(x)
+    return Outcome(x, Status.MAX_ITER, "max", 20)
+
+
+def test_a_backend_claiming_bounds_is_stopped_at_its_first_point_outside_them(monkeypatch):
+    """A tour's backend claiming ``bounds`` stepped past them: the time refinement's f got negative durations and the
+    run stopped with "P[4, 4] = -1.1e+16 < 0: P must be positive semidefinite", naming no backend. The user's f is
+    never called outside the bounds; the error names the backend."""
+    seen = []
+
+    def f(x):
+        seen.append(x.copy())
+        return float((x + 3) @ (x + 3))
+
+    problem = NLPProblem(f, lambda x: 2 * (x + 3), np.ones(2), lower=0.0)
+    name = with_entry(monkeypatch, _steps_past_the_bounds)
+    with pytest.raises(SolverError, match=r"^answers: evaluated f at x\[0\] = -3, outside its bounds \[0, "
+                                          r"inf\], although its record claims bounds$"):
+        solvers.nlp.minimize(problem, name)
+    assert all(np.all(x >= 0) for x in seen)
+
+
+def test_a_backend_without_bounds_is_refused_a_bounded_problem(monkeypatch):
+    """The record's ``bounds = False`` was read nowhere: such a backend was handed the time refinement's bounded
+    durations. Now it is refused, as a backend without linear rows is refused rows."""
+    record = dataclasses.replace(dispatch.BACKENDS.get("lbfgsb"), name="free", entry=_steps_past_the_bounds,
+                                 capabilities=dataclasses.replace(dispatch.BACKENDS.get("lbfgsb").capabilities,
+                                                                  bounds=False))
+    real = dispatch.BACKENDS.get
+    monkeypatch.setattr(dispatch.BACKENDS, "get", lambda name: record if name == "free" else real(name))
+    with pytest.raises(InvalidProblem, match=r"^backend 'free' takes no bounds; this problem has some \(installed "
+                                             r"backends that take them: ipopt, "):
+        solvers.nlp.minimize(NLPProblem(lambda x: float(x @ x), lambda x: 2 * x, np.ones(2), lower=0.0), "free")
+    free = solvers.nlp.minimize(NLPProblem(lambda x: float((x + 3) @ (x + 3)), lambda x: 2 * (x + 3), np.ones(2)),
+                                "free")
+    assert np.allclose(free.x, -3.0)  # without bounds it is taken
