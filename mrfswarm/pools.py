@@ -23,6 +23,7 @@ from collections.abc import Iterator
 from multiprocessing.context import BaseContext
 from typing import Any
 
+from mrfswarm.errors import ConfigError
 from solvers.registry import Backend, added, restore
 
 #: Seconds :func:`stop` waits for the pool's manager thread to end after terminating the workers.
@@ -95,12 +96,44 @@ def stop(pool: cf.ProcessPoolExecutor) -> None:
         manager.join(STOP_JOIN_S)
 
 
+def check_shippable(backends: dict[str, tuple[Backend[Any], ...]], where: str, advice: str) -> None:
+    """The backends this process registered, which workers started by spawn or forkserver repeat
+    (:func:`_start_worker`), must pickle.
+
+    Raises
+    ------
+    ConfigError
+        Naming the first record that does not pickle, ``where`` it cannot go, and ``advice``.
+    """
+    import pickle
+
+    for group, records in backends.items():
+        for record in records:
+            try:
+                pickle.dumps(record)
+            except Exception as e:
+                raise ConfigError(f"backend {record.name!r} ({group}), registered in this process, cannot reach "
+                                  f"{where}: its entry is not importable by reference ({e}); define it at a module's "
+                                  f"top level, or {advice}") from None
+
+
 @contextlib.contextmanager
 def process_pool(workers: int, mp_context: BaseContext | None = None) -> Iterator[cf.ProcessPoolExecutor]:
     """A process pool for a ``with`` block: shut down normally at its end, stopped
-    (:func:`stop`) when the block raises."""
+    (:func:`stop`) when the block raises.
+
+    Raises
+    ------
+    ConfigError
+        Workers that are not forked (spawn, forkserver: a script's ``set_start_method``, macOS's default) and a
+        registered backend they cannot import (:func:`check_shippable`): the pool's start failed with a pickling
+        traceback (a tour's ``plan(cfg, qp=..., workers=2)``, a QP backend's class defined in a function).
+    """
+    backends = added()
+    if (mp_context or multiprocessing.get_context()).get_start_method() != "fork":
+        check_shippable(backends, "the worker processes", "plan with workers=1")
     pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp_context, initializer=_start_worker,
-                                  initargs=(added(),))
+                                  initargs=(backends,))
     try:
         yield pool
     except BaseException:

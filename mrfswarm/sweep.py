@@ -47,7 +47,7 @@ from mrfswarm.errors import (
     SolversError,
     UnusedSettingWarning,
 )
-from mrfswarm.pools import process_pool
+from mrfswarm.pools import check_shippable, process_pool
 
 #: The file that makes a folder a sweep's (what ``--overwrite`` may replace).
 SWEEP_MARKER = "sweep.json"
@@ -686,7 +686,7 @@ def run_sweep(config: str | Path, grid: Mapping[str, Sequence], out_dir: str | P
             bases.append(base)
 
     if scheduler is not None or ((workers or os.cpu_count() or 1) > 1 and len(tasks) > 1):
-        _check_shippable(added)
+        check_shippable(added, "the sweep's worker processes", "sweep with workers=1")
     from mrfswarm.outputs import check_output_dir
 
     check_output_dir(out_dir, overwrite, marker=SWEEP_MARKER, what="sweep")
@@ -711,27 +711,6 @@ def _drop_partial_points(out_dir: Path) -> None:
             shutil.rmtree(d, ignore_errors=True)
         if not any(points.iterdir()):
             points.rmdir()
-
-
-def _check_shippable(added: dict[str, tuple[solvers.registry.Backend[Any], ...]]) -> None:
-    """The backends this process registered, which the workers repeat (``solvers.registry.restore``), must pickle:
-    a script's lambda failed in the workers' start, a traceback and an empty output folder left (a tour).
-
-    Raises
-    ------
-    ConfigError
-        Naming the first record that does not pickle.
-    """
-    import pickle
-
-    for group, records in added.items():
-        for record in records:
-            try:
-                pickle.dumps(record)
-            except Exception as e:
-                raise ConfigError(f"backend {record.name!r} ({group}), registered in this process, cannot reach the "
-                                  f"sweep's worker processes: its entry is not importable by reference ({e}); define "
-                                  "it at a module's top level, or sweep with workers=1") from None
 
 
 def _sweep(config: Path, grid: dict, seeds: list[int] | None, overrides: list[str], out_dir: Path, tasks: list[_Task],

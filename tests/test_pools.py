@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from mrfswarm.errors import ConfigError
 from mrfswarm.pools import process_pool
 from support.added_backends import registered
 
@@ -44,6 +45,29 @@ def test_workers_know_the_backends_the_parent_registered(start):
     know a script's method (the window QPs and the simulation run their processes here too)."""
     with registered() as twin, process_pool(1, multiprocessing.get_context(start)) as pool:
         assert pool.submit(_methods).result()[-1] == twin.name
+
+
+@pytest.mark.parametrize("start", ["spawn", "forkserver"])
+def test_a_registered_backend_such_workers_cannot_import_is_refused_in_one_line(start):
+    """A script's QP backend class defined in a function, and plan(cfg, workers=2) under spawn (a script's
+    set_start_method, macOS's default): the window QPs' pool failed with a pickling traceback. A forked worker
+    inherits the record, and is started as before."""
+    from solvers.mrf import METHODS, icm
+    from solvers.registry import Backend
+
+    def local(mrf, options):
+        return icm.minimize(mrf, options)
+
+    METHODS.register(Backend(name="icm_local", entry=local, capabilities=icm.BACKEND.capabilities))
+    try:
+        with pytest.raises(ConfigError, match=r"^backend 'icm_local' \(solvers\.mrf\), registered in this process, "
+                                              r"cannot reach the worker processes: .*or plan with workers=1$"):
+            with process_pool(1, multiprocessing.get_context(start)) as pool:
+                pool.submit(_methods).result()
+        with process_pool(1, multiprocessing.get_context("fork")) as pool:
+            assert pool.submit(_methods).result()[-1] == "icm_local"
+    finally:
+        METHODS.unregister("icm_local")
 
 
 def test_an_interrupted_block_terminates_the_tasks_still_running(tmp_path):
