@@ -9,6 +9,7 @@ new data with the same sparsity pattern, and ``solve(warm_start=x)`` starts from
 from __future__ import annotations
 
 import logging
+import numbers
 import time
 from abc import ABC, abstractmethod
 from typing import ClassVar
@@ -118,8 +119,16 @@ class PreparedQP(ABC):
                 bad = int(np.flatnonzero(~np.isfinite(warm_start))[0])
                 raise InvalidProblem(f"warm_start[{bad}] = {warm_start[bad]}: must be finite")
         t0 = time.perf_counter()
-        x, status, raw, iters, y = self._guarded(self._solve, warm_start)
+        answer = self._guarded(self._solve, warm_start)
         solve_time = time.perf_counter() - t0
+        if not (isinstance(answer, tuple) and len(answer) == 5):  # a traceback from unpacking it (a tour's plugin)
+            got = f"a tuple of {len(answer)}" if isinstance(answer, tuple) else type(answer).__name__
+            raise SolverError(f"{self.name}: _solve returned {got}, not (x, status, raw_status, iterations, y)",
+                              backend=self.name, status="bad answer")
+        x, status, raw, iters, y = answer
+        if isinstance(iters, bool) or not isinstance(iters, numbers.Integral):
+            raise SolverError(f"{self.name}: returned the iteration count {iters!r}, not a whole number (status "
+                              f"{raw!r})", backend=self.name, status=str(raw))
         if not isinstance(status, Status):
             raise SolverError(f"{self.name}: returned the status {status!r}, not a solvers.qp.Status", backend=self.name,
                               status=str(raw))

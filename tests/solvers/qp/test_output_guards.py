@@ -60,3 +60,26 @@ def test_every_installed_backend_passes_the_guards():
             continue
         sol = qp.solve(problem(), name)
         assert np.allclose(sol.x, 0.5, atol=1e-3), name
+
+
+@pytest.mark.parametrize("answer, match", [
+    ((np.array([0.5, 0.5]), qp.Status.OPTIMAL, "said so", 1),
+     r"^returns: _solve returned a tuple of 4, not \(x, status, raw_status, iterations, y\)$"),
+    (None, r"^returns: _solve returned NoneType, not \(x, status, raw_status, iterations, y\)$"),
+    ((np.array([0.5, 0.5]), qp.Status.OPTIMAL, "said so", None, None),
+     r"^returns: returned the iteration count None, not a whole number \(status 'said so'\)$"),
+])
+def test_an_answer_of_another_form_is_a_solver_error(answer, match):
+    """A tour's plugin returning (x, status, raw, iterations) without y: `mrfswarm run --qp` ended in a traceback,
+    "ValueError: not enough values to unpack (expected 5, got 4)"; an iteration count None in int()'s TypeError."""
+    class Returns(PreparedQP):
+        name = "returns"
+
+        def _setup(self, problem):
+            pass
+
+        def _solve(self, warm_start):
+            return answer
+
+    with pytest.raises(SolverError, match=match):
+        Returns(problem()).solve()
