@@ -203,3 +203,14 @@ def test_entry_points_are_read_once(installed):
     assert len(reg) == 1
     sys.modules.pop("plugin_good")  # a second load would import it again, a new record: "registered already"
     assert len(reg) == 1 and reg.names() == ["icm_plugin"]
+
+
+@pytest.mark.parametrize("cap", [0, -5, 2.5, True, "120"])
+def test_an_iteration_cap_that_is_not_a_count_is_refused(cap):
+    """A plugin's record with iteration_cap = 0 joined: every attempt got a budget of one iteration and the corridor
+    flew 27.9 s instead of 20.5, without a word."""
+    with pytest.raises(ValueError, match=r"^QPCapabilities\.iteration_cap = .*: must be None \(no cap\) or a whole "
+                                         r"number >= 1$"):
+        QPCapabilities(inequalities=True, warm_start=False, detects_infeasibility=True, sparse=True, iteration_cap=cap)
+    assert QPCapabilities(inequalities=True, warm_start=False, detects_infeasibility=True, sparse=True,
+                          iteration_cap=1).iteration_budget(50) == 1
