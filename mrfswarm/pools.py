@@ -18,6 +18,7 @@ import logging
 import multiprocessing
 import os
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from multiprocessing.context import BaseContext
@@ -107,9 +108,16 @@ def check_shippable(backends: dict[str, tuple[Backend[Any], ...]], where: str, a
     """
     import pickle
 
+    # a main module without a file (a notebook, python -c): what it defines pickles by reference, "__main__.f", and a
+    # worker, which does not run it, has no such name (the workers died, "Can't get attribute 'f' on <module
+    # '__main__'>", and the sweep said it was killed or lacked `if __name__ == "__main__":`)
+    interactive = not os.path.isfile(getattr(sys.modules.get("__main__"), "__file__", None) or "")
     for group, records in backends.items():
         for record in records:
             try:
+                if interactive and getattr(record.entry, "__module__", None) == "__main__":
+                    raise ValueError(f"{record.entry.__qualname__} is defined in an interactive session (a notebook "
+                                     "cell, python -c), which worker processes do not run")
                 pickle.dumps(record)
             except Exception as e:
                 raise ConfigError(f"backend {record.name!r} ({group}), registered in this process, cannot reach "

@@ -110,3 +110,36 @@ def test_a_record_the_workers_cannot_import_is_refused_before_the_sweep(tmp_path
         assert [r["error"] for r in one.rows] == [None, None]  # in this process it is known
     finally:
         METHODS.unregister("icm_lambda")
+
+
+INTERACTIVE = """
+from solvers.mrf import METHODS, icm
+from solvers.registry import Backend
+from mrfswarm.errors import ConfigError
+from mrfswarm.sweep import run_sweep
+
+
+def icm_cell(mrf, options):
+    return icm.minimize(mrf, options)
+
+
+METHODS.register(Backend(name="icm_cell", entry=icm_cell, capabilities=icm.BACKEND.capabilities))
+try:
+    run_sweep({config!r}, {{"mrf.method": ["icm", "icm_cell"]}}, {out!r}, workers=2, overrides={fast!r})
+except ConfigError as e:
+    print(e)
+"""
+
+
+def test_a_record_defined_in_an_interactive_session_is_refused_before_the_sweep(tmp_path):
+    """docs/extending.md: a notebook cell's entry is refused in one line before the sweep starts. One defined in
+    `python -c` (a main module without a file, as a notebook's) pickled by reference, and the spawned workers died
+    with "Can't get attribute 'icm_cell' on <module '__main__'>": a BrokenProcessPool traceback saying the script
+    lacked `if __name__ == "__main__":`."""
+    code = INTERACTIVE.format(config=str(FREE5), out=str(tmp_path / "out"), fast=FAST)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.startswith("backend 'icm_cell' (solvers.mrf), registered in this process, cannot reach the "
+                                 "sweep's worker processes: its entry is not importable by reference (icm_cell is "
+                                 "defined in an interactive session"), out.stdout
+    assert not (tmp_path / "out").exists()
