@@ -69,7 +69,8 @@ def test_flown_corridor_keeps_the_separation_within_the_bound():
     # the default corridor: its flight's own maxima of jerk and speed bound the tracking error to 17.9 cm, so that
     # twice it leaves more than a Crazyflie's diameter (10 cm) of the 0.5 m safety distance (the limits' own bound,
     # 22.7 cm, would leave 4.5 cm). The fast profile at 3 x with the octagon limits used more jerk (a bound of
-    # 20.2 cm, 9.7 cm guaranteed) and this test planned with j_max = 3 for a while.
+    # 20.2 cm, 9.7 cm guaranteed) and this test planned with j_max = 3 for a while. Since the leading attempt (issue
+    # 18) its flight's jerk bounds it to 19.6 cm: 10.8 cm guaranteed.
     r = plan(mrfswarm.load_config(EXPERIMENTS / "corridor.toml"))
     f, c = r.flight, r.continuous
     assert f.tracking_bound == pytest.approx(tracking_bound(c.j_max, c.v_max))

@@ -275,17 +275,53 @@ def _drift_through_waits(m: np.ndarray, drift: float) -> np.ndarray:
     return out
 
 
+def lead_needs(needs: np.ndarray, slack: np.ndarray | float) -> np.ndarray:
+    """(T,) the shortest step durations at which every robot flies every stretch of its steps on its own profile,
+    leading or lagging its knots by up to ``slack`` seconds of it.
+
+    ``needs`` (T, N): each robot's time per step (:func:`robot_needs`); ``slack``: (T + 1,) seconds per knot, or
+    one value for every inner knot (none at the flight's ends). A robot flies its polyline at its own pace and
+    passes each knot within ``slack`` of the time it would there, so the knot times tau must meet
+    ``tau_b - tau_a >= C_b - C_a - s_a - s_b`` for every robot and every stretch a..b (C its cumulative needs).
+    The earliest such times, knot by knot, are the longest paths of these difference constraints. With no slack
+    a step lasts its slowest mover's need, as :func:`motion_profile`'s; with it a robot's long move (a diagonal
+    merge between straight steps of a file) borrows time from the steps around it.
+    """
+    needs = np.asarray(needs, dtype=float)
+    T, N = needs.shape
+    s = np.asarray(slack, dtype=float)
+    if s.ndim == 0:
+        s = np.concatenate([[0.0], np.full(max(T - 1, 0), float(s)), [0.0]]) if T else np.zeros(1)
+    if s.shape != (T + 1,):
+        raise ValueError(f"slack: expected one value or {T + 1} (one per knot), got shape {s.shape}")
+    C = np.concatenate([np.zeros((1, N)), np.cumsum(needs, axis=0)])
+    tau = np.zeros(T + 1)
+    best = -C[0] - s[0]  # per robot: the latest tau_a - C_a - s_a so far
+    for k in range(1, T + 1):
+        tau[k] = max(tau[k - 1], float(np.max(C[k] + best, initial=-np.inf)) - s[k])
+        best = np.maximum(best, tau[k] - C[k] - s[k])
+    return np.diff(tau)
+
+
 def motion_profile(paths: np.ndarray, resolution: float, v_max: float, acceleration: float,
-                   drift: float = 0.0, limits: tuple[float, float, float] | None = None) -> SwarmProfile:
+                   drift: float = 0.0, limits: tuple[float, float, float] | None = None,
+                   lead: np.ndarray | float = 0.0) -> SwarmProfile:
     """(T,) step durations derived from every robot's own motion and the limits (:func:`robot_needs`, then
     :func:`swarm_profile`).
 
     All robots share the time grid, so a step lasts the longest time any robot's move
     needs: a straight run flies at ``v_max``, a turn or a wait slows only the steps around it.
+    With ``lead`` (metres a robot may be ahead of or behind its cell at a knot: one for every inner knot, or
+    (T + 1,)), a step lasts what :func:`lead_needs` leaves of it, and the swarm's progress in it is what
+    ``v_max`` covers in that time (at least a cell).
     """
     needs, L = robot_needs(paths, resolution, v_max, acceleration, drift)
-    return swarm_profile(needs.max(axis=1, initial=0.0), np.maximum(L.max(axis=1, initial=0.0), resolution),
-                         v_max, acceleration, limits)
+    longest = L.max(axis=1, initial=0.0)
+    if np.any(np.asarray(lead) > 0) and len(needs):
+        need = lead_needs(needs, np.asarray(lead, dtype=float) / v_max)
+        return swarm_profile(need, np.maximum(np.minimum(longest, v_max * need), resolution), v_max, acceleration,
+                             limits)
+    return swarm_profile(needs.max(axis=1, initial=0.0), np.maximum(longest, resolution), v_max, acceleration, limits)
 
 
 def swarm_profile(need: np.ndarray, ell: np.ndarray, v_max: float, acceleration: float,

@@ -19,6 +19,7 @@ from mrfswarm.continuous.receding_horizon import CREEP_SPEED, CREEP_WAITS, Reced
 from mrfswarm.continuous.time_grid import drift_waits
 from mrfswarm.flight_quality import count_stops
 from mrfswarm.maps import OccupancyGrid
+from support.attempts import unled
 
 WAITS = 5  # eight at 0.1 m/s would need more than the metre of room its cell leaves it, at these slow steps
 ROBOT0 = [(x, 1) for x in range(5)] + [(4, 1)] * WAITS + [(x, 1) for x in range(5, 10)]
@@ -29,6 +30,7 @@ WAIT = slice(4, 4 + WAITS)
 
 def _flight(creep_speed: float, monkeypatch) -> tuple[RecedingHorizon, object]:
     monkeypatch.setattr(rhm, "CREEP_SPEED", creep_speed)
+    unled(monkeypatch)  # the creep rows alone (leading, the robot starts its move in the wait: no stop without them)
     rh = RecedingHorizon(PATHS, GRID, SmoothingConfig(max_pieces=0, region_growth=0.5), 0.25, workers=1)
     return rh, rh.run()
 

@@ -9,6 +9,7 @@ from mrfswarm.config import SmoothingConfig
 from mrfswarm.continuous.duration_scaling import ScalingResult, scale_durations
 from mrfswarm.continuous.receding_horizon import RecedingHorizon, WindowRecord
 from solvers.nlp import NLPProblem
+from support.attempts import unled
 from support.passing import GRID, PASSING, first_window
 
 Q = 4  # snap: each piece's cost scales as T^(1 - 2q) = T^-7
@@ -261,6 +262,7 @@ def test_the_optimistic_profiles_get_a_third_of_the_iteration_budget(monkeypatch
         return solve(spec, durations, backend, options, gradient)
 
     monkeypatch.setattr(rh_mod, "solve_window", spy)
+    unled(monkeypatch)
     rh = RecedingHorizon(PASSING, GRID, SmoothingConfig(), 0.25, workers=1)
     assert [name for name, _, _ in rh_mod.PROFILES] == ["fast", "nominal", "moderate", "cautious"] and rh.profiles
     a, c, b, start, _ = first_window(rh)

@@ -11,7 +11,7 @@ import mrfswarm
 import mrfswarm.continuous.receding_horizon as rh_mod
 from mrfswarm.config import from_dict, load_config
 from mrfswarm.continuous.receding_horizon import RecedingHorizon
-from support.attempts import unfollowed, unretimed
+from support.attempts import unfollowed, unled, unretimed
 from support.repository import EXPERIMENTS
 
 
@@ -38,6 +38,7 @@ def doorway():
 
 def test_the_fast_attempt_flies_its_steps_and_brakes_as_the_bold_one(doorway, monkeypatch):
     rh = doorway
+    monkeypatch.setattr(rh, "leading", None)  # the attempt before it, where sooner (tests/continuous/test_leading.py)
     tried: list[tuple[int, np.ndarray]] = []
     solve = rh._solve
 
@@ -90,6 +91,7 @@ def test_the_last_window_brakes_a_little_longer_before_it_falls_back(monkeypatch
     16 steps, is re-timed after its windows: not here.)"""
     unfollowed(monkeypatch)
     unretimed(monkeypatch)
+    unled(monkeypatch)
     rh = _arena()
     plan = rh.run()
     last = plan.windows[-1]
@@ -116,6 +118,7 @@ def _rooms() -> RecedingHorizon:
 def test_a_window_tries_its_fast_durations_a_little_longer_before_the_bold_ones(monkeypatch):
     """The rooms' first window is infeasible at its fast durations; the bold ones (half the fast acceleration)
     fly its first steps longer than the fast ones do 10 % longer."""
+    unled(monkeypatch)
     rh = _rooms()
     plan = rh.run()
     first = plan.windows[0]

@@ -22,7 +22,7 @@ from mrfswarm.continuous.regions import arrival_holds
 from mrfswarm.flight_quality import count_stops
 from mrfswarm.maps import OccupancyGrid
 from mrfswarm.pipeline import plan, qp_options
-from support.attempts import unfollowed, unretimed
+from support.attempts import unfollowed, unled, unretimed
 from support.repository import EXPERIMENTS
 
 T = 16
@@ -178,6 +178,7 @@ def test_where_some_holds_fail_the_other_robots_are_still_held(monkeypatch):
     sys.path.insert(0, str(EXPERIMENTS / "bench"))
     from flight_quality import case_config
 
+    unled(monkeypatch)  # the windows it was written on
     data, base = case_config("clutter40")
     # the plan of the "downhill" rule and congestion 5 (the default before the twenty-fourth session), whose windows
     # this test was written on

@@ -103,6 +103,7 @@ def test_a_forest_window_flies_the_stretch_sooner_than_the_cautious_profile(fore
     # the first window also tries the jerk-limited start (its floor keeps its steps to v_max where these profiles
     # are rash, and it flies): not what this test is about
     monkeypatch.setattr(rh, "_jerk_start", lambda attempts, *args: attempts)
+    monkeypatch.setattr(rh, "leading", None)  # nor the leading attempt
     sol, rec = rh._plan_window(a, c, b, start, None)
     names = [f.split(":")[0].split(", ")[-1] for f in rec.failed]
     assert names[:3] == ["fast", "nominal", "moderate"], rec.failed

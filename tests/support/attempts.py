@@ -26,3 +26,10 @@ def unretimed(monkeypatch: pytest.MonkeyPatch) -> None:
     0): for the tests of a window's attempts, refinement or cache on a flight short enough to be re-timed, which
     compare flights or count solves that the re-timing changes (its own: tests/continuous/test_retime.py)."""
     monkeypatch.setattr(rhm, "RETIME_HORIZONS", 0)
+
+
+def unled(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No leading attempt (``receding_horizon.LEAD_ROOM`` 0): for the tests of the other attempts (their order,
+    the fast profile first, the creep rows and holds a flight needs without it), written on flights from before it
+    (its own: tests/continuous/test_leading.py)."""
+    monkeypatch.setattr(rhm, "LEAD_ROOM", 0.0)
