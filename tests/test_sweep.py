@@ -560,7 +560,11 @@ def test_a_stopped_sweep_leaves_no_half_written_point_folder(tmp_path, signum):
     proc = subprocess.Popen([sys.executable, str(slow), "sweep", str(FREE5), "--grid", "mrf.method=icm,trws",
                              "--figures", "--workers", "2", "--out", str(out), *(f"--set={s}" for s in FAST)],
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            env={**os.environ, "PYTHONPATH": str(root)}, start_new_session=True)
+                            env={**os.environ, "PYTHONPATH": str(root)}, start_new_session=True,
+                            # Ctrl-C as from a terminal: a process started with SIGINT ignored keeps it ignored (Python
+                            # installs no KeyboardInterrupt handler), and a test before this one in the same pytest
+                            # worker can leave it so: the sweep then ran to its end (exit 0) in the full suite
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         assert proc.stdout.readline() == b"writing\n"
         assert [p.name for p in (out / "points").iterdir() if ".partial-" in p.name]  # the folder being written
