@@ -21,13 +21,25 @@ MAX_LABELLINGS = 5_000_000
 _CHUNK = 100_000
 
 
+def _count(n: int) -> str:
+    """``n`` in digits up to nine of them, else as "about 3.2e54" (a swarm's count has dozens of digits)."""
+    if n < 10**9:
+        return str(n)
+    exp = len(str(n)) - 1
+    mantissa = round(n / 10**exp, 1)  # int / int: exact to the float, whatever the size of n
+    if mantissa >= 10:
+        mantissa, exp = mantissa / 10, exp + 1
+    return f"about {mantissa:.1f}e{exp}"
+
+
 def minimize(mrf: PairwiseMRF, options: Options) -> MRFResult:
     """The global minimum of ``mrf`` over its feasible labellings."""
     t0 = time.perf_counter()
     sizes = mrf.n_labels.astype(np.int64)
     total = int(np.prod(sizes.astype(object)))
     if total > MAX_LABELLINGS:
-        raise InvalidProblem(f"exact: {total} labellings exceed the limit of {MAX_LABELLINGS}; use a heuristic method")
+        raise InvalidProblem(f"exact: {_count(total)} labellings exceed the limit of {MAX_LABELLINGS}; "
+                             "use a heuristic method")
     N = mrf.n_nodes
     e0, e1 = (mrf.edges[:, 0], mrf.edges[:, 1]) if len(mrf.edges) else (None, None)
     c0, c1 = (mrf.conflicts[:, 0], mrf.conflicts[:, 1]) if len(mrf.conflicts) else (None, None)

@@ -261,6 +261,16 @@ def test_exact_refuses_big_problems_that_the_tests_skip():
         mrf.minimize(m, "exact")
 
 
+@pytest.mark.parametrize("n, count", [(10, "740710656"), (11, r"about 5\.1e9"), (40, r"about 8\.7e34"),
+                                      (100, r"about 2\.3e87")])
+def test_exact_refusal_gives_the_count_readably(n, count):
+    """The refusal's count of labellings is digits up to nine of them, else rounded: a tour's swarm of 100 was told
+    of '1724333391924829996038697814307277425868800000000000000 labellings'."""
+    m = swarm_mrf(n)
+    with pytest.raises(InvalidProblem, match=rf"^exact: {count} labellings exceed the limit of {MAX_LABELLINGS};"):
+        mrf.minimize(m, "exact")
+
+
 @pytest.mark.parametrize("bad", [dict(temperature=0.0), dict(temperature=float("inf")), dict(schedule="fast"),
                                  dict(cooling=1.0), dict(cooling=0.0), dict(damping=1.0), dict(damping=-0.1),
                                  dict(conflict_penalty=-1.0), dict(conflict_penalty=float("inf")),
