@@ -51,6 +51,7 @@ from mrfswarm.discrete.motion import MIN_SEPARATION, min_distance_during_move, s
 from mrfswarm.discrete.planner import STAGES, DiscreteProblem, graph_weights, mrf_step, step_model
 from mrfswarm.discrete.potentials import Morse, static_field
 from solvers import mrf as mrf_solvers
+from solvers.errors import SolverNotFound
 
 RESULTS = Path(__file__).parent / "results"
 
@@ -229,6 +230,15 @@ def methods_table(methods: list[str], sizes: list[int], steps: int, out: Path, o
     write_csv(rows, out)
 
 
+def check_methods(ap: argparse.ArgumentParser, flag: str, names: list[str]) -> None:
+    """Exit with one line naming ``flag``'s first unknown or uninstalled method and the installed ones."""
+    for name in names:
+        try:
+            mrf_solvers.METHODS.get(name)
+        except SolverNotFound as e:
+            raise SystemExit(f"{ap.prog}: error: {flag}: {e}") from None
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="5,10,50,100,500,1000")
@@ -242,11 +252,11 @@ def main() -> None:
     ap.add_argument("--method-sizes", default="10,100,1000", help="N for --methods")
     ap.add_argument("--methods-out", type=Path, default=RESULTS / "mrf_step_methods.csv")
     args = ap.parse_args()
+    check_methods(ap, "--method", [args.method])
     if args.methods is not None:
         names = (args.methods.split(",") if args.methods
                  else mrf_solvers.METHODS.available(lambda c: not c.optimal))
-        for name in names:
-            mrf_solvers.METHODS.get(name)
+        check_methods(ap, "--methods", names)
         methods_table(names, [int(v) for v in args.method_sizes.split(",")], args.steps, args.methods_out)
         return
     sizes = [int(v) for v in args.sizes.split(",")]

@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from mrf_step import check_methods
 
 from mrfswarm.config import GoalPotentialConfig, ObstaclePotentialConfig
 from mrfswarm.discrete.planner import STAGES, DiscreteProblem, graph_weights, mrf_step, problem_label_sets
@@ -93,6 +94,7 @@ def main() -> None:
     ap.add_argument("--method", default="icm")
     ap.add_argument("--out", type=Path, default=RESULTS / "mrf_step_3d.csv")
     args = ap.parse_args()
+    check_methods(ap, "--method", [args.method])
     rows = []
     for n in (int(s) for s in args.sizes.split(",")):
         cases = {"2-D n=2": swarm(n, 2, 2, 1.0), "3-D n=2": swarm(n, 3, 2, args.downwash),
