@@ -310,7 +310,8 @@ def write_discrete_outputs(result: Result, out: Path) -> list[Path]:
                                 lambda p: plots.plot_paths(p, grid, pruned, goal, "pruned discrete paths (waypoints)",
                                                            waypoints=pruned)))
     written.append(atomic_write(figs / "swarm_energy.png",
-                                lambda p: plots.plot_energy(p, {result.mrf: result.discrete.energy})))
+                                lambda p: plots.plot_energy(p, {result.mrf: result.discrete.energy},
+                                                            title=f"Swarm energy, MRF method {result.mrf}")))
     m = result.metrics
     written.append(atomic_write(figs / "discrete_distances.png", lambda p: plots.plot_distances(
         p, np.arange(len(m.mean_distance)), m.min_distance, m.mean_distance, xlabel="MRF step",

@@ -18,6 +18,7 @@ from mrfswarm import plots
 from mrfswarm.figures import interactive
 from mrfswarm.maps import OccupancyGrid
 from support.flight3d import window_flight
+from support.repository import EXPERIMENTS
 
 pytest.importorskip("plotly")
 
@@ -387,6 +388,24 @@ start = {{ positions = [[0.5, 0.5], [0.5, 1.0], [1.0, 0.5], [1.0, 1.0]] }}
     outputs.write_discrete_outputs(plan(cfg, progress=False), tmp_path)
     (kw,) = calls
     assert kw["safety"] == 0.5 and kw["safety_label"].format(kw["safety"]) == "one cell (0.5 m): the least"
+
+
+def test_a_runs_energy_figure_names_its_mrf_method(tmp_path, monkeypatch):
+    """A run's swarm_energy.png, one line and so no legend, was titled "Swarm energy": it did not say which MRF
+    method made it (a tour comparing bp's run with icm's)."""
+    from mrfswarm import outputs
+    from mrfswarm.config import load_config
+    from mrfswarm.pipeline import plan
+
+    titles = []
+    real = plots.plot_energy
+    monkeypatch.setattr(plots, "plot_energy",
+                        lambda path, e, **kw: titles.append(kw.get("title")) or real(path, e, **kw))
+    cfg = load_config(EXPERIMENTS / "free5.toml",
+                      overrides=["mrf.method=bp", "smoothing.enabled=false", "simulation.enabled=false"])
+    outputs.write_discrete_outputs(plan(cfg, progress=False), tmp_path)
+    assert titles == ["Swarm energy, MRF method bp"]
+    assert (tmp_path / "figures" / "swarm_energy.png").is_file()
 
 
 def test_a_distance_figures_title_sits_above_its_legend(tmp_path, monkeypatch):
