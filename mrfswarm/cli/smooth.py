@@ -68,7 +68,7 @@ CRAZYFLIE_PIECES = 31
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("smooth", help="smooth waypoints into a min-snap trajectory (uav_trajectories CSV)",
-                       description=__doc__.splitlines()[0])
+                       description="Waypoints (CSV) -> min-snap trajectory (uav_trajectories CSV).")
     p.add_argument("waypoints", metavar="WAYPOINTS.csv", help="CSV with a header line and columns x,y[,z]")
     p.add_argument("--out", required=True, metavar="TRAJ.csv", help="output trajectory (uav_trajectories format)")
     p.add_argument("--overwrite", action="store_true", help="replace --out if it exists (refused otherwise)")

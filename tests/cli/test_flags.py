@@ -1,5 +1,6 @@
 """Every flag of every subcommand: a bad value is one line on stderr and exit 2, nothing written."""
 
+import re
 import subprocess
 import sys
 
@@ -184,3 +185,18 @@ def test_a_registered_nlp_backend_that_is_not_installed_fails_when_the_config_is
         pipeline.plan(load_config(FREE5, ["smoothing.time_refinement=true"]), nlp="ghost")
     cfg = load_config(FREE5, ["smoothing.nlp=ghost"])
     assert pipeline.resolve_config(cfg).smoothing.nlp == "ghost"
+
+
+def test_every_subcommands_help_is_plain_text(capsys):
+    """'mrfswarm smooth --help' began "``mrfswarm smooth``: waypoints ..." (its docstring's first line, RST and
+    all): neither the command's help nor a subcommand's shows reST markup."""
+    from mrfswarm.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    assert set(sub.choices) >= {"figs", "run", "smooth", "solvers", "sweep"}
+    for argv in [[], *([name] for name in sub.choices)]:
+        with pytest.raises(SystemExit):
+            main([*argv, "--help"])
+        text = capsys.readouterr().out
+        assert text.startswith(" ".join(["usage: mrfswarm", *argv]))
+        assert not re.search(r"``|:(mod|func|class|meth|attr|data):`", text), (argv, text)
