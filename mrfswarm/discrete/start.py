@@ -60,15 +60,16 @@ def _crowded(cells: np.ndarray, scale: np.ndarray) -> np.ndarray:
     return crowded
 
 
-def place(grid: OccupancyGrid, points: np.ndarray, what: str = "robot", downwash: float = 1.0) -> np.ndarray:
+def place(grid: OccupancyGrid, points: np.ndarray, key: str = "scenario.start.positions",
+          downwash: float = 1.0) -> np.ndarray:
     """Cells of world ``points`` (N, d), checked: on the map, free, one cell apart (downwash-scaled).
 
     Raises
     ------
     ScenarioError
-        Naming the first robot that is off the map, in an obstacle, in another's cell or
-        (on a voxel map) fewer than ``downwash`` cells above or below another, its
-        position and the cell.
+        Naming the config ``key`` the points came from and the first robot that is off the
+        map, in an obstacle, in another's cell or (on a voxel map) fewer than ``downwash``
+        cells above or below another, its position and the cell.
     """
     pts = np.asarray(points, dtype=float)
     cells = grid.world_to_cell(pts)
@@ -82,16 +83,16 @@ def place(grid: OccupancyGrid, points: np.ndarray, what: str = "robot", downwash
         i = int(bad[0])
         p, c = pts[i], cells[i]
         if not inside[i]:
-            raise ScenarioError(f"{what} {i} at {format_point(p)} is off the map ({map_box(grid)})")
+            raise ScenarioError(f"{key}[{i}]: robot {i} at {format_point(p)} is off the map ({map_box(grid)})")
         if not free[i]:
-            raise ScenarioError(f"{what} {i} at {format_point(p)} is inside {grid.occupied_as(c)} "
+            raise ScenarioError(f"{key}[{i}]: robot {i} at {format_point(p)} is inside {grid.occupied_as(c)} "
                                 f"(cell {format_point(c)})")
         near = np.linalg.norm((cells[:i] - c) * scale, axis=-1) < _TOO_CLOSE
         j = int(np.flatnonzero(near)[0])
         if np.array_equal(cells[j], c):
-            raise ScenarioError(f"robots {j} and {i} are both in cell {format_point(c)} (at {format_point(pts[j])} "
-                                f"and {format_point(p)})")
-        raise ScenarioError(f"robots {j} and {i} are in cells {format_point(cells[j])} and {format_point(c)}, "
+            raise ScenarioError(f"{key}: robots {j} and {i} are both in cell {format_point(c)} "
+                                f"(at {format_point(pts[j])} and {format_point(p)})")
+        raise ScenarioError(f"{key}: robots {j} and {i} are in cells {format_point(cells[j])} and {format_point(c)}, "
                             f"{abs(int(c[2] - cells[j][2]))} apart in z: scenario.downwash = {downwash:g} needs "
                             f"{int(np.ceil(downwash - 1e-9))} (at {format_point(pts[j])} and {format_point(p)})")
     return cells.astype(np.intp)
@@ -168,7 +169,7 @@ def start_cells(spec: dict, grid: OccupancyGrid, seed: int | None = None, downwa
             raise ConfigError(f"unknown config key scenario.start.{sorted(extra)[0]} next to positions; "
                               "give either positions or center/n_robots/sigma/seed")
         pts = _points(spec["positions"], "scenario.start.positions", d)
-        cells = place(grid, pts, downwash=downwash)
+        cells = place(grid, pts, "scenario.start.positions", downwash=downwash)
         say_snapped(grid, pts, cells, "scenario.start.positions", "robot")
         return cells
     unknown = keys - _SAMPLED_KEYS

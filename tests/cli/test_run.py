@@ -76,18 +76,20 @@ def test_a_seed_is_recorded_where_it_acts_and_the_recorded_config_plans_the_same
 
 BAD = {
     "robot in wall": (f"[scenario]\n{CORRIDOR_MAP}\nstart = {{ positions = [[4, 16], [20, 30]] }}\ngoal = [35, 20]\n"
-                      "[interaction]\nk = 1\n", r"robot 1 at \(20, 30\) is inside an obstacle"),
+                      "[interaction]\nk = 1\n",
+                      r"error: scenario\.start\.positions\[1\]: robot 1 at \(20, 30\) is inside an obstacle"),
     "robot off map": ("[scenario]\nmap = { kind = \"free\", size = [10, 10] }\nstart = { positions = [[1, 1], [12, 3]] }\n"
-                      "[interaction]\nk = 1\n", r"robot 1 at \(12, 3\) is off the map"),
+                      "[interaction]\nk = 1\n",
+                      r"error: scenario\.start\.positions\[1\]: robot 1 at \(12, 3\) is off the map"),
     # numpy's "invalid value encountered in cast" was printed beside the error (a tour)
     "robot far off map": ("[scenario]\nmap = { kind = \"free\", size = [10, 10] }\n"
                           "start = { positions = [[1, 1e300], [2, 3]] }\n[interaction]\nk = 1\n",
-                          r"robot 0 at \(1, 1e\+300\) is off the map"),
+                          r"error: scenario\.start\.positions\[0\]: robot 0 at \(1, 1e\+300\) is off the map"),
     "goal in wall": (f"[scenario]\n{CORRIDOR_MAP}\nstart = {{ positions = [[4, 16], [4, 18]] }}\ngoal = [20, 30]\n"
                      "[interaction]\nk = 1\n", r"scenario.goal \(20, 30\) is inside an obstacle"),
     "two in one cell": ("[scenario]\nmap = { kind = \"free\", size = [10, 10] }\n"
                         "start = { positions = [[1, 1], [2.2, 1], [1.9, 0.8]] }\n[interaction]\nk = 1\n",
-                        r"robots 1 and 2 are both in cell \(2, 1\)"),
+                        r"error: scenario\.start\.positions: robots 1 and 2 are both in cell \(2, 1\)"),
     "k < 1": ("[interaction]\nk = 0\n", r"interaction.k = 0"),
     "k >= N": ("[scenario]\nstart = { positions = [[1, 1], [3, 3], [5, 5]] }\n[interaction]\nk = 3\n",
                r"interaction.k = 3: must satisfy 1 <= k < N = 3"),

@@ -77,12 +77,13 @@ def test_positions_and_a_goal_off_their_cell_centres_are_said(caplog):
 
 
 @pytest.mark.parametrize("positions, match", [
-    ([[1, 1, 1], [5, 4, 2]], r"^robot 1 at \(5, 4, 2\) is inside an obstacle \(cell \(5, 4, 2\)\)$"),
-    ([[1, 1, 1], [1, 1, 5]], r"^robot 1 at \(1, 1, 5\) is off the map \(x in \[-0\.5, 9\.5\), y in \[-0\.5, 7\.5\), "
-                             r"z in \[-0\.5, 4\.5\)\)$"),
-    ([[1, 1, -0.6]], r"robot 0 at \(1, 1, -0\.6\) is off the map"),
-    ([[1, 1, 1], [2, 2, 2], [1.2, 0.9, 1.3]], r"^robots 0 and 2 are both in cell \(1, 1, 1\) \(at \(1, 1, 1\) and "
-                                              r"\(1\.2, 0\.9, 1\.3\)\)$"),
+    ([[1, 1, 1], [5, 4, 2]], r"^scenario\.start\.positions\[1\]: robot 1 at \(5, 4, 2\) is inside an obstacle "
+                             r"\(cell \(5, 4, 2\)\)$"),
+    ([[1, 1, 1], [1, 1, 5]], r"^scenario\.start\.positions\[1\]: robot 1 at \(1, 1, 5\) is off the map \(x in "
+                             r"\[-0\.5, 9\.5\), y in \[-0\.5, 7\.5\), z in \[-0\.5, 4\.5\)\)$"),
+    ([[1, 1, -0.6]], r"^scenario\.start\.positions\[0\]: robot 0 at \(1, 1, -0\.6\) is off the map"),
+    ([[1, 1, 1], [2, 2, 2], [1.2, 0.9, 1.3]], r"^scenario\.start\.positions: robots 0 and 2 are both in cell "
+                                              r"\(1, 1, 1\) \(at \(1, 1, 1\) and \(1\.2, 0\.9, 1\.3\)\)$"),
 ])
 def test_bad_3d_positions_name_the_robot(positions, match):
     with pytest.raises(ScenarioError, match=match) as e:
@@ -171,8 +172,9 @@ def test_sampled_swarm_keeps_the_downwash():
 
 def test_explicit_positions_keep_the_downwash():
     assert start_cells({"positions": [[1, 1, 0], [1, 1, 2], [2, 1, 1]]}, room(), downwash=2.0).shape == (3, 3)
-    with pytest.raises(ScenarioError, match=r"^robots 0 and 1 are in cells \(1, 1, 0\) and \(1, 1, 1\), 1 apart in z: "
-                                            r"scenario\.downwash = 2 needs 2 \(at \(1, 1, 0\) and \(1, 1, 1\)\)$") as e:
+    with pytest.raises(ScenarioError, match=r"^scenario\.start\.positions: robots 0 and 1 are in cells \(1, 1, 0\) and "
+                                            r"\(1, 1, 1\), 1 apart in z: scenario\.downwash = 2 needs 2 "
+                                            r"\(at \(1, 1, 0\) and \(1, 1, 1\)\)$") as e:
         start_cells({"positions": [[1, 1, 0], [1, 1, 1]]}, room(), downwash=2.0)
     one_line(e)
     with pytest.raises(ScenarioError, match=r"robots 1 and 2 are in cells \(1, 1, 3\) and \(1, 1, 1\), 2 apart in z: "
