@@ -22,10 +22,19 @@ from mrfswarm.discrete.motion import cell_values
 from mrfswarm.discrete.planner import SEPARATION_FACTOR, DiscretePlan, DiscreteProblem, plan_discrete
 from mrfswarm.discrete.pruning import prune_paths
 from mrfswarm.discrete.robot_outcomes import RobotOutcome, robot_outcomes
-from mrfswarm.errors import ConfigError, PlanError, PlanWarning, ScenarioError, SolversError, UnusedSettingWarning
+from mrfswarm.errors import (
+    ConfigError,
+    PlanError,
+    PlanWarning,
+    ScenarioError,
+    SolverNotFound,
+    SolversError,
+    UnusedSettingWarning,
+)
 from mrfswarm.metrics import DiscreteMetrics, discrete_metrics
 from mrfswarm.scenario import Scenario, build_scenario
 from solvers import mrf as mrf_solvers
+from solvers.registry import Backend, C, Registry
 
 if TYPE_CHECKING:  # the continuous stage and the simulation are imported when they run
     from mrfswarm.continuous import ContinuousPlan
@@ -369,7 +378,7 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
     SolverNotFound
         An unknown or missing MRF method (``mrf.method`` or ``mrf.escalation``), an unknown QP backend (whatever
         stage is on), a QP backend that is not installed where the continuous stage runs, or an NLP backend that
-        the time refinement would use and that is not installed.
+        the time refinement would use and that is not installed; the message begins with the config key.
     ConfigError
         A QP backend that cannot solve the continuous stage's problems (its capabilities
         lack inequality rows: regions, corridors and limits are inequalities), an ``nlp``
@@ -405,26 +414,36 @@ def resolve_config(config: Config | str | Path, *, mrf: str | None = None, qp: s
         warnings.warn(f"smoothing.nlp_options = {sm.nlp_options} not used: they set the time refinement's NLP "
                       "backend, which runs with smoothing.time_refinement = true and smoothing.refinement = \"nlp\" "
                       "(--nlp NAME)", UnusedSettingWarning, stacklevel=2)
-    mrf_solvers.METHODS.get(cfg.mrf.method)  # fail now, not after the map is loaded
+    _backend(mrf_solvers.METHODS, cfg.mrf.method, "mrf.method")  # fail now, not after the map is loaded
     if cfg.mrf.escalation != "none":  # a method that is not installed failed only at the first step it solved
-        mrf_solvers.METHODS.get(cfg.mrf.escalation)
+        _backend(mrf_solvers.METHODS, cfg.mrf.escalation, "mrf.escalation")
     if cfg.smoothing.backend not in solvers.qp.BACKENDS:  # a name no backend has is wrong with the stage off too
-        solvers.qp.BACKENDS.get(cfg.smoothing.backend)
+        _backend(solvers.qp.BACKENDS, cfg.smoothing.backend, "smoothing.backend")
     from mrfswarm.simulation import check_available, check_vehicle
 
     check_vehicle(cfg.simulation.vehicle)
     if cfg.smoothing.enabled:
-        record = solvers.qp.BACKENDS.get(cfg.smoothing.backend)  # an unknown or missing QP backend fails now too
+        record = _backend(solvers.qp.BACKENDS, cfg.smoothing.backend, "smoothing.backend")  # a missing one fails now
         if not record.capabilities.inequalities:
             able = ", ".join(solvers.qp.BACKENDS.available(lambda c: c.inequalities)) or "none"
             raise ConfigError(f"smoothing.backend = {record.name!r} solves equality-constrained problems only; the "
                               f"continuous stage's regions, corridors and limits are inequalities (installed "
                               f"backends that take them: {able})")
         if cfg.smoothing.time_refinement and cfg.smoothing.refinement == "nlp":
-            solvers.nlp.BACKENDS.get(cfg.smoothing.nlp)  # a registered NLP backend that is not installed
+            _backend(solvers.nlp.BACKENDS, cfg.smoothing.nlp, "smoothing.nlp")  # registered, not installed
         if cfg.simulation.enabled:
             check_available(cfg.simulation.vehicle, cfg.simulation.backend)
     return cfg
+
+
+def _backend(registry: Registry[C], name: str, key: str) -> Backend[C]:
+    """``registry.get(name)``, its :class:`SolverNotFound` naming the config ``key`` that gave the name (``--mrf``,
+    ``--qp`` and ``--nlp`` set one): "smoothing.backend: unknown QP backend 'nope'; installed: ...", as an unknown
+    ``smoothing.nlp`` is said."""
+    try:
+        return registry.get(name)
+    except SolverNotFound as e:
+        raise SolverNotFound(f"{key}: {e}") from e
 
 
 def with_seed(cfg: Config, seed: int | None) -> Config:

@@ -85,7 +85,7 @@ def test_an_escalation_method_that_is_not_installed_fails_before_planning(no_sce
     monkeypatch.setattr(pipeline.mrf_solvers, "METHODS", registry)
     monkeypatch.setattr("mrfswarm.config.MRF_METHODS", registry)
     cfg = from_dict({**BASE, "mrf": {"escalation": "ghost_mrf"}})
-    with pytest.raises(SolverNotFound, match=r"^MRF method 'ghost_mrf' is not installed"):
+    with pytest.raises(SolverNotFound, match=r"^mrf\.escalation: MRF method 'ghost_mrf' is not installed"):
         mrfswarm.plan(cfg)
 
 

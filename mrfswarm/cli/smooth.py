@@ -43,7 +43,7 @@ import numpy as np
 import solvers.qp
 from mrfswarm.atomic import not_writable
 from mrfswarm.config import ScenarioConfig
-from mrfswarm.errors import ConfigError
+from mrfswarm.errors import ConfigError, SolverNotFound
 from mrfswarm.trajectory.min_snap import CLOSED_FORM, solve_min_snap
 from mrfswarm.trajectory.problem import DEFAULT_DEGREE, DEFAULT_DERIVATIVE
 from mrfswarm.trajectory.retiming import require_toppra, retime_toppra, scale_to_limits
@@ -183,7 +183,10 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--altitude must be a finite number > 0 (as scenario.altitude), got {args.altitude}")
     _check_time_options(args, degree, q)
     if args.qp != CLOSED_FORM:
-        solvers.qp.BACKENDS.get(args.qp)  # unknown or missing backend: SolverNotFound, before any work
+        try:  # unknown or missing backend: SolverNotFound, before any work
+            solvers.qp.BACKENDS.get(args.qp)
+        except SolverNotFound as e:
+            raise SolverNotFound(f"--qp: {e}") from e
     out = Path(args.out)
     if not out.parent.is_dir():
         raise ConfigError(f"--out: directory {str(out.parent)!r} does not exist")

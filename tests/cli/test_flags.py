@@ -19,10 +19,12 @@ BAD = {
     "run --seed text": (["run", FREE5, "--seed", "x", "--out", "OUT"], "argument --seed: must be an integer >= 0"),
     "run --out a file": (["run", FREE5, "--out", "FILE"], "argument --out: .* is a file, not a folder"),
     "run --out under a file": (["run", FREE5, "--out", "FILE/sub"], "argument --out: .* lies under the file"),
-    "run --mrf unknown": (["run", FREE5, "--mrf", "nope", "--out", "OUT"], "unknown MRF method 'nope'"),
-    "run --qp unknown": (["run", FREE5, "--qp", "nope", "--out", "OUT"], "unknown QP backend 'nope'"),
+    "run --mrf unknown": (["run", FREE5, "--mrf", "nope", "--out", "OUT"], "error: mrf.method: unknown MRF method 'nope'"),
+    "run --qp unknown": (["run", FREE5, "--qp", "nope", "--out", "OUT"], "error: smoothing.backend: unknown QP backend 'nope'"),
+    "run --set mrf.method unknown": (["run", FREE5, "--set", "mrf.method=nope", "--out", "OUT"],
+                                     "error: mrf.method: unknown MRF method 'nope'; installed: icm, "),
     "run --qp unknown, smoothing off": (["run", FREE5, "--qp", "nope", "--set", "smoothing.enabled=false", "--out", "OUT"],
-                                        "unknown QP backend 'nope'"),
+                                        "error: smoothing.backend: unknown QP backend 'nope'"),
     "run unknown vehicle, simulation off": (["run", FREE5, "--set", "simulation.vehicle=foo", "--set",
                                              "simulation.enabled=false", "--out", "OUT"],
                                             "simulation.vehicle = 'foo': must be one of crazyflie"),
@@ -63,7 +65,7 @@ BAD = {
     "smooth --altitude negative": (["smooth", "WP", "--out", "OUT.csv", "--altitude", "-1"],
                                    r"--altitude must be a finite number > 0 \(as scenario.altitude\), got -1.0"),
     "smooth --durations text": (["smooth", "WP", "--out", "OUT.csv", "--durations", "1,x"], "is not a number"),
-    "smooth --qp unknown": (["smooth", "WP", "--out", "OUT.csv", "--qp", "nope"], "unknown QP backend 'nope'"),
+    "smooth --qp unknown": (["smooth", "WP", "--out", "OUT.csv", "--qp", "nope"], "error: --qp: unknown QP backend 'nope'"),
     "unknown subcommand": (["fly"], "invalid choice: 'fly'"),
 }
 
@@ -160,6 +162,19 @@ def test_an_equality_only_backend_fails_when_the_config_is_resolved(monkeypatch)
     assert pipeline.resolve_config(cfg, qp="closed_form").smoothing.backend == "closed_form"
 
 
+def test_a_qp_backend_that_is_not_installed_is_said_with_its_key(monkeypatch, missing_qp_backend):
+    """As an unknown --nlp names smoothing.nlp, a missing --qp names smoothing.backend (it said "QP backend 'ghost'
+    is not installed ..." alone, and a config's backend the same)."""
+    import solvers.qp
+    from mrfswarm import pipeline
+    from solvers.errors import SolverNotFound
+    from solvers.registry import Registry
+
+    monkeypatch.setattr(solvers.qp, "BACKENDS", Registry("QP", [*solvers.qp.BACKENDS, missing_qp_backend]))
+    with pytest.raises(SolverNotFound, match=r"^smoothing\.backend: QP backend 'ghost' is not installed.*ghost"):
+        pipeline.resolve_config(FREE5, qp="ghost")
+
+
 def test_a_registered_nlp_backend_that_is_not_installed_fails_when_the_config_is_resolved(monkeypatch):
     """With the time refinement on, a missing NLP backend is refused before any map is loaded, naming
     its extra; without it the backend is not used, so it is not refused."""
@@ -181,7 +196,7 @@ def test_a_registered_nlp_backend_that_is_not_installed_fails_when_the_config_is
         raise AssertionError("the scenario was built before the NLP backend was checked")
 
     monkeypatch.setattr(pipeline, "build_scenario", no_scenario)
-    with pytest.raises(SolverNotFound, match=r"NLP backend 'ghost' is not installed.*\[ghost\]"):
+    with pytest.raises(SolverNotFound, match=r"^smoothing\.nlp: NLP backend 'ghost' is not installed.*\[ghost\]"):
         pipeline.plan(load_config(FREE5, ["smoothing.time_refinement=true"]), nlp="ghost")
     cfg = load_config(FREE5, ["smoothing.nlp=ghost"])
     assert pipeline.resolve_config(cfg).smoothing.nlp == "ghost"

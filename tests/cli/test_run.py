@@ -100,7 +100,7 @@ BAD = {
     "bad type": ("[mrf]\norder = \"two\"\n", r"mrf.order must be an integer, got 'two'"),
     "malformed map": ("[scenario]\nmap = { kind = \"movingai\", path = \"bad.map\" }\n", r"bad.map"),
     "missing map": ("[scenario]\nmap = { kind = \"ros\", path = \"nowhere.yaml\" }\n", r"nowhere.yaml"),
-    "unknown mrf": ("", r"unknown MRF method 'nope'"),
+    "unknown mrf": ("", r"error: mrf\.method: unknown MRF method 'nope'"),
     "bad toml": ("[mrf\norder = 2\n", r"invalid TOML"),
 }
 

@@ -84,7 +84,7 @@ BAD = {
     "speed zero": ("x,y\n0,0\n1,1\n", ["--speed", "0"], "--speed"),
     "speed inf": ("x,y\n0,0\n1,1\n", ["--speed", "inf"], "--speed"),
     "speed and durations": ("x,y\n0,0\n1,1\n", ["--speed", "1", "--durations", "1"], "either --durations or --speed"),
-    "unknown backend": ("x,y\n0,0\n1,1\n", ["--qp", "nope"], "unknown QP backend 'nope'; installed: "),
+    "unknown backend": ("x,y\n0,0\n1,1\n", ["--qp", "nope"], "--qp: unknown QP backend 'nope'; installed: "),
     "degree above 7": ("x,y\n0,0\n1,1\n", ["--degree", "9"], "cannot be exported"),
     "degree too low": ("x,y\n0,0\n1,1\n", ["--degree", "5"], "needs degree >= 2q - 1 = 7"),
     "altitude with z": ("x,y,z\n0,0,0\n1,1,1\n", ["--altitude", "2"], "2-D waypoints only"),

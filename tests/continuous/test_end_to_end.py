@@ -169,7 +169,7 @@ def test_progress_is_quiet_off_a_terminal(tmp_path, capsys):
     ("scenario.robot_radius=0.5", r"scenario.robot_radius = 0.5 m must be below half a cell \(0.5 m on this map; scenario\.map\.coarsen = 2 "
      r"draws it in 2 m cells\)"),
     ("scenario.robot_radius=0", r"scenario.robot_radius = 0(\.0)?: must be > 0"),
-    ('smoothing.backend="nope"', r"unknown QP backend 'nope'"),
+    ('smoothing.backend="nope"', r"error: smoothing\.backend: unknown QP backend 'nope'"),
 ])
 def test_bad_smoothing_settings(override, pattern, tmp_path, capsys):
     rc = main(["run", str(EXPERIMENTS / "free5.toml"), "--out", str(tmp_path / "o"), "--set", override])
