@@ -847,12 +847,12 @@ class RecedingHorizon:
         #: mixed, the corridor 19.49 -> 19.55 s, halls50 28.99 -> 29.55, clutter40 43.16 -> 43.31, aisles30 31.21 ->
         #: 30.78, the funnel 23.91 -> 23.72, forest and rooms 0.4 % sooner, the same in sum).
         self.leading: SwarmProfile | None = None
-        if self.profiles and LEAD_ROOM > 0 and not cfg.time_refinement and drift_room(grid.resolution, self.radius) > 0:
-            name, cruise, acc = PROFILES[0]
+        room = drift_room(grid.resolution, self.radius)
+        if self.profiles and LEAD_ROOM > 0 and not cfg.time_refinement and room > 0:
+            _, cruise, acc = PROFILES[0]  # the fast profile's
             self.leading = motion_profile(self.paths, grid.resolution, cruise * change,
-                                          motion_acceleration(change, cfg.a_max, cfg.j_max, acc),
-                                          drift_room(grid.resolution, self.radius), reach,
-                                          lead=LEAD_ROOM * drift_room(grid.resolution, self.radius) / 2)
+                                          motion_acceleration(change, cfg.a_max, cfg.j_max, acc), room, reach,
+                                          lead=LEAD_ROOM * room / 2)
         if cfg.seam == "continuous" and self.E >= self.horizon and self.T > self.E:
             # every window ends at rest at its last step: flown to its end, the flight stops there (on a 14 x 10 m
             # map of 4 robots: 8.3 s by default, 11.5 s at execution 1.0, 26.4 s at horizon 1)
